@@ -1,0 +1,276 @@
+"""Robot descriptions: the xacro sources in ``urdf/`` and the URDFs generated from them.
+
+The URDF is the single source of truth for geometry and inertia (shared/DESIGN.md). Its numbers come
+from ``urdf/parameters.yaml``: each xacro file loads it and declares one xacro argument per value
+it uses, with the yaml value as default, so ``generate_urdf("fpr", link_length=1.0)`` gives a
+variant of the robot without editing any file.
+
+xacro runs without ROS, through xacrodoc. Mesh URIs stay ``package://example-robot-data/...`` in
+the generated text, so that the committed URDFs do not depend on the machine; give
+:func:`mesh_package_dirs` to Pinocchio (``package_dirs``) or yourdfpy to resolve them.
+
+Regenerate the committed files with ``python -m fpr.description`` (``--check`` only compares).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import importlib.resources
+import logging
+import re
+import sys
+from pathlib import Path
+from xml.dom import minidom
+
+logger = logging.getLogger(__name__)
+
+ROBOTS = ("fpr", "prototype")
+"""Names of the robots described in ``urdf/``."""
+
+_XACRO_FILES = {"fpr": "fpr.urdf.xacro", "prototype": "prototype.urdf.xacro"}
+_URDF_FILES = {"fpr": "fpr.urdf", "prototype": "prototype.urdf"}
+_MESH_PACKAGE = "example-robot-data"
+
+
+def _find_urdf_dir() -> Path:
+    """Return the ``urdf/`` folder: beside the ``fpr`` package, else the installed ``urdf`` package."""
+    here = Path(__file__).resolve().parents[1] / "urdf"
+    if here.is_dir():
+        return here
+    try:
+        return Path(str(importlib.resources.files("urdf")))
+    except ModuleNotFoundError:  # not installed either: keep the source-tree path for error messages
+        return here
+
+
+URDF_DIR: Path = _find_urdf_dir()
+"""The folder holding the xacro sources, ``parameters.yaml`` and the generated URDFs."""
+
+
+def _check_robot(robot: str) -> str:
+    if robot not in ROBOTS:
+        raise ValueError(f"unknown robot {robot!r}: use one of {', '.join(map(repr, ROBOTS))}")
+    return robot
+
+
+def xacro_path(robot: str) -> Path:
+    """Return the top-level xacro file of a robot.
+
+    Args:
+        robot: one of :data:`ROBOTS`.
+
+    Returns:
+        The path of ``urdf/<robot>.urdf.xacro``.
+
+    Raises:
+        ValueError: ``robot`` is not one of :data:`ROBOTS`.
+    """
+    return URDF_DIR / _XACRO_FILES[_check_robot(robot)]
+
+
+def urdf_path(robot: str) -> Path:
+    """Return the committed, generated URDF file of a robot.
+
+    Args:
+        robot: one of :data:`ROBOTS`.
+
+    Returns:
+        The path of ``urdf/<robot>.urdf``.
+
+    Raises:
+        ValueError: ``robot`` is not one of :data:`ROBOTS`.
+    """
+    return URDF_DIR / _URDF_FILES[_check_robot(robot)]
+
+
+def xacro_arguments() -> tuple[str, ...]:
+    """Return the names of the xacro arguments the robot descriptions accept.
+
+    They are the ``<xacro:arg name=...>`` declared in ``urdf/*.xacro``; each is a key of
+    ``urdf/parameters.yaml`` whose value is its default.
+
+    Returns:
+        The sorted argument names.
+    """
+    names: set[str] = set()
+    for path in sorted(URDF_DIR.glob("*.xacro")):
+        names.update(re.findall(r"<xacro:arg\s+name=\"(\w+)\"", path.read_text(encoding="utf-8")))
+    return tuple(sorted(names))
+
+
+def _robot_name(path: Path) -> str:
+    """Return the ``name`` attribute of the root ``<robot>`` element of a xacro file."""
+    root = minidom.parse(str(path)).documentElement
+    if root.tagName != "robot" or not root.getAttribute("name"):
+        raise ValueError(f"{path}: the root element must be <robot name=...>")
+    return root.getAttribute("name")
+
+
+def _format_arg(value) -> str:
+    """Return a xacro argument value as text (``repr`` keeps every digit of a float)."""
+    if isinstance(value, bool):
+        raise TypeError("xacro arguments of the robot descriptions are numbers, not booleans")
+    return repr(float(value)) if isinstance(value, (int, float)) else str(value)
+
+
+def generate_urdf(robot: str, **xacro_args) -> str:
+    """Run xacro on a robot's top-level file (without ROS) and return the URDF text.
+
+    Mesh URIs are kept as ``package://example-robot-data/...`` (not resolved to paths of this
+    machine), so the text is machine independent.
+
+    Args:
+        robot: one of :data:`ROBOTS`.
+        **xacro_args: values overriding the defaults of ``urdf/parameters.yaml``, e.g.
+            ``link_length=1.0``; see :func:`xacro_arguments` for the accepted names.
+
+    Returns:
+        The URDF document, starting with a banner saying where it comes from.
+
+    Raises:
+        ValueError: unknown robot or unknown xacro argument.
+    """
+    # Imported here: xacrodoc patches xacro's package look-up at import time, and most users of
+    # fpr only read the committed URDFs.
+    from xacrodoc import XacroDoc
+
+    path = xacro_path(robot)
+    unknown = sorted(set(xacro_args) - set(xacro_arguments()))
+    if unknown:
+        raise ValueError(
+            f"unknown xacro argument(s) {', '.join(unknown)} for {robot!r}: "
+            f"use some of {', '.join(xacro_arguments())}"
+        )
+    subargs = {name: _format_arg(value) for name, value in xacro_args.items()}
+    logger.debug("running xacro on %s with %s", path, subargs)
+
+    # The top-level file is included (by absolute path) rather than read with
+    # XacroDoc.from_file: from_file compiles the file's *text*, so xacro would resolve the
+    # relative paths inside it (includes, load_yaml('parameters.yaml')) against the current
+    # working directory instead of urdf/ ($(dirname) is not available either). An include pushes
+    # the file on xacro's file stack, which makes them relative to the file, as with the xacro
+    # command line. Only the root <robot> attributes are lost: the name is passed back.
+    # (xacro fills the defaults into the dict it is given: give it a copy.)
+    doc = XacroDoc.from_includes(
+        [path.as_posix()],
+        name=_robot_name(path),
+        subargs=dict(subargs),
+        resolve_packages=False,  # keep package:// URIs: the committed files are machine independent
+    )
+
+    banner = f" Generated from urdf/{path.name} and urdf/parameters.yaml by `python -m fpr.description`"
+    if subargs:
+        banner += " with " + " ".join(f"{k}:={v}" for k, v in sorted(subargs.items()))
+    banner += ". Do not edit by hand. "
+    doc.dom.insertBefore(doc.dom.createComment(banner), doc.dom.documentElement)
+    return doc.to_urdf_string(pretty=True)
+
+
+def write_urdf(robot: str, path: str | Path | None = None, **xacro_args) -> Path:
+    """Generate a robot's URDF and write it to a file.
+
+    Args:
+        robot: one of :data:`ROBOTS`.
+        path: where to write; default: the committed ``urdf/<robot>.urdf``.
+        **xacro_args: overrides of the ``urdf/parameters.yaml`` defaults (see :func:`generate_urdf`).
+
+    Returns:
+        The path written.
+    """
+    path = urdf_path(robot) if path is None else Path(path)
+    text = generate_urdf(robot, **xacro_args)
+    path.write_text(text, encoding="utf-8")
+    logger.info("wrote %s", path)
+    return path
+
+
+def _candidate_share_dirs() -> list[Path]:
+    """Return the folders that may hold ``example-robot-data/`` (the package's ``share`` folder)."""
+    candidates: list[Path] = []
+    try:  # pip / cmeel wheel: the files are recorded in the distribution
+        dist = importlib.metadata.distribution(_MESH_PACKAGE)
+    except importlib.metadata.PackageNotFoundError:
+        dist = None
+    if dist is not None:
+        for file in dist.files or ():
+            parts = file.parts
+            if _MESH_PACKAGE in parts:
+                rel = Path(*parts[: parts.index(_MESH_PACKAGE)])
+                candidates.append(Path(str(dist.locate_file(rel))))
+                break
+    # other layouts: cmeel prefix in a site-packages folder, conda / robotpkg share folders
+    for entry in sys.path:
+        if entry:
+            candidates.append(Path(entry) / "cmeel.prefix" / "share")
+    for prefix in dict.fromkeys((sys.prefix, sys.base_prefix)):
+        candidates.append(Path(prefix) / "share")
+    return candidates
+
+
+def mesh_package_dirs() -> list[str]:
+    """Return the folders in which ``package://example-robot-data/...`` mesh URIs resolve.
+
+    Give them to Pinocchio (``buildGeomFromUrdf(..., package_dirs=...)``) or use them to resolve
+    the URIs for yourdfpy. The folder is the ``share`` folder of the installed example-robot-data
+    (for the pip wheel: ``<site-packages>/cmeel.prefix/share``), found from the installed
+    distribution and the Python search path.
+
+    Returns:
+        The folders (as strings, without duplicates) that contain ``example-robot-data/robots``;
+        empty if example-robot-data is not installed.
+    """
+    found: list[str] = []
+    for share in _candidate_share_dirs():
+        try:
+            ok = (share / _MESH_PACKAGE / "robots").is_dir()
+        except OSError:
+            ok = False
+        if ok:
+            text = str(share.resolve())
+            if text not in found:
+                found.append(text)
+    if not found:
+        logger.warning("%s is not installed: the robots' meshes cannot be shown", _MESH_PACKAGE)
+    return found
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Regenerate the committed URDFs (or, with ``--check``, compare them with their sources).
+
+    Args:
+        argv: command-line arguments (default: ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: 0, or 1 if ``--check`` found a stale file.
+    """
+    parser = argparse.ArgumentParser(
+        prog="python -m fpr.description",
+        description="Regenerate urdf/fpr.urdf and urdf/prototype.urdf from their xacro sources.",
+    )
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="do not write: exit with status 1 if a committed URDF differs from its sources",
+    )
+    args = parser.parse_args(argv)
+
+    status = 0
+    for robot in ROBOTS:
+        path = urdf_path(robot)
+        text = generate_urdf(robot)
+        if args.check:
+            current = path.read_text(encoding="utf-8") if path.exists() else None
+            if current == text:
+                print(f"{path}: up to date")
+            else:
+                print(f"{path}: differs from its xacro sources (run python -m fpr.description)")
+                status = 1
+        else:
+            path.write_text(text, encoding="utf-8")
+            print(f"wrote {path}")
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,96 @@
+"""Exceptions of the fpr toolkit.
+
+Every error the library raises on purpose derives from :class:`FprError`, so a caller can catch
+them all at once; each subclass carries the offending data as attributes and says in its message
+what was wrong and what to change.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class FprError(Exception):
+    """Root of every error raised by fpr on purpose."""
+
+
+class UnknownRobotError(FprError, ValueError):
+    """A robot name that fpr does not know.
+
+    Attributes:
+        name: the name that was given.
+        known: the names fpr knows.
+    """
+
+    def __init__(self, name: str, known: tuple[str, ...]):
+        self.name = name
+        self.known = tuple(known)
+        super().__init__(f"unknown robot {name!r}: use one of {', '.join(map(repr, self.known))}")
+
+
+class ShapeError(FprError, ValueError):
+    """An array argument of the wrong shape.
+
+    Attributes:
+        argument: name of the argument.
+        shape: the shape that was given.
+        expected: a readable description of the expected shape.
+    """
+
+    def __init__(self, argument: str, shape: tuple[int, ...], expected: str):
+        self.argument = argument
+        self.shape = tuple(shape)
+        self.expected = expected
+        super().__init__(f"{argument}.shape={self.shape}, expected {expected}")
+
+
+class WorkspaceError(FprError, ValueError):
+    """A pose that the robot cannot reach, or that violates a workspace bound.
+
+    Attributes:
+        pose: the offending pose (task- or joint-space coordinates).
+        reason: what is violated, in words.
+    """
+
+    def __init__(self, pose, reason: str):
+        self.pose = np.asarray(pose, dtype=float)
+        self.reason = reason
+        super().__init__(f"pose {np.array2string(self.pose, precision=4)} is outside the workspace: {reason}")
+
+
+class SingularityError(FprError, ValueError):
+    """A configuration on, or closer than allowed to, a Type-2 (parallel) singularity.
+
+    Attributes:
+        configuration: the offending configuration.
+        margin: its distance to the singular set [rad].
+        required: the least distance accepted [rad].
+    """
+
+    def __init__(self, configuration, margin: float, required: float, hint: str = ""):
+        self.configuration = np.asarray(configuration, dtype=float)
+        self.margin = float(margin)
+        self.required = float(required)
+        msg = (
+            f"configuration {np.array2string(self.configuration, precision=4)} is {self.margin:.3g} rad from a "
+            f"Type-2 singularity (at least {self.required:.3g} rad required)"
+        )
+        super().__init__(msg + (f": {hint}" if hint else ""))
+
+
+def check_shape(argument: str, x, expected: tuple[int | None, ...]) -> np.ndarray:
+    """Return ``x`` as a float array after checking its shape.
+
+    Args:
+        argument: the argument's name, for the message.
+        x: array-like.
+        expected: expected shape; ``None`` entries match any size.
+
+    Raises:
+        ShapeError: when the number of dimensions or a fixed size differs.
+    """
+    a = np.asarray(x, dtype=float)
+    if a.ndim != len(expected) or any(e is not None and e != s for e, s in zip(expected, a.shape)):
+        shown = "(" + ", ".join("N" if e is None else str(e) for e in expected) + ("," if len(expected) == 1 else "") + ")"
+        raise ShapeError(argument, a.shape, shown)
+    return a
