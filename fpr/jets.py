@@ -1,0 +1,364 @@
+"""Forward-mode "jets" of time derivatives, vectorised with numpy.
+
+A :class:`Jet` carries a quantity together with its first ``K`` time derivatives,
+``d[k] = x^(k)(t)``, stacked along a leading axis in front of any batch/tensor shape.
+Arithmetic, elementary functions and batched linear algebra propagate every derivative
+exactly (Leibniz rule and recurrences of Faa di Bruno type), so a motion s(t) given with
+s', ..., s'''' yields e.g. the thrust F(t) with F', F'' without symbolic or numerical
+differentiation. Loops run only over derivative orders; all samples go through numpy at once.
+
+Example:
+    >>> t = np.linspace(0.0, 1.0, 5)
+    >>> s = Jet.from_derivatives([t**2, 2 * t, 2 + 0 * t])    # s = t^2 up to s''
+    >>> phi = atan2(-s, 1.0)                                   # phi, phi', phi''
+    >>> phi.order, phi.shape, float(phi.d[2][0])              # phi''(0) = -s''(0)
+    (2, (5,), -2.0)
+"""
+import math
+
+import numpy as np
+
+_MAXK = 16
+_B = np.array([[math.comb(n, k) for k in range(_MAXK + 1)] for n in range(_MAXK + 1)], float)
+
+
+def _pad(d, ndim):
+    """Insert unit axes after the derivative axis so that ``d`` has ``ndim`` trailing dims."""
+    extra = ndim - (d.ndim - 1)
+    return d.reshape(d.shape[:1] + (1,) * extra + d.shape[1:]) if extra > 0 else d
+
+
+def _ax(axis):
+    """Map an axis of the trailing shape to an axis of ``d``."""
+    return axis + 1 if axis >= 0 else axis
+
+
+def _wsum(w, terms):
+    """Weighted sum ``sum_i w[i] * terms[i]`` over the leading axis."""
+    return np.tensordot(w, terms, axes=(0, 0))
+
+
+def _parts(x):
+    """Return ``(d, order)`` of a Jet, or ``(x[None], None)`` for a constant (infinite order)."""
+    return (x.d, x.order) if isinstance(x, Jet) else (np.asarray(x)[None], None)
+
+
+def _lift(x, order):
+    """Return ``x`` if it is a Jet, else the constant Jet of ``x`` with the given order."""
+    return x if isinstance(x, Jet) else Jet.constant(x, order)
+
+
+def _leibniz(da, db, K, op=np.multiply):
+    """Derivatives of ``op(a, b)`` for a bilinear ``op``: sum_k C(n,k) op(a^(k), b^(n-k))."""
+    return np.stack([_wsum(_B[n, :n + 1], op(da[:n + 1], db[n::-1])) for n in range(K + 1)])
+
+
+def _add_const(d, c):
+    """Add the constant ``c`` to the value ``d[0]`` only."""
+    out = np.empty(d.shape[:1] + np.broadcast_shapes(d.shape[1:], c.shape),
+                   np.result_type(d, c, float))
+    out[...] = d
+    out[0] += c
+    return out
+
+
+class Jet:
+    """A quantity and its time derivatives.
+
+    Args:
+        d: Array ``(K+1, *shape)``, ``d[k]`` the k-th derivative; ``shape`` is batch dims first,
+            then vector/matrix dims (e.g. ``(N,)``, ``(N, 2)``, ``(N, 4, 4)``).
+    """
+
+    __array_ufunc__ = None  # ``ndarray <op> Jet`` defers to the Jet's reflected operator.
+
+    def __init__(self, d):
+        d = np.asarray(d)
+        if d.ndim == 0 or not 1 <= d.shape[0] <= _MAXK + 1:
+            raise ValueError(f"Jet needs 1..{_MAXK + 1} derivatives along axis 0, got {d.shape}")
+        self.d = d if np.issubdtype(d.dtype, np.inexact) else d.astype(float)
+
+    @classmethod
+    def constant(cls, x, order):
+        """Jet of a time-constant value ``x`` (all derivatives zero)."""
+        x = np.asarray(x)
+        d = np.zeros((order + 1,) + x.shape, np.result_type(x, float))
+        d[0] = x
+        return cls(d)
+
+    @classmethod
+    def from_derivatives(cls, derivs):
+        """Jet from the list ``[x, x', ..., x^(K)]`` (arrays broadcast to a common shape)."""
+        return cls(np.stack(np.broadcast_arrays(*[np.asarray(x) for x in derivs])))
+
+    @classmethod
+    def variable(cls, t, order):
+        """Jet of the independent variable itself: ``[t, 1, 0, ..., 0]``."""
+        j = cls.constant(np.asarray(t, float), order)
+        if order >= 1:
+            j.d[1] = 1.0
+        return j
+
+    order = property(lambda self: self.d.shape[0] - 1, doc="Highest derivative order K.")
+    shape = property(lambda self: self.d.shape[1:], doc="Trailing (batch + tensor) shape.")
+    ndim = property(lambda self: self.d.ndim - 1, doc="Number of trailing dims.")
+    value = property(lambda self: self.d[0], doc="The undifferentiated value ``d[0]``.")
+    mT = property(lambda self: Jet(np.swapaxes(self.d, -1, -2)), doc="Swap the last two dims.")
+    T = mT  # Batch-first convention: only the last two (matrix) dims are transposed.
+
+    def __repr__(self):
+        return f"Jet(order={self.order}, shape={self.shape})"
+
+    def __getitem__(self, key):
+        return Jet(self.d[(slice(None),) + (key if isinstance(key, tuple) else (key,))])
+
+    def truncate(self, order):
+        """Keep derivatives ``0..order`` only."""
+        if not 0 <= order <= self.order:
+            raise ValueError(f"cannot truncate order {self.order} to {order}")
+        return Jet(self.d[:order + 1])
+
+    def derivative(self):
+        """The Jet of ``x'`` (order K-1): derivatives shifted down by one."""
+        return Jet(self.d[1:])
+
+    def reshape(self, *shape):
+        """Reshape the trailing dims."""
+        shape = shape[0] if len(shape) == 1 and isinstance(shape[0], tuple) else shape
+        return Jet(self.d.reshape((self.d.shape[0],) + tuple(shape)))
+
+    def sum(self, axis=None):
+        """Sum over trailing ``axis`` (int or tuple; ``None`` for all trailing dims)."""
+        if axis is None:
+            axis = tuple(range(self.ndim))
+        axis = tuple(map(_ax, axis)) if isinstance(axis, tuple) else _ax(axis)
+        return Jet(self.d.sum(axis=axis))
+
+    # --- arithmetic -------------------------------------------------------------------------
+    def _binary(self, other, jet_op, const_op):
+        if isinstance(other, Jet):
+            K, nd = min(self.order, other.order), max(self.ndim, other.ndim)
+            return Jet(jet_op(_pad(self.d[:K + 1], nd), _pad(other.d[:K + 1], nd), K))
+        c = np.asarray(other)
+        return Jet(const_op(_pad(self.d, c.ndim), c))
+
+    def __add__(self, other):
+        return self._binary(other, lambda a, b, K: a + b, _add_const)
+
+    __radd__ = __add__
+
+    def __neg__(self):
+        return Jet(-self.d)
+
+    def __sub__(self, other):
+        return self + (-(other if isinstance(other, Jet) else np.asarray(other)))
+
+    def __rsub__(self, other):
+        return (-self) + other
+
+    def __mul__(self, other):
+        return self._binary(other, _leibniz, lambda d, c: d * c)
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, other):
+        return self._binary(other, _divide, lambda d, c: d / c)
+
+    def __rtruediv__(self, other):
+        return _lift(other, self.order) / self
+
+    def __matmul__(self, other):
+        return matmul(self, other)
+
+    def __rmatmul__(self, other):
+        return matmul(other, self)
+
+    def __pow__(self, p):
+        """Small integer powers by repeated products; real powers by ``a f' = p a' f`` (a != 0)."""
+        if isinstance(p, (int, np.integer)):
+            if p < 0:
+                return 1.0 / self ** (-p)
+            result = self if p else Jet.constant(np.ones(self.shape, self.d.dtype), self.order)
+            for _ in range(p - 1):
+                result = result * self
+            return result
+        a, f = self.d, np.empty_like(self.d)
+        f[0] = a[0] ** p
+        for n in range(1, self.order + 1):
+            f[n] = (p * _wsum(_B[n - 1, :n], a[1:n + 1] * f[n - 1::-1])
+                    - _wsum(_B[n - 1, 1:n], a[1:n] * f[n - 1:0:-1])) / a[0]
+        return Jet(f)
+
+
+def _divide(da, db, K):
+    """Quotient recurrence q^(n) = (a^(n) - sum_{k=1..n} C(n,k) b^(k) q^(n-k)) / b."""
+    q = np.empty((K + 1,) + np.broadcast_shapes(da.shape[1:], db.shape[1:]),
+                 np.result_type(da, db, float))
+    for n in range(K + 1):
+        acc = da[n] - _wsum(_B[n, 1:n + 1], db[1:n + 1] * q[n - 1::-1]) if n else da[0]
+        q[n] = acc / db[0]
+    return q
+
+
+def _integrate(value, dj):
+    """Jet with value ``value`` whose derivative is the Jet ``dj``."""
+    return Jet(np.concatenate([np.broadcast_to(value, dj.shape)[None], dj.d]))
+
+
+# --- elementwise functions ---------------------------------------------------------------------
+def sincos(a):
+    """Return ``(sin(a), cos(a))`` by the coupled recurrence
+    s^(n) = sum_{k<n} C(n-1,k) c^(k) a^(n-k),  c^(n) = -sum_{k<n} C(n-1,k) s^(k) a^(n-k)."""
+    if not isinstance(a, Jet):
+        return np.sin(a), np.cos(a)
+    d, s, c = a.d, np.empty_like(a.d), np.empty_like(a.d)
+    s[0], c[0] = np.sin(d[0]), np.cos(d[0])
+    for n in range(1, a.order + 1):
+        w, dn = _B[n - 1, :n], d[n:0:-1]
+        s[n], c[n] = _wsum(w, c[:n] * dn), -_wsum(w, s[:n] * dn)
+    return Jet(s), Jet(c)
+
+
+def sin(a):
+    """Sine (see :func:`sincos`)."""
+    return sincos(a)[0]
+
+
+def cos(a):
+    """Cosine (see :func:`sincos`)."""
+    return sincos(a)[1]
+
+
+def exp(a):
+    """Exponential: f^(n) = sum_{k<n} C(n-1,k) f^(k) a^(n-k)."""
+    if not isinstance(a, Jet):
+        return np.exp(a)
+    d, f = a.d, np.empty_like(a.d)
+    f[0] = np.exp(d[0])
+    for n in range(1, a.order + 1):
+        f[n] = _wsum(_B[n - 1, :n], f[:n] * d[n:0:-1])
+    return Jet(f)
+
+
+def log(a):
+    """Natural logarithm, from log(a)' = a' / a."""
+    if not isinstance(a, Jet):
+        return np.log(a)
+    if a.order == 0:
+        return Jet(np.log(a.d))
+    return _integrate(np.log(a.value), a.derivative() / a.truncate(a.order - 1))
+
+
+def sqrt(a):
+    """Square root: f^(n) = (a^(n) - sum_{k=1}^{n-1} C(n,k) f^(k) f^(n-k)) / (2 f); needs a > 0."""
+    if not isinstance(a, Jet):
+        return np.sqrt(a)
+    d, f = a.d, np.empty_like(a.d)
+    f[0] = np.sqrt(d[0])
+    for n in range(1, a.order + 1):
+        f[n] = (d[n] - _wsum(_B[n, 1:n], f[1:n] * f[n - 1:0:-1])) / (2 * f[0])
+    return Jet(f)
+
+
+def square(a):
+    """``a * a``."""
+    return a * a
+
+
+def atan2(y, x):
+    """Four-quadrant angle with continuous derivatives across the branch cut:
+    value ``np.arctan2(y, x)``, derivative jet ``(x y' - y x') / (x^2 + y^2)``."""
+    if not isinstance(y, Jet) and not isinstance(x, Jet):
+        return np.arctan2(y, x)
+    K = min(j.order for j in (y, x) if isinstance(j, Jet))
+    y, x = _lift(y, K).truncate(K), _lift(x, K).truncate(K)
+    value = np.arctan2(y.value, x.value)
+    if K == 0:
+        return Jet(value[None])
+    y0, x0 = y.truncate(K - 1), x.truncate(K - 1)
+    return _integrate(value, (x0 * y.derivative() - y0 * x.derivative()) / (x0 * x0 + y0 * y0))
+
+
+def hypot(x, y):
+    """``sqrt(x^2 + y^2)`` (not differentiable where it vanishes)."""
+    return sqrt(x * x + y * y)
+
+
+def dot(a, b, axis=-1):
+    """Inner product of ``a`` and ``b`` along trailing ``axis``."""
+    p = a * b
+    return p.sum(axis) if isinstance(p, Jet) else np.sum(p, axis=axis)
+
+
+def norm(v, axis=-1):
+    """Euclidean norm along trailing ``axis``."""
+    return sqrt(dot(v, v, axis))
+
+
+# --- linear algebra on the trailing dims ---------------------------------------------------------
+def matmul(a, b):
+    """Batched ``a @ b`` with numpy's matmul semantics on the trailing dims (1-D = vector)."""
+    if not isinstance(a, Jet) and not isinstance(b, Jet):
+        return np.matmul(a, b)
+    (da, ka), (db, kb) = _parts(a), _parts(b)
+    va, vb = da.ndim == 2, db.ndim == 2
+    da, db = (da[:, None, :] if va else da), (db[..., None] if vb else db)
+    nd = max(da.ndim, db.ndim) - 1
+    da, db = _pad(da, nd), _pad(db, nd)
+    if ka is None or kb is None:
+        d = np.matmul(da[0], db) if ka is None else np.matmul(da, db[0])
+    else:
+        d = _leibniz(da, db, min(ka, kb), np.matmul)
+    d = d[..., 0] if vb else d
+    return Jet(d[..., 0, :] if va else d)
+
+
+def matvec(A, x):
+    """Batched matrix-vector product: ``A`` (..., n, m), ``x`` (..., m) -> (..., n)."""
+    return matmul(A, x[..., None])[..., 0]
+
+
+def solve(A, b):
+    """Solve ``A x = b`` for batched square ``A`` (..., n, n).
+
+    ``b`` is a stack of vectors (..., n) if it has one dim less than ``A`` or cannot be a stack
+    of (n, m) matrices (e.g. ``A`` (n, n), ``b`` (N, n) with N != n), else of matrices.
+    ``A0`` is inverted once and x^(n) = A0^{-1} (b^(n) - sum_{k=1..n} C(n,k) A^(k) x^(n-k)).
+    Either argument may be a constant array.
+    """
+    (dA, kA), (dB, kB) = _parts(A), _parts(b)
+    size = dA.shape[-1]
+    vec = dB.shape[-1] == size and (dB.ndim in (2, dA.ndim - 1) or dB.shape[-2] != size)
+    dB = dB[..., None] if vec else dB
+    nd = max(dA.ndim, dB.ndim) - 1
+    dA, dB = _pad(dA, nd), _pad(dB, nd)
+    K = min([k for k in (kA, kB) if k is not None], default=0)
+    inv = np.linalg.inv(dA[0])
+    if kA is None:
+        x = np.matmul(inv, dB[:K + 1])
+    else:
+        xs = [np.matmul(inv, dB[0])]
+        for n in range(1, K + 1):
+            r = _wsum(_B[n, 1:n + 1], np.matmul(dA[1:n + 1], np.stack(xs[::-1])))
+            xs.append(np.matmul(inv, (dB[n] if n < dB.shape[0] else 0.0) - r))
+        x = np.stack(xs)
+    x = Jet(x[..., 0] if vec else x)
+    return x if isinstance(A, Jet) or isinstance(b, Jet) else x.value
+
+
+def _align_all(items):
+    """Lift constants, truncate to the common order, pad to common trailing ndim."""
+    K = min(x.order for x in items if isinstance(x, Jet))
+    ds = [_lift(x, K).d[:K + 1] for x in items]
+    nd = max(d.ndim for d in ds) - 1
+    return [_pad(d, nd) for d in ds]
+
+
+def stack(items, axis=0):
+    """Stack Jets (and constants, broadcast) along a new trailing ``axis``."""
+    return Jet(np.stack(np.broadcast_arrays(*_align_all(items)), axis=_ax(axis)))
+
+
+def concatenate(items, axis=0):
+    """Concatenate Jets (and constant arrays) along an existing trailing ``axis``."""
+    return Jet(np.concatenate(_align_all(items), axis=_ax(axis)))
