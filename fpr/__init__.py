@@ -1,0 +1,27 @@
+"""fpr: model, plan and control a Flying Parallel Robot and its one-drone lab prototype.
+
+Quick start::
+
+    import fpr
+    robot = fpr.load("fpr")            # or fpr.load("prototype")
+    q = robot.configuration(phi=5 * 3.14159 / 4, q21=3.14159 / 2)
+    M = robot.mass_matrix(q)           # in the seed thesis' coordinates
+
+See README.md for the command line (``python -m fpr.plan``) and the notebooks.
+"""
+
+from fpr.errors import FprError, ShapeError, SingularityError, UnknownRobotError, WorkspaceError
+from fpr.robots import ROBOTS, Robot, load
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "FprError",
+    "ROBOTS",
+    "Robot",
+    "ShapeError",
+    "SingularityError",
+    "UnknownRobotError",
+    "WorkspaceError",
+    "load",
+]

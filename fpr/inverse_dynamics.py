@@ -1,0 +1,192 @@
+"""Inverse dynamics of a planned motion: what each drone must do to fly it (seed 3.12-3.17, 3.31, 3.47).
+
+From the chain motion s(t) (FPR: ``[y z phi q21]``; prototype: ``xi = [q1 q2]``) and its time
+derivatives up to the 4th, for every sample at once:
+
+1. **Thrust vectors** F_i (world y, z) with the seed's planning model, where each drone is a point
+   mass at its joint (eq. 2.6-2.7 with p_i left out, 2.16, 3.12; 3.37 for the prototype):
+
+   .. math:: J_h(s)^T F = M_s(s) \\ddot s + c_s(s, \\dot s),
+
+   M_s, c_s being the chain plus the drones' point masses and J_h the Jacobian of the drone
+   joints. This is what makes s a flat output: the drone roll is then the direction of F_i
+   (eq. 2.20), phi_i = atan2(-F_iy, F_iz), and the thrust its norm f_i = |F_i|. F, F', F'' come
+   exactly from the motion's derivatives by jet arithmetic, hence phi_i, phi_i', phi_i''.
+2. **Torques** (eq. 2.24 with perfect tracking): the roll torque that gives the drone the roll
+   acceleration phi_i'' in the *exact* multibody model (rigid drones whose joint is d_i below their
+   centre of mass), given the thrusts. In the plane the yaw and pitch torques are zero: the
+   attitude rows psi, theta of the full model are decoupled from the in-plane motion (tested).
+3. **Rotor speeds** w_i^2 = R_f^-1 [f_i, tau_i] (eq. 3.31, 3.47).
+
+With d_i > 0 the exact model does not follow s exactly under these inputs: the difference is the
+perturbation p_i of eq. 2.7-2.8 that the controller compensates. With d_i = 0 the round trip is
+exact (tested).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fpr import jets
+from fpr.errors import ShapeError
+from fpr.jets import Jet
+
+
+@dataclass(frozen=True)
+class MotionInputs:
+    """What the drones must do along a motion; arrays over N samples and n_d drones.
+
+    Attributes:
+        motion: s and its derivatives 0..4, shape (5, N, n_s).
+        thrust_vector: F_i in world (y, z), shape (N, n_d, 2) [N].
+        thrust_vector_rate: dF_i/dt, shape (N, n_d, 2) [N/s].
+        thrust: f_i = |F_i|, shape (N, n_d) [N].
+        roll: phi_i, shape (N, n_d) [rad].
+        roll_rate: phi_i', shape (N, n_d) [rad/s].
+        roll_acceleration: phi_i'', shape (N, n_d) [rad/s^2].
+        torque: [tau_x, tau_y, tau_z] of each drone, shape (N, n_d, 3) [N m].
+        rotor_speed_squared: w^2 of each rotor, shape (N, n_d, 4) [(rad/s)^2]; negative = impossible.
+        rotor_speed: sign(w^2) sqrt(|w^2|), shape (N, n_d, 4) [rad/s].
+        joint_position: drone joints r_i, shape (N, n_d, 2) [m].
+        joint_velocity: r_i', shape (N, n_d, 2) [m/s].
+        joint_acceleration: r_i'', shape (N, n_d, 2) [m/s^2].
+        chain_force: f_pi, force of drone i on the chain at its joint, shape (N, n_d, 2) [N].
+    """
+
+    motion: np.ndarray
+    thrust_vector: np.ndarray
+    thrust_vector_rate: np.ndarray
+    thrust: np.ndarray
+    roll: np.ndarray
+    roll_rate: np.ndarray
+    roll_acceleration: np.ndarray
+    torque: np.ndarray
+    rotor_speed_squared: np.ndarray
+    rotor_speed: np.ndarray
+    joint_position: np.ndarray
+    joint_velocity: np.ndarray
+    joint_acceleration: np.ndarray
+    chain_force: np.ndarray
+
+    @property
+    def power(self) -> np.ndarray:
+        """|F_i . r_i'|, the power estimate of the energy index J_e (seed 3.24), shape (N, n_d) [W]."""
+        return np.abs(np.sum(self.thrust_vector * self.joint_velocity, axis=-1))
+
+    def full_state(self, robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Configurations, velocities and accelerations of the full model (x = psi = theta = 0),
+        each of shape (N, n): the chain coordinates from the motion, the drone rolls from the plan."""
+        n = self.motion.shape[1]
+        out = [np.zeros((n, robot.nq)) for _ in range(3)]
+        chain = robot.indices(robot.layout.chain)
+        rolls = robot.indices([c for c in robot.layout.attitude if c.startswith("phi")])
+        for k, roll in enumerate((self.roll, self.roll_rate, self.roll_acceleration)):
+            out[k][:, chain] = self.motion[k]
+            out[k][:, rolls] = roll
+        return tuple(out)
+
+
+def _motion_array(robot, motion) -> np.ndarray:
+    n_s = len(robot.layout.chain)
+    m = np.asarray(motion.d if isinstance(motion, Jet) else motion, dtype=float)
+    if m.ndim == 2:
+        m = m[:, None, :]
+    if m.ndim != 3 or m.shape[0] < 5 or m.shape[2] != n_s:
+        raise ShapeError("motion", m.shape, f"(5, N, {n_s}): s and its derivatives 0..4 at N samples")
+    return m[:5]
+
+
+def thrust_vectors(robot, motion: Jet) -> Jet:
+    """F = J_h^-T (M_s s'' + c_s) along a motion (planning model), Jet of order K-2, shape (N, n_d, 2).
+
+    Args:
+        robot: the :class:`~fpr.robots.Robot`.
+        motion: s as a Jet of order K >= 2, shape (N, n_s).
+    """
+    point = robot.planar("point")
+    generalized = point.inverse_dynamics_jet(motion)
+    jac = point.hinge_jacobian_jet(motion.truncate(generalized.order))
+    force = jets.solve(jac.mT, generalized)
+    return force.reshape(force.shape[:-1] + (robot.n_drones, 2))
+
+
+def roll_torques(robot, q, v, thrust, roll_acceleration) -> np.ndarray:
+    """Roll torques giving the drones the roll accelerations phi_i'' in the exact planar model.
+
+    .. math:: \\tau_x = (S M^{-1} S^T)^{-1} \\left(\\ddot\\phi - S M^{-1} (B_f f - c)\\right)
+
+    (the roll rows of seed 2.24 with psi'' = theta'' = 0), S selecting the drone rolls and B_f f the
+    generalised force of the thrusts applied at the drones' centres of mass along their body z.
+
+    Args:
+        robot: the robot.
+        q, v: planar configuration and velocity ([chain..., rolls...]), shape (N, n).
+        thrust: f_i, shape (N, n_d) [N].
+        roll_acceleration: phi_i'', shape (N, n_d) [rad/s^2].
+
+    Returns:
+        tau_x of each drone, shape (N, n_d) [N m].
+    """
+    rigid = robot.planar("rigid")
+    m = rigid.mass_matrix(q)
+    c = rigid.bias(q, v)
+    sel = np.array(rigid.drone_angles)  # (n_d, n)
+    gen = -c
+    for i, centre in enumerate(rigid.drone_centres):
+        angle = q @ sel[i]
+        body_z = np.stack([-np.sin(angle), np.cos(angle)], axis=-1)
+        gen = gen + np.einsum("...in,...i->...n", centre.jacobian(q), body_z) * thrust[..., i : i + 1]
+    rhs = np.concatenate([gen[..., None], np.broadcast_to(sel.T, m.shape[:-2] + sel.T.shape)], axis=-1)
+    sol = np.linalg.solve(m, rhs)  # M^-1 [B_f f - c, S^T]
+    drift = sol[..., 0] @ sel.T
+    a_tau = np.einsum("ij,...jk->...ik", sel, sol[..., 1:])
+    return np.linalg.solve(a_tau, (roll_acceleration - drift)[..., None])[..., 0]
+
+
+def inverse_dynamics(robot, motion) -> MotionInputs:
+    """Thrusts, rolls, torques and rotor speeds along a motion of the chain.
+
+    Args:
+        robot: the :class:`~fpr.robots.Robot` (FPR or prototype).
+        motion: s and its time derivatives 0..4, shape (5, N, n_s) (or (5, n_s) for one sample),
+            e.g. from :meth:`planners.polynomial.PiecewisePolynomial.evaluate`.
+
+    Returns:
+        the :class:`MotionInputs` at the N samples.
+    """
+    m = _motion_array(robot, motion)
+    s = Jet(m)
+    force = thrust_vectors(robot, s)  # order 2
+    fy, fz = force[..., 0], force[..., 1]
+    thrust = jets.sqrt(fy * fy + fz * fz)
+    roll = jets.atan2(-fy, fz)
+
+    point = robot.planar("point")
+    hinges = jets.stack([h.position_jet(s.truncate(2)) for h in point.hinges], axis=-2)  # (N, n_d, 2)
+    chain_force = force.value - robot.drone_mass * (hinges.d[2] - np.array([0.0, -point.gravity]))
+
+    q = np.concatenate([m[0], roll.value], axis=-1)
+    v = np.concatenate([m[1], roll.d[1]], axis=-1)
+    tau_x = roll_torques(robot, q, v, thrust.value, roll.d[2])
+    torque = np.zeros(tau_x.shape + (3,))
+    torque[..., 0] = tau_x
+    w2 = np.stack([rotor.speeds_squared(thrust.value[:, i], torque[:, i]) for i, rotor in enumerate(robot.rotors)],
+                  axis=1)
+    return MotionInputs(
+        motion=m,
+        thrust_vector=force.value,
+        thrust_vector_rate=force.d[1],
+        thrust=thrust.value,
+        roll=roll.value,
+        roll_rate=roll.d[1],
+        roll_acceleration=roll.d[2],
+        torque=torque,
+        rotor_speed_squared=w2,
+        rotor_speed=np.sign(w2) * np.sqrt(np.abs(w2)),
+        joint_position=hinges.value,
+        joint_velocity=hinges.d[1],
+        joint_acceleration=hinges.d[2],
+        chain_force=chain_force,
+    )

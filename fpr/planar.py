@@ -1,0 +1,291 @@
+"""Closed-form, vectorised dynamics of the robots in their plane of motion.
+
+The planner evaluates the dynamics at thousands of samples per iteration; this module gives the
+in-plane model (x = psi = theta = 0) in closed form with numpy, batched over samples, and along a
+motion with all its time derivatives (:mod:`fpr.jets`). Its numbers are not typed in: bodies,
+masses, centres of mass, inertias and joint placements are read from the Pinocchio model of the
+URDF (:class:`fpr.robots.Robot`), and the tests check it against Pinocchio's CRBA / RNEA.
+
+Every point of the planar chain is written as
+
+.. math:: p(q) = S q + \\sum_k \\mathrm{Rot}(a_k^T q + b_k)\\, v_k,
+
+with Rot the rotation of the (y, z) plane, S a selector of the end-effector position (FPR) and
+a_k rows of joint-angle sums; each body is such a point (its centre of mass) with a mass, an
+angle a^T q + b and a moment of inertia about x. Then
+
+.. math::
+    M = \\sum_b m_b J_b^T J_b + I_b a_b a_b^T, \\qquad
+    c = \\sum_b m_b J_b^T (\\dot J_b \\dot q - g),\\qquad
+    \\dot J_b \\dot q = -\\sum_k \\mathrm{Rot}(a_k^T q + b_k) v_k (a_k^T \\dot q)^2.
+
+Coordinates: FPR ``[y z phi q21 phi1 phi2]`` (rigid drones) or ``[y z phi q21]`` (point-mass or
+massless drones); prototype ``[q1 q2 phi1]`` or ``[q1 q2]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fpr import jets
+from fpr.jets import Jet
+
+
+def _rotate(c, s, v):
+    """Rot(theta) v for cos/sin arrays (..., K) and vectors (K, 2) -> components (..., K) each."""
+    return v[:, 0] * c - v[:, 1] * s, v[:, 0] * s + v[:, 1] * c
+
+
+@dataclass(frozen=True)
+class PlanarPoint:
+    """A point of the chain, p(q) = S q + sum_k Rot(a_k.q + b_k) v_k.
+
+    Attributes:
+        selector: S, shape (2, n).
+        rows: a_k, shape (K, n).
+        offsets: b_k, shape (K,) [rad].
+        vectors: v_k, shape (K, 2) [m].
+    """
+
+    selector: np.ndarray
+    rows: np.ndarray
+    offsets: np.ndarray
+    vectors: np.ndarray
+
+    def _cs(self, q):
+        th = np.asarray(q, dtype=float) @ self.rows.T + self.offsets
+        return np.cos(th), np.sin(th)
+
+    def position(self, q) -> np.ndarray:
+        """p(q), shape (..., 2) [m]."""
+        c, s = self._cs(q)
+        y, z = _rotate(c, s, self.vectors)
+        return np.stack([y.sum(-1), z.sum(-1)], axis=-1) + np.asarray(q, dtype=float) @ self.selector.T
+
+    def jacobian(self, q) -> np.ndarray:
+        """dp/dq, shape (..., 2, n)."""
+        c, s = self._cs(q)
+        y, z = _rotate(c, s, self.vectors)  # d/dtheta Rot(theta) v = Rot(theta + pi/2) v = (-z, y)
+        return np.stack([-z @ self.rows, y @ self.rows], axis=-2) + self.selector
+
+    def bias(self, q, v) -> np.ndarray:
+        """dJ/dt qdot = -sum_k Rot(theta_k) v_k (a_k . qdot)^2, shape (..., 2) [m/s^2]."""
+        c, s = self._cs(q)
+        y, z = _rotate(c, s, self.vectors)
+        w2 = (np.asarray(v, dtype=float) @ self.rows.T) ** 2
+        return -np.stack([(y * w2).sum(-1), (z * w2).sum(-1)], axis=-1)
+
+    def _angle_jet(self, q: Jet) -> Jet:
+        d = q.d @ self.rows.T
+        d[0] = d[0] + self.offsets
+        return Jet(d)
+
+    def position_jet(self, q: Jet) -> Jet:
+        """p(q(t)) with its time derivatives, for a motion q given as a Jet of shape (..., n)."""
+        s, c = jets.sincos(self._angle_jet(q))
+        y = (c * self.vectors[:, 0] - s * self.vectors[:, 1]).sum(-1)
+        z = (s * self.vectors[:, 0] + c * self.vectors[:, 1]).sum(-1)
+        return jets.stack([y, z], axis=-1) + Jet(q.d @ self.selector.T)
+
+    def jacobian_jet(self, q: Jet) -> Jet:
+        """dp/dq along the motion, Jet of shape (..., 2, n)."""
+        s, c = jets.sincos(self._angle_jet(q))
+        y = c * self.vectors[:, 0] - s * self.vectors[:, 1]
+        z = s * self.vectors[:, 0] + c * self.vectors[:, 1]
+        return jets.matmul(jets.stack([-z, y], axis=-2), self.rows) + self.selector
+
+
+@dataclass(frozen=True)
+class PlanarBody:
+    """A rigid body moving in the plane.
+
+    Attributes:
+        name: the Pinocchio joint that carries it.
+        mass: [kg].
+        inertia: moment of inertia about the x axis through its centre of mass [kg m^2].
+        com: its centre of mass.
+        angle_row: a, its angle is a.q + angle_offset.
+        angle_offset: [rad].
+    """
+
+    name: str
+    mass: float
+    inertia: float
+    com: PlanarPoint
+    angle_row: np.ndarray
+    angle_offset: float
+
+
+class PlanarModel:
+    """In-plane dynamics of a :class:`~fpr.robots.Robot`, closed form and batched.
+
+    Build it with :meth:`from_robot`. Arrays take a trailing coordinate axis and any batch shape.
+
+    Attributes:
+        coordinates: names of the planar coordinates.
+        bodies: the rigid bodies with mass.
+        hinges: the drone joints r_i (where the drones hold the chain).
+        drone_centres: the drones' centres of mass (same as hinges for point-mass drones).
+        drone_angles: angle row of each drone's roll (zero rows for point-mass / massless drones).
+        gravity: g [m/s^2], along -z.
+    """
+
+    def __init__(self, coordinates, bodies, hinges, drone_centres, drone_angles, gravity):
+        self.coordinates = tuple(coordinates)
+        self.bodies = tuple(bodies)
+        self.hinges = tuple(hinges)
+        self.drone_centres = tuple(drone_centres)
+        self.drone_angles = tuple(drone_angles)
+        self.gravity = float(gravity)
+        self._g = np.array([0.0, -self.gravity])
+
+    @property
+    def n(self) -> int:
+        """Number of planar coordinates."""
+        return len(self.coordinates)
+
+    @classmethod
+    def from_robot(cls, robot, drones: str = "rigid") -> "PlanarModel":
+        """Read the planar model off a robot's Pinocchio model.
+
+        Args:
+            robot: a :class:`~fpr.robots.Robot`.
+            drones: "rigid" (drones are rigid bodies; their rolls are coordinates), "point"
+                (point masses at their joints: the seed's planning model) or "none" (massless).
+        """
+        source = robot if drones == "rigid" else robot.with_drones_as(drones)
+        model = source.model
+        n_pin = model.nq
+        frames = {0: (np.zeros((2, n_pin)), [], np.zeros(n_pin), 0.0)}  # selector, terms, angle row, offset
+        for j in range(1, model.njoints):
+            sel, terms, row, off = frames[model.parents[j]]
+            placement = model.jointPlacements[j]
+            rot = placement.rotation
+            t = placement.translation
+            if abs(t[0]) > 1e-12 or not np.allclose(rot[0], [1, 0, 0], atol=1e-12):
+                raise ValueError(f"joint {model.names[j]} is not placed in the plane x = 0 about x")
+            terms = list(terms)
+            if np.any(np.abs(t[1:]) > 0):
+                terms.append((row.copy(), off, t[1:].copy()))
+            off = off + np.arctan2(rot[2, 1], rot[1, 1])
+            row = row.copy()
+            sel = sel.copy()
+            kind = model.joints[j].shortname()
+            iq = model.joints[j].idx_q
+            if kind == "JointModelComposite":  # the Euler root: x y z psi theta phi
+                sel[0, iq + 1] = sel[1, iq + 2] = 1.0
+                row[iq + 5] = 1.0
+            elif kind == "JointModelRX":
+                row[iq] = 1.0
+            elif kind not in ("JointModelRY", "JointModelRZ", "JointModelPX"):
+                raise ValueError(f"joint {model.names[j]} of kind {kind} is not handled by the planar model")
+            frames[j] = (sel, terms, row, off)
+
+        keep = robot.indices(robot.layout.chain)
+        if drones == "rigid":
+            keep = np.concatenate([keep, robot.indices([c for c in robot.layout.attitude if c.startswith("phi")])])
+        names = [robot.layout.coordinates[i] for i in keep]
+        to_planar = robot.T[:, keep]  # q_pin = T q, restricted to the planar coordinates
+        others = np.setdiff1d(np.arange(robot.nq), keep)
+
+        def point(sel, terms, extra=None):
+            items = list(terms) + ([extra] if extra is not None else [])
+            rows = np.array([r for r, _, _ in items]).reshape(-1, n_pin)
+            for a in (sel, rows):
+                if np.any(np.abs(a @ robot.T[:, others]) > 1e-12):
+                    raise ValueError("the planar model depends on a coordinate outside the plane")
+            return PlanarPoint(
+                selector=sel @ to_planar,
+                rows=rows @ to_planar,
+                offsets=np.array([o for _, o, _ in items], dtype=float),
+                vectors=np.array([v for _, _, v in items], dtype=float).reshape(-1, 2),
+            )
+
+        bodies = []
+        for j in range(1, model.njoints):
+            inertia = model.inertias[j]
+            if inertia.mass <= 0:
+                continue
+            sel, terms, row, off = frames[j]
+            lever = inertia.lever
+            com_term = (row, off, lever[1:].copy()) if np.any(np.abs(lever[1:]) > 0) else None
+            bodies.append(PlanarBody(model.names[j], float(inertia.mass), float(inertia.inertia[0, 0]),
+                                     point(sel, terms, com_term), row @ to_planar, float(off)))
+        hinges, centres, angles = [], [], []
+        for jid, fid in zip(robot.hinge_joint_ids, robot.drone_frame_ids):
+            sel, terms, row, off = frames[jid]
+            hinges.append(point(sel, terms))
+            centre = model.frames[fid].placement.translation
+            centres.append(point(sel, terms, (row, off, centre[1:].copy())) if drones == "rigid" else hinges[-1])
+            angles.append(row @ to_planar if drones == "rigid" else np.zeros(len(keep)))
+        return cls(names, bodies, hinges, centres, angles, float(-model.gravity.linear[2]))
+
+    # ------------------------------------------------------------------ pointwise (batched) model
+    def mass_matrix(self, q) -> np.ndarray:
+        """M(q), shape (..., n, n)."""
+        q = np.asarray(q, dtype=float)
+        m = np.zeros(q.shape[:-1] + (self.n, self.n))
+        for b in self.bodies:
+            jac = b.com.jacobian(q)
+            m += b.mass * np.swapaxes(jac, -1, -2) @ jac + b.inertia * np.outer(b.angle_row, b.angle_row)
+        return m
+
+    def bias(self, q, v) -> np.ndarray:
+        """c(q, qdot): Coriolis, centrifugal and gravity terms, shape (..., n)."""
+        q = np.asarray(q, dtype=float)
+        c = np.zeros(q.shape[:-1] + (self.n,))
+        for b in self.bodies:
+            jac = b.com.jacobian(q)
+            c += b.mass * np.einsum("...in,...i->...n", jac, b.com.bias(q, v) - self._g)
+        return c
+
+    def inverse_dynamics(self, q, v, a) -> np.ndarray:
+        """Generalised force M a + c, shape (..., n)."""
+        return np.einsum("...ij,...j->...i", self.mass_matrix(q), np.asarray(a, dtype=float)) + self.bias(q, v)
+
+    def hinge_jacobian(self, q) -> np.ndarray:
+        """d[r_1; ...; r_nd]/dq, shape (..., 2 n_d, n) (J_p of seed 2.6, J_pr of 3.35)."""
+        return np.concatenate([h.jacobian(q) for h in self.hinges], axis=-2)
+
+    def energy(self, q, v) -> np.ndarray:
+        """Kinetic plus potential energy (zero at z = 0), shape (...) [J]."""
+        q = np.asarray(q, dtype=float)
+        kinetic = 0.5 * np.einsum("...i,...ij,...j->...", v, self.mass_matrix(q), v)
+        potential = sum(b.mass * self.gravity * b.com.position(q)[..., 1] for b in self.bodies)
+        return kinetic + potential
+
+    # ------------------------------------------------------------------ along a motion
+    def inverse_dynamics_jet(self, q: Jet) -> Jet:
+        """Generalised force M(q) qddot + c(q, qdot) along a motion, with its time derivatives.
+
+        Args:
+            q: the motion, a Jet of order K >= 2 and shape (..., n).
+
+        Returns:
+            a Jet of order K - 2 and shape (..., n).
+        """
+        k = q.order - 2
+        qdd = q.derivative().derivative()
+        out = None
+        for b in self.bodies:
+            acc = b.com.position_jet(q).derivative().derivative() - self._g
+            term = jets.matmul(b.com.jacobian_jet(q.truncate(k)).mT, acc[..., None])[..., 0] * b.mass
+            term = term + Jet(np.multiply.outer(qdd.d @ b.angle_row, b.angle_row)) * b.inertia
+            out = term if out is None else out + term
+        return out
+
+    def hinge_jacobian_jet(self, q: Jet) -> Jet:
+        """The hinge Jacobian along a motion, Jet of shape (..., 2 n_d, n)."""
+        return jets.concatenate([h.jacobian_jet(q) for h in self.hinges], axis=-2)
+
+
+def planar_configuration(robot, q) -> np.ndarray:
+    """Planar coordinates [chain..., drone rolls...] taken out of a full configuration (..., n)."""
+    keep = np.concatenate([robot.indices(robot.layout.chain),
+                           robot.indices([c for c in robot.layout.attitude if c.startswith("phi")])])
+    return np.asarray(q, dtype=float)[..., keep]
+
+
+__all__ = ["PlanarBody", "PlanarModel", "PlanarPoint", "planar_configuration"]

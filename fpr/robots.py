@@ -1,0 +1,421 @@
+"""The FPR and its prototype as Pinocchio models, in the coordinates of the seed thesis.
+
+:func:`load` reads ``urdf/fpr.urdf`` or ``urdf/prototype.urdf`` into Pinocchio and wraps it in a
+:class:`Robot` whose methods speak the thesis' coordinates (seed 2.1, 3.3):
+
+* FPR: ``q = [x y z psi theta phi q21 phi1 phi2]``: end-effector position, its yaw / pitch / roll
+  (Z-Y-X Euler angles), the angle between the links, and the *absolute* roll of each drone.
+  Pinocchio gets the end-effector's 6 coordinates from a composite root joint
+  (PX, PY, PZ, RZ, RY, RX) so that its velocity is exactly ``qdot``.
+* Prototype: ``q = [psi theta q1 q2 phi1]``: the chain's yaw and pitch about the fixed point,
+  the two link angles and the drone's absolute roll.
+
+Pinocchio's own coordinates differ only by the drone hinge angles, which are relative to the link
+(``beta_1 = phi1 - phi``...): the map ``q_pin = T q`` is linear and constant, so
+``M = T^T M_pin T`` and ``c = T^T c_pin`` hold exactly.
+
+The drones are actuated by a thrust along their body z axis and three body torques applied at the
+drone's centre of mass (frame ``drone_<i>_center``); the generalised force is ``J^T w`` with
+``w = [0, 0, f, tau_x, tau_y, tau_z]`` and ``J`` the drone's twist Jacobian in its own frame
+(seed 2.10-2.11).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from fpr import description
+from fpr.errors import UnknownRobotError, check_shape
+from fpr.parameters import Margins, RotorConstants, load_parameters, margins, rotor_constants
+from fpr.rotors import RotorModel
+
+logger = logging.getLogger(__name__)
+
+ROBOTS = ("fpr", "prototype")
+
+
+@dataclass(frozen=True)
+class Layout:
+    """How a robot's thesis coordinates map onto its Pinocchio joints.
+
+    Attributes:
+        coordinates: names of the thesis coordinates, in order.
+        joints: for each Pinocchio joint name, ``{thesis coordinate: coefficient}`` giving its
+            (one-dimensional) joint coordinate as a linear combination of thesis coordinates.
+        drones: names of the drones (URDF prefixes).
+        chain: the planar chain coordinates (the planning vector s, or xi for the prototype).
+        attitude: the attitude coordinates q_a (seed 2.10).
+        euler_root: whether Pinocchio gets a 6-dof Euler root joint (floating robot).
+    """
+
+    coordinates: tuple[str, ...]
+    joints: dict
+    drones: tuple[str, ...]
+    chain: tuple[str, ...]
+    attitude: tuple[str, ...]
+    euler_root: bool
+
+
+LAYOUTS = {
+    "fpr": Layout(
+        coordinates=("x", "y", "z", "psi", "theta", "phi", "q21", "phi1", "phi2"),
+        joints={
+            "q21": {"q21": 1.0},
+            "drone_1_hinge": {"phi1": 1.0, "phi": -1.0},
+            "drone_2_hinge": {"phi2": 1.0, "phi": -1.0, "q21": -1.0},
+        },
+        drones=("drone_1", "drone_2"),
+        chain=("y", "z", "phi", "q21"),
+        attitude=("psi", "theta", "phi1", "phi2"),
+        euler_root=True,
+    ),
+    "prototype": Layout(
+        coordinates=("psi", "theta", "q1", "q2", "phi1"),
+        joints={
+            "pivot_yaw": {"psi": 1.0},
+            "pivot_pitch": {"theta": 1.0},
+            "q1": {"q1": 1.0},
+            "q2": {"q2": 1.0},
+            "drone_1_hinge": {"phi1": 1.0, "q1": -1.0, "q2": -1.0},
+        },
+        drones=("drone_1",),
+        chain=("q1", "q2"),
+        attitude=("psi", "theta", "phi1"),
+        euler_root=False,
+    ),
+}
+
+EULER_ROOT_NAME = "end_effector_root"
+
+
+def euler_root_joint() -> pin.JointModelComposite:
+    """The FPR's root joint: translations x, y, z then yaw psi, pitch theta, roll phi (Z-Y-X)."""
+    joint = pin.JointModelComposite()
+    for j in (pin.JointModelPX(), pin.JointModelPY(), pin.JointModelPZ(),
+              pin.JointModelRZ(), pin.JointModelRY(), pin.JointModelRX()):
+        joint.addJoint(j)
+    return joint
+
+
+@dataclass(frozen=True)
+class AttitudeModel:
+    """Attitude dynamics of the drones (seed 2.12-2.13) at one state.
+
+    .. math:: \\ddot q_a = M_{inv,a} (J_\\tau^T \\tau + J_f^T f - c) = A_\\tau \\tau + M_{inv,a}(J_f^T f - c)
+
+    Attributes:
+        m_inv_a: rows of M^-1 of the attitude coordinates, shape (n_a, n).
+        j_tau: torque rows of the drone Jacobians, shape (3 n_d, n); tau = [tau_1; tau_2].
+        j_f: thrust rows of the drone Jacobians, shape (n_d, n).
+        a_tau: M_inv_a J_tau^T, shape (n_a, 3 n_d).
+        c: nonlinear effects (Coriolis, centrifugal, gravity), shape (n,).
+    """
+
+    m_inv_a: np.ndarray
+    j_tau: np.ndarray
+    j_f: np.ndarray
+    a_tau: np.ndarray
+    c: np.ndarray
+
+    def attitude_acceleration(self, thrust, torque) -> np.ndarray:
+        """qddot_a for thrusts f (n_d,) [N] and torques tau (n_d, 3) [N m] (seed 2.12)."""
+        tau = np.asarray(torque, dtype=float).reshape(-1)
+        return self.m_inv_a @ (self.j_tau.T @ tau + self.j_f.T @ np.asarray(thrust, dtype=float) - self.c)
+
+
+class Robot:
+    """A Pinocchio model of the FPR or of its prototype, used in the thesis' coordinates.
+
+    Build it with :func:`load`. All methods take and return thesis coordinates; the Pinocchio
+    model (``model``, ``data``) is available for anything else, with ``to_pinocchio`` /
+    ``from_pinocchio`` to convert.
+
+    Attributes:
+        name: "fpr" or "prototype".
+        layout: the coordinate layout.
+        model: the Pinocchio model.
+        data: its data.
+        rotor_constants: c_T, c_Q, w_max, spin senses.
+        margins: planning margins.
+        urdf: the URDF text the model was built from.
+    """
+
+    def __init__(self, name: str, urdf: str, params: dict | None = None):
+        if name not in LAYOUTS:
+            raise UnknownRobotError(name, ROBOTS)
+        self.name = name
+        self.layout = LAYOUTS[name]
+        self.urdf = urdf
+        self.parameters = params or load_parameters()
+        if self.layout.euler_root:
+            self.model = pin.buildModelFromXML(urdf, euler_root_joint(), EULER_ROOT_NAME)
+        else:
+            self.model = pin.buildModelFromXML(urdf)
+        self.model.gravity.linear = np.array([0.0, 0.0, -float(self.parameters["gravity"])])
+        self.data = self.model.createData()
+        self.rotor_constants: RotorConstants = rotor_constants(self.parameters)
+        self.margins: Margins = margins(self.parameters)
+        self._build_coordinate_map()
+        self.drone_frame_ids = tuple(self.model.getFrameId(f"{d}_center") for d in self.layout.drones)
+        self.hinge_joint_ids = tuple(self.model.getJointId(f"{d}_hinge") for d in self.layout.drones)
+        for fid, d in zip(self.drone_frame_ids, self.layout.drones):
+            if fid >= self.model.nframes:
+                raise ValueError(f"the URDF has no frame '{d}_center'")
+
+    # ------------------------------------------------------------------ coordinates
+    def _build_coordinate_map(self):
+        names = self.layout.coordinates
+        n = len(names)
+        if self.model.nq != n or self.model.nv != n:
+            raise ValueError(f"{self.name}: Pinocchio model has nq={self.model.nq}, expected {n} coordinates {names}")
+        t = np.zeros((n, n))
+        if self.layout.euler_root:
+            jid = self.model.getJointId(EULER_ROOT_NAME)
+            i0 = self.model.joints[jid].idx_q
+            t[i0:i0 + 6, :6] = np.eye(6)
+        for joint, combination in self.layout.joints.items():
+            jid = self.model.getJointId(joint)
+            if jid >= self.model.njoints:
+                raise ValueError(f"the {self.name} URDF has no joint {joint!r}")
+            for coordinate, coefficient in combination.items():
+                t[self.model.joints[jid].idx_q, names.index(coordinate)] = coefficient
+        self.T = t
+        self.T_inv = np.linalg.inv(t)
+        self.index = {c: i for i, c in enumerate(names)}
+
+    @property
+    def nq(self) -> int:
+        """Number of coordinates."""
+        return len(self.layout.coordinates)
+
+    @property
+    def n_drones(self) -> int:
+        """Number of drones."""
+        return len(self.layout.drones)
+
+    def indices(self, coordinates) -> np.ndarray:
+        """Positions of named coordinates in q."""
+        return np.array([self.index[c] for c in coordinates], dtype=int)
+
+    def to_pinocchio(self, q) -> np.ndarray:
+        """Thesis coordinates (or velocities, accelerations) to Pinocchio's."""
+        return self.T @ np.asarray(q, dtype=float)
+
+    def from_pinocchio(self, q_pin) -> np.ndarray:
+        """Pinocchio coordinates (or velocities, accelerations) to the thesis'."""
+        return self.T_inv @ np.asarray(q_pin, dtype=float)
+
+    def _q(self, q, name="q") -> np.ndarray:
+        return self.to_pinocchio(check_shape(name, q, (self.nq,)))
+
+    def configuration(self, **values) -> np.ndarray:
+        """A configuration vector from named coordinates (the others zero), e.g. ``configuration(phi=3.9)``."""
+        q = np.zeros(self.nq)
+        for k, v in values.items():
+            if k not in self.index:
+                raise KeyError(f"{k!r} is not a coordinate of the {self.name}: {', '.join(self.layout.coordinates)}")
+            q[self.index[k]] = v
+        return q
+
+    # ------------------------------------------------------------------ geometry read from the URDF
+    @cached_property
+    def link_length(self) -> float:
+        """L, read from the drone hinge position in its link's frame [m]."""
+        return float(np.linalg.norm(self.model.jointPlacements[self.hinge_joint_ids[0]].translation))
+
+    @cached_property
+    def hinge_offset(self) -> float:
+        """d, distance from the drone hinge to the drone's centre of mass [m]."""
+        return float(np.linalg.norm(self.model.frames[self.drone_frame_ids[0]].placement.translation))
+
+    @cached_property
+    def drone_mass(self) -> float:
+        """m_d, mass of one drone [kg]."""
+        return float(self.model.inertias[self.hinge_joint_ids[0]].mass)
+
+    @cached_property
+    def total_mass(self) -> float:
+        """Mass of the whole robot [kg]."""
+        return float(sum(inertia.mass for inertia in self.model.inertias))
+
+    @cached_property
+    def rotors(self) -> tuple[RotorModel, ...]:
+        """Rotor model of each drone, with rotor positions read from the URDF frames."""
+        models = []
+        for drone, fid in zip(self.layout.drones, self.drone_frame_ids):
+            centre = self.model.frames[fid].placement
+            positions = []
+            for m in range(1, 5):
+                rid = self.model.getFrameId(f"{drone}_rotor_{m}")
+                if rid >= self.model.nframes:
+                    raise ValueError(f"the URDF has no frame '{drone}_rotor_{m}'")
+                positions.append((centre.inverse() * self.model.frames[rid].placement).translation)
+            models.append(RotorModel(np.array(positions), self.rotor_constants))
+        return tuple(models)
+
+    # ------------------------------------------------------------------ kinematics
+    def frame_placements(self, q) -> list[pin.SE3]:
+        """World placement of every drone centre-of-mass frame."""
+        pin.framesForwardKinematics(self.model, self.data, self._q(q))
+        return [self.data.oMf[f].copy() for f in self.drone_frame_ids]
+
+    def drone_positions(self, q) -> np.ndarray:
+        """World positions of the drones' centres of mass, shape (n_d, 3) [m]."""
+        return np.array([m.translation for m in self.frame_placements(q)])
+
+    def hinge_positions(self, q) -> np.ndarray:
+        """World positions of the drone hinges (the drone joints r_i), shape (n_d, 3) [m]."""
+        pin.forwardKinematics(self.model, self.data, self._q(q))
+        return np.array([self.data.oMi[j].translation.copy() for j in self.hinge_joint_ids])
+
+    # ------------------------------------------------------------------ dynamics
+    def mass_matrix(self, q) -> np.ndarray:
+        """M(q), generalised inertia matrix, shape (n, n) (seed 2.11)."""
+        m = pin.crba(self.model, self.data, self._q(q))
+        m = np.triu(m) + np.triu(m, 1).T
+        return self.T.T @ m @ self.T
+
+    def nonlinear_effects(self, q, v) -> np.ndarray:
+        """c(q, qdot): Coriolis, centrifugal and gravity terms, shape (n,) (seed 2.11)."""
+        return self.T.T @ pin.nonLinearEffects(self.model, self.data, self._q(q), self._q(v, "v"))
+
+    def gravity_terms(self, q) -> np.ndarray:
+        """g(q), the gravity part of c, shape (n,)."""
+        return self.T.T @ pin.computeGeneralizedGravity(self.model, self.data, self._q(q))
+
+    def drone_jacobians(self, q) -> np.ndarray:
+        """J: twists of the drones' centre frames in their own axes, shape (n_d, 6, n) (seed 2.10-2.11).
+
+        ``J[i] @ qdot`` is [linear velocity; angular velocity] of drone i expressed in drone i's frame.
+        """
+        qp = self._q(q)
+        pin.computeJointJacobians(self.model, self.data, qp)
+        pin.updateFramePlacements(self.model, self.data)
+        return np.array([pin.getFrameJacobian(self.model, self.data, f, pin.LOCAL) @ self.T for f in self.drone_frame_ids])
+
+    def input_wrenches(self, thrust, torque) -> np.ndarray:
+        """Drone wrenches w_i = [0, 0, f_i, tau_ix, tau_iy, tau_iz] (seed 2.1-2.2), shape (n_d, 6)."""
+        f = check_shape("thrust", np.atleast_1d(thrust), (self.n_drones,))
+        tau = check_shape("torque", np.reshape(torque, (self.n_drones, 3)), (self.n_drones, 3))
+        w = np.zeros((self.n_drones, 6))
+        w[:, 2] = f
+        w[:, 3:] = tau
+        return w
+
+    def generalized_input(self, q, thrust, torque) -> np.ndarray:
+        """Generalised force of the drones, J^T [w_1; w_2], shape (n,)."""
+        jac = self.drone_jacobians(q)
+        w = self.input_wrenches(thrust, torque)
+        return np.einsum("kij,ki->j", jac, w)
+
+    def forward_dynamics(self, q, v, thrust, torque) -> np.ndarray:
+        """qddot = M^-1 (J^T w - c) (seed 2.11), computed by Pinocchio's ABA.
+
+        Args:
+            q: configuration (n,).
+            v: velocity (n,).
+            thrust: f_i of each drone, shape (n_d,) [N].
+            torque: body torques of each drone, shape (n_d, 3) [N m].
+        """
+        qp, vp = self._q(q), self._q(v, "v")
+        pin.framesForwardKinematics(self.model, self.data, qp)
+        w = self.input_wrenches(thrust, torque)
+        fext = pin.StdVec_Force()
+        for _ in range(self.model.njoints):
+            fext.append(pin.Force.Zero())
+        for i, f in enumerate(self.drone_frame_ids):
+            frame = self.model.frames[f]
+            # the frame's wrench, moved to its parent joint's frame (ABA takes forces in joint frames)
+            fext[frame.parentJoint] += frame.placement.act(pin.Force(w[i]))
+        a = pin.aba(self.model, self.data, qp, vp, np.zeros(self.model.nv), fext)
+        return self.from_pinocchio(a)
+
+    def kinetic_energy(self, q, v) -> float:
+        """Kinetic energy [J]."""
+        return float(pin.computeKineticEnergy(self.model, self.data, self._q(q), self._q(v, "v")))
+
+    def potential_energy(self, q) -> float:
+        """Gravitational potential energy, zero at z = 0 [J]."""
+        return float(pin.computePotentialEnergy(self.model, self.data, self._q(q)))
+
+    def attitude_model(self, q, v) -> AttitudeModel:
+        """The attitude model of seed 2.12-2.13 at (q, qdot)."""
+        m = self.mass_matrix(q)
+        c = self.nonlinear_effects(q, v)
+        jac = self.drone_jacobians(q)
+        m_inv_a = np.linalg.solve(m, np.eye(self.nq))[self.indices(self.layout.attitude)]
+        j_f = jac[:, 2, :]
+        j_tau = jac[:, 3:, :].reshape(-1, self.nq)
+        return AttitudeModel(m_inv_a=m_inv_a, j_tau=j_tau, j_f=j_f, a_tau=m_inv_a @ j_tau.T, c=c)
+
+    # ------------------------------------------------------------------ variants
+    def planar(self, drones: str = "rigid"):
+        """The closed-form in-plane model (:class:`fpr.planar.PlanarModel`), built once and cached.
+
+        Args:
+            drones: "rigid", "point" (the seed's planning model) or "none" (the passive chain alone).
+        """
+        from fpr.planar import PlanarModel
+
+        cache = self.__dict__.setdefault("_planar_cache", {})
+        if drones not in cache:
+            cache[drones] = PlanarModel.from_robot(self, drones)
+        return cache[drones]
+
+    def with_drones_as(self, kind: str) -> "Robot":
+        """A copy whose drones are rigid bodies ("rigid"), point masses at their hinges ("point"),
+        or massless ("none").
+
+        The "point" variant is the seed's planning model (drone = point mass at its joint,
+        eq. 2.6-2.7); "none" leaves the passive chain alone (M_p, c_p of eq. 2.6).
+        """
+        if kind not in ("rigid", "point", "none"):
+            raise ValueError(f"kind={kind!r}: use 'rigid', 'point' or 'none'")
+        other = Robot(self.name, self.urdf, self.parameters)
+        for j in other.hinge_joint_ids:
+            inertia = other.model.inertias[j]
+            if kind == "point":
+                other.model.inertias[j] = pin.Inertia(inertia.mass, np.zeros(3), np.zeros((3, 3)))
+            elif kind == "none":
+                other.model.inertias[j] = pin.Inertia.Zero()
+        other.data = other.model.createData()
+        return other
+
+
+def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Robot:
+    """Load a robot into Pinocchio.
+
+    Args:
+        name: "fpr" (two drones and the end-effector) or "prototype" (one drone, chain pinned).
+        urdf: a URDF file to use instead of the committed ``urdf/<name>.urdf``.
+        **xacro_args: parameter overrides (keys of ``urdf/parameters.yaml``, e.g.
+            ``link_length=1.0``): the URDF is then regenerated from xacro with them.
+
+    Returns:
+        the :class:`Robot`.
+
+    Raises:
+        UnknownRobotError: for a name other than "fpr" or "prototype".
+    """
+    if name not in ROBOTS:
+        raise UnknownRobotError(name, ROBOTS)
+    if urdf is not None and xacro_args:
+        raise ValueError("give either a URDF file or xacro arguments, not both")
+    if xacro_args:
+        text = description.generate_urdf(name, **xacro_args)
+    else:
+        text = Path(urdf or description.urdf_path(name)).read_text(encoding="utf-8")
+    params = load_parameters()
+    for key, value in xacro_args.items():
+        if key in params:
+            params[key] = value
+    return Robot(name, text, params)
+
+
+__all__ = ["AttitudeModel", "Layout", "LAYOUTS", "ROBOTS", "Robot", "load", "euler_root_joint"]
