@@ -178,8 +178,9 @@ def build_closed_chain(robot, baumgarte: tuple[float, float] = (400.0, 40.0),
         pivot = pin.SE3.Identity()
         for name in ("pivot_yaw", "pivot_pitch", "q1"):
             pivot = pivot * jp[src.getJointId(name)]
-        constraints.append(pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, r2, jp[j2].inverse(),
-                                                    0, pivot, pin.LOCAL))
+        # joint 1 of the constraint is the world: its frame is fixed, so the LOCAL error and velocity agree
+        constraints.append(pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, 0, pivot,
+                                                    r2, jp[j2].inverse(), pin.LOCAL))
         freeflyers, frames = (ff1,), (fc1,)
         reversed_ids = {"drone_1_hinge_reversed": ("drone_1_hinge", -1.0), "q2_reversed": ("q2", -1.0)}
     else:  # pragma: no cover - Robot() already refuses other names
