@@ -11,7 +11,16 @@ See README.md for the command line (``python -m fpr.plan``) and the notebooks.
 """
 
 from fpr.errors import FprError, ShapeError, SingularityError, UnknownRobotError, WorkspaceError
-from fpr.robots import ROBOTS, Robot, load
+
+
+def __getattr__(name):
+    # Pinocchio is imported on first use, so that ``python -m fpr.description`` stays light.
+    if name in ("ROBOTS", "Robot", "load"):
+        from fpr import robots
+
+        return getattr(robots, name)
+    raise AttributeError(f"module 'fpr' has no attribute {name!r}")
+
 
 __version__ = "0.1.0"
 

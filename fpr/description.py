@@ -23,6 +23,8 @@ import sys
 from pathlib import Path
 from xml.dom import minidom
 
+from fpr.errors import UnknownRobotError
+
 logger = logging.getLogger(__name__)
 
 ROBOTS = ("fpr", "prototype")
@@ -50,7 +52,7 @@ URDF_DIR: Path = _find_urdf_dir()
 
 def _check_robot(robot: str) -> str:
     if robot not in ROBOTS:
-        raise ValueError(f"unknown robot {robot!r}: use one of {', '.join(map(repr, ROBOTS))}")
+        raise UnknownRobotError(robot, ROBOTS)
     return robot
 
 
@@ -64,7 +66,7 @@ def xacro_path(robot: str) -> Path:
         The path of ``urdf/<robot>.urdf.xacro``.
 
     Raises:
-        ValueError: ``robot`` is not one of :data:`ROBOTS`.
+        UnknownRobotError: ``robot`` is not one of :data:`ROBOTS`.
     """
     return URDF_DIR / _XACRO_FILES[_check_robot(robot)]
 
@@ -79,7 +81,7 @@ def urdf_path(robot: str) -> Path:
         The path of ``urdf/<robot>.urdf``.
 
     Raises:
-        ValueError: ``robot`` is not one of :data:`ROBOTS`.
+        UnknownRobotError: ``robot`` is not one of :data:`ROBOTS`.
     """
     return URDF_DIR / _URDF_FILES[_check_robot(robot)]
 

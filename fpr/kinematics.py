@@ -18,6 +18,7 @@ import numpy as np
 
 from fpr.errors import ShapeError, SingularityError, WorkspaceError
 from fpr.parameters import Margins
+from fpr.parameters import margins as default_margins
 
 
 def u(a) -> np.ndarray:
@@ -74,8 +75,8 @@ def fpr_chain_jacobian(s, link_length: float) -> np.ndarray:
     s = _last(s, 4, "s")
     jac = np.zeros(s.shape[:-1] + (4, 4))
     jac[..., 0, 0] = jac[..., 1, 1] = jac[..., 2, 0] = jac[..., 3, 1] = 1.0
-    jac[..., 0:2, 2] = link_length * u_perp(s[..., 2])
-    w = link_length * u_perp(s[..., 2] + s[..., 3])
+    jac[..., 0:2, 2] = -link_length * u_perp(s[..., 2])
+    w = -link_length * u_perp(s[..., 2] + s[..., 3])
     jac[..., 2:4, 2] = w
     jac[..., 2:4, 3] = w
     return jac
@@ -101,10 +102,13 @@ def fpr_direct_kinematics(r1, r2, link_length: float, mode: int = 1) -> np.ndarr
     delta = r2 - r1
     dist = np.linalg.norm(delta, axis=-1)
     if np.any(dist > 2 * link_length) or np.any(dist == 0):
-        bad = np.broadcast_to(dist, dist.shape).max()
+        flat = dist.reshape(-1)
+        i = int(np.argmax(flat)) if np.any(flat > 2 * link_length) else int(np.argmin(flat))
+        r1b, r2b = np.broadcast_to(r1, delta.shape), np.broadcast_to(r2, delta.shape)
         raise WorkspaceError(
-            np.concatenate([r1.reshape(-1, 2)[0], r2.reshape(-1, 2)[0]]),
-            f"drone joints {bad:.4g} m apart; they must be closer than 2 L = {2 * link_length:.4g} m and distinct",
+            np.concatenate([r1b.reshape(-1, 2)[i], r2b.reshape(-1, 2)[i]]),
+            f"drone joints {flat[i]:.4g} m apart; they must be closer than 2 L = {2 * link_length:.4g} m "
+            "and distinct",
         )
     e = delta / dist[..., None]
     normal = np.stack([-e[..., 1], e[..., 0]], axis=-1)
@@ -185,8 +189,11 @@ def prototype_inverse_kinematics(r3, link_length: float, arm: str = "down", min_
     xi = np.stack([q1, q2], axis=-1)
     margin = singularity_margin(q2)
     if np.any(margin < min_margin):
-        raise SingularityError(xi.reshape(-1, 2)[np.argmin(margin.reshape(-1))], float(margin.min()), min_margin,
-                               "move the drone joint closer to the fixed point than 2 L")
+        near, far = 2 * link_length * np.sin(min_margin / 2), 2 * link_length * np.cos(min_margin / 2)
+        raise SingularityError(
+            xi.reshape(-1, 2)[np.argmin(margin.reshape(-1))], float(margin.min()), min_margin,
+            f"keep the drone joint between {near:.4g} m and {far:.4g} m from the fixed point",
+        )
     return xi
 
 
@@ -206,11 +213,48 @@ def prototype_workspace_margins(xi, link_length: float, margins: Margins) -> dic
     }
 
 
-def check_margins(values: dict[str, np.ndarray], pose, what: str = "pose") -> None:
-    """Raise a :class:`WorkspaceError` / :class:`SingularityError` naming the first violated margin."""
+_WORKSPACE_HINTS = {
+    "ground": "raise the drone joint: it must stay at least m_gd above the ground z = -L",
+    "fixed_point": "move the joint away from the fixed point: its y must be at least m_gd",
+    "phi": "keep pi + m_ga <= phi <= 2 pi - m_ga (end-effector below the first drone)",
+    "q1": "keep |q1| <= pi/2 - m_ga",
+}
+
+
+def check_margins(values: dict[str, np.ndarray], pose, what: str = "pose", *,
+                  margins: Margins | None = None, singular_angle: int = -1) -> None:
+    """Raise a :class:`WorkspaceError` / :class:`SingularityError` naming the first violated margin.
+
+    Args:
+        values: signed margins, from :func:`fpr_workspace_margins` or :func:`prototype_workspace_margins`.
+        pose: the pose(s) they were computed at, shape (..., n): s for the FPR, xi for the prototype.
+        what: a name for the pose, used in the message.
+        margins: planning margins; the angle margin m_ga is the required singularity margin
+            (default: :func:`fpr.parameters.margins`).
+        singular_angle: index in ``pose`` of the angle whose sine vanishes at the Type-2 singularity
+            (q21 = s[..., 3] for the FPR, q2 = xi[..., 1] for the prototype: the last entry in both).
+
+    Raises:
+        SingularityError: a ``q21_*`` / ``q2_*`` bound is violated; ``margin`` is the distance of the
+            singular angle to {k pi} at the worst pose, ``required`` is m_ga.
+        WorkspaceError: any other bound is violated.
+    """
+    pose = np.asarray(pose, dtype=float)
     for name, value in values.items():
+        value = np.asarray(value, dtype=float)
         worst = float(np.min(value))
-        if worst < 0:
-            if name.startswith(("q21", "q2_")):
-                raise SingularityError(pose, worst, 0.0, f"{what}: constraint {name} violated by {-worst:.4g} rad")
-            raise WorkspaceError(pose, f"{what}: constraint {name} violated by {-worst:.4g}")
+        if worst >= 0:
+            continue
+        k = int(np.argmin(value.reshape(-1)))
+        bad_pose = np.broadcast_to(pose, value.shape + pose.shape[-1:]).reshape(-1, pose.shape[-1])[k]
+        if name.startswith(("q21", "q2_")):
+            m = (margins or default_margins()).angle
+            angle_name = name.split("_")[0]
+            angle = float(bad_pose[singular_angle])
+            raise SingularityError(
+                bad_pose, float(singularity_margin(angle)), m,
+                f"{what}: bound {name} violated by {-worst:.4g} rad ({angle_name} = {angle:.4g}); change the "
+                f"pose so that {m:.4g} <= {angle_name} <= pi - {m:.4g} = {np.pi - m:.4g} rad",
+            )
+        hint = next((h for key, h in _WORKSPACE_HINTS.items() if name.startswith(key)), f"make {name} >= 0")
+        raise WorkspaceError(bad_pose, f"{what}: bound {name} violated by {-worst:.4g}; {hint}")

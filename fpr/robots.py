@@ -37,7 +37,7 @@ from fpr.rotors import RotorModel
 
 logger = logging.getLogger(__name__)
 
-ROBOTS = ("fpr", "prototype")
+ROBOTS = description.ROBOTS
 
 
 @dataclass(frozen=True)

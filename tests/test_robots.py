@@ -181,3 +181,17 @@ def test_planar_jacobians_against_finite_differences(robots):
             np.testing.assert_allclose(point.jacobian(q), fd, atol=FD_TOL)
             jdot_v = (point.jacobian(q + FD_STEP * v) - point.jacobian(q - FD_STEP * v)) / (2 * FD_STEP) @ v
             np.testing.assert_allclose(point.bias(q, v), jdot_v, atol=FD_TOL * 10)
+
+
+def test_rotor_mixing_is_the_seeds_eq_3_10(robots):
+    """R_f built from the URDF's rotor frames and the spin senses equals seed eq. 3.10, and inverts."""
+    p = robots["fpr"].parameters
+    c_t, c_q, d = p["rotor_thrust_coefficient"], p["rotor_drag_coefficient"], p["rotor_arm"]
+    seed = np.array([[c_t, c_t, c_t, c_t], [0, d * c_t, 0, -d * c_t], [-d * c_t, 0, d * c_t, 0], [-c_q, c_q, -c_q, c_q]])
+    for r in robots.values():
+        for rotor in r.rotors:
+            np.testing.assert_allclose(rotor.mixing_matrix, seed, rtol=1e-12, atol=1e-15)
+            w2 = np.random.default_rng(0).uniform(0, 900**2, (6, 4))
+            u = rotor.wrench(w2)
+            np.testing.assert_allclose(rotor.speeds_squared(u[:, 0], u[:, 1:]), w2, rtol=1e-9)
+            assert rotor.constants.max_rotor_thrust == pytest.approx(9.0, rel=1e-3)  # seed: 9 N per rotor
