@@ -277,8 +277,9 @@ class Robot:
     # ------------------------------------------------------------------ dynamics
     def mass_matrix(self, q) -> np.ndarray:
         """M(q), generalised inertia matrix, shape (n, n) (seed 2.11)."""
-        m = pin.crba(self.model, self.data, self._q(q))
-        m = np.triu(m) + np.triu(m, 1).T
+        m = pin.crba(self.model, self.data, self._q(q)).copy()
+        lower = np.tril_indices(self.nq, -1)
+        m[lower] = m.T[lower]  # CRBA fills the upper triangle only
         return self.T.T @ m @ self.T
 
     def nonlinear_effects(self, q, v) -> np.ndarray:

@@ -5,20 +5,10 @@ import pinocchio as pin
 import pytest
 
 import fpr
+from helpers import random_state
 from fpr.constrained import build_closed_chain
 
 SEED = 11
-
-
-def random_state(robot, rng, scale=1.0):
-    q = 0.3 * rng.normal(size=robot.nq)
-    if robot.name == "fpr":
-        q[robot.index["phi"]] += 5 * np.pi / 4
-        q[robot.index["q21"]] += np.pi / 2
-    else:
-        q[robot.index["q1"]] += 0.3
-        q[robot.index["q2"]] += 1.2
-    return q, scale * rng.normal(size=robot.nq)
 
 
 @pytest.mark.parametrize("name", fpr.ROBOTS)

@@ -5,6 +5,7 @@ import pinocchio as pin
 import pytest
 
 import fpr
+from helpers import random_state
 from fpr.errors import ShapeError, UnknownRobotError
 
 RNG_SEED = 20261122
@@ -15,18 +16,6 @@ FD_TOL = 1e-6  # central differences with h = 1e-6: truncation ~1e-12, round-off
 @pytest.fixture(scope="module")
 def robots():
     return {name: fpr.load(name) for name in fpr.ROBOTS}
-
-
-def random_state(robot, rng):
-    """A random configuration near the reference pose and a random velocity."""
-    q = 0.3 * rng.normal(size=robot.nq)
-    if robot.name == "fpr":
-        q[robot.index["phi"]] += 5 * np.pi / 4
-        q[robot.index["q21"]] += np.pi / 2
-    else:
-        q[robot.index["q1"]] += 0.3
-        q[robot.index["q2"]] += 1.2
-    return q, rng.normal(size=robot.nq)
 
 
 def test_unknown_robot_and_bad_shapes(robots):
