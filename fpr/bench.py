@@ -193,7 +193,7 @@ def run_residuals() -> list[dict]:
             err = np.abs([model.forward_dynamics(q[k], v[k], inputs.thrust[k], inputs.torque[k]) - a[k]
                           for k in range(len(q))])
             rows = {"all rows": slice(None)} if d == 0.0 else {
-                "roll rows": model.indices([c for c in model.layout.attitude if c.startswith("phi")]),
+                "roll rows": model.indices(model.layout.rolls),
                 "chain rows": model.indices(model.layout.chain)}
             for label, idx in rows.items():
                 out.append(dict(name=f"{name} round trip d={d:g}, {label}", value=float(err[:, idx].max()),

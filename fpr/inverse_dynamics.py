@@ -81,7 +81,7 @@ class MotionInputs:
         n = self.motion.shape[1]
         out = [np.zeros((n, robot.nq)) for _ in range(3)]
         chain = robot.indices(robot.layout.chain)
-        rolls = robot.indices([c for c in robot.layout.attitude if c.startswith("phi")])
+        rolls = robot.indices(robot.layout.rolls)
         for k, roll in enumerate((self.roll, self.roll_rate, self.roll_acceleration)):
             out[k][:, chain] = self.motion[k]
             out[k][:, rolls] = roll

@@ -183,9 +183,7 @@ class PlanarModel:
                 raise ValueError(f"joint {model.names[j]} of kind {kind} is not handled by the planar model")
             frames[j] = (sel, terms, row, off)
 
-        keep = robot.indices(robot.layout.chain)
-        if drones == "rigid":
-            keep = np.concatenate([keep, robot.indices([c for c in robot.layout.attitude if c.startswith("phi")])])
+        keep = robot.planar_indices(rolls=drones == "rigid")
         names = [robot.layout.coordinates[i] for i in keep]
         to_planar = robot.T[:, keep]  # q_pin = T q, restricted to the planar coordinates
         others = np.setdiff1d(np.arange(robot.nq), keep)
@@ -283,9 +281,7 @@ class PlanarModel:
 
 def planar_configuration(robot, q) -> np.ndarray:
     """Planar coordinates [chain..., drone rolls...] taken out of a full configuration (..., n)."""
-    keep = np.concatenate([robot.indices(robot.layout.chain),
-                           robot.indices([c for c in robot.layout.attitude if c.startswith("phi")])])
-    return np.asarray(q, dtype=float)[..., keep]
+    return np.asarray(q, dtype=float)[..., robot.planar_indices()]
 
 
 __all__ = ["PlanarBody", "PlanarModel", "PlanarPoint", "planar_configuration"]

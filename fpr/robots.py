@@ -61,6 +61,11 @@ class Layout:
     attitude: tuple[str, ...]
     euler_root: bool
 
+    @property
+    def rolls(self) -> tuple[str, ...]:
+        """The drones' absolute roll coordinates (phi1, phi2...), the in-plane part of the attitude."""
+        return tuple(c for c in self.attitude if c.startswith("phi"))
+
 
 LAYOUTS = {
     "fpr": Layout(
@@ -202,6 +207,10 @@ class Robot:
     def indices(self, coordinates) -> np.ndarray:
         """Positions of named coordinates in q."""
         return np.array([self.index[c] for c in coordinates], dtype=int)
+
+    def planar_indices(self, rolls: bool = True) -> np.ndarray:
+        """Positions in q of the in-plane coordinates: the chain, then (if ``rolls``) the drone rolls."""
+        return self.indices(self.layout.chain + (self.layout.rolls if rolls else ()))
 
     def to_pinocchio(self, q) -> np.ndarray:
         """Thesis coordinates (or velocities, accelerations) to Pinocchio's."""
