@@ -130,8 +130,7 @@ def roll_torques(robot, q, v, thrust, roll_acceleration) -> np.ndarray:
         tau_x of each drone, shape (N, n_d) [N m].
     """
     rigid = robot.planar("rigid")
-    m = rigid.mass_matrix(q)
-    c = rigid.bias(q, v)
+    m, c = rigid.mass_matrix_and_bias(q, v)
     sel = np.array(rigid.drone_angles)  # (n_d, n)
     gen = -c
     for i, centre in enumerate(rigid.drone_centres):

@@ -54,47 +54,52 @@ class PlanarPoint:
     offsets: np.ndarray
     vectors: np.ndarray
 
-    def _cs(self, q):
+    def _rotated(self, q):
+        """Components (y, z) of each Rot(a_k.q + b_k) v_k, each of shape (..., K)."""
         th = np.asarray(q, dtype=float) @ self.rows.T + self.offsets
-        return np.cos(th), np.sin(th)
+        return _rotate(np.cos(th), np.sin(th), self.vectors)
 
     def position(self, q) -> np.ndarray:
         """p(q), shape (..., 2) [m]."""
-        c, s = self._cs(q)
-        y, z = _rotate(c, s, self.vectors)
+        y, z = self._rotated(q)
         return np.stack([y.sum(-1), z.sum(-1)], axis=-1) + np.asarray(q, dtype=float) @ self.selector.T
 
     def jacobian(self, q) -> np.ndarray:
         """dp/dq, shape (..., 2, n)."""
-        c, s = self._cs(q)
-        y, z = _rotate(c, s, self.vectors)  # d/dtheta Rot(theta) v = Rot(theta + pi/2) v = (-z, y)
+        y, z = self._rotated(q)  # d/dtheta Rot(theta) v = Rot(theta + pi/2) v = (-z, y)
         return np.stack([-z @ self.rows, y @ self.rows], axis=-2) + self.selector
 
     def bias(self, q, v) -> np.ndarray:
         """dJ/dt qdot = -sum_k Rot(theta_k) v_k (a_k . qdot)^2, shape (..., 2) [m/s^2]."""
-        c, s = self._cs(q)
-        y, z = _rotate(c, s, self.vectors)
+        y, z = self._rotated(q)
         w2 = (np.asarray(v, dtype=float) @ self.rows.T) ** 2
         return -np.stack([(y * w2).sum(-1), (z * w2).sum(-1)], axis=-1)
 
-    def _angle_jet(self, q: Jet) -> Jet:
+    def _rotated_jet(self, q: Jet):
         d = q.d @ self.rows.T
         d[0] = d[0] + self.offsets
-        return Jet(d)
+        s, c = jets.sincos(Jet(d))
+        return _rotate(c, s, self.vectors)
+
+    def _position_from(self, q: Jet, y: Jet, z: Jet) -> Jet:
+        return jets.stack([y.sum(-1), z.sum(-1)], axis=-1) + Jet(q.d @ self.selector.T)
+
+    def _jacobian_from(self, y: Jet, z: Jet) -> Jet:
+        return jets.matmul(jets.stack([-z, y], axis=-2), self.rows) + self.selector
 
     def position_jet(self, q: Jet) -> Jet:
         """p(q(t)) with its time derivatives, for a motion q given as a Jet of shape (..., n)."""
-        s, c = jets.sincos(self._angle_jet(q))
-        y = (c * self.vectors[:, 0] - s * self.vectors[:, 1]).sum(-1)
-        z = (s * self.vectors[:, 0] + c * self.vectors[:, 1]).sum(-1)
-        return jets.stack([y, z], axis=-1) + Jet(q.d @ self.selector.T)
+        return self._position_from(q, *self._rotated_jet(q))
 
     def jacobian_jet(self, q: Jet) -> Jet:
         """dp/dq along the motion, Jet of shape (..., 2, n)."""
-        s, c = jets.sincos(self._angle_jet(q))
-        y = c * self.vectors[:, 0] - s * self.vectors[:, 1]
-        z = s * self.vectors[:, 0] + c * self.vectors[:, 1]
-        return jets.matmul(jets.stack([-z, y], axis=-2), self.rows) + self.selector
+        return self._jacobian_from(*self._rotated_jet(q))
+
+    def position_and_jacobian_jet(self, q: Jet, jacobian_order: int) -> tuple[Jet, Jet]:
+        """Both :meth:`position_jet` (order of q) and :meth:`jacobian_jet` (truncated to
+        ``jacobian_order``) from one evaluation of the rotations."""
+        y, z = self._rotated_jet(q)
+        return self._position_from(q, y, z), self._jacobian_from(y.truncate(jacobian_order), z.truncate(jacobian_order))
 
 
 @dataclass(frozen=True)
@@ -221,27 +226,38 @@ class PlanarModel:
         return cls(names, bodies, hinges, centres, angles, float(-model.gravity.linear[2]))
 
     # ------------------------------------------------------------------ pointwise (batched) model
-    def mass_matrix(self, q) -> np.ndarray:
-        """M(q), shape (..., n, n)."""
-        q = np.asarray(q, dtype=float)
-        m = np.zeros(q.shape[:-1] + (self.n, self.n))
-        for b in self.bodies:
-            jac = b.com.jacobian(q)
+    def _com_jacobians(self, q) -> list[np.ndarray]:
+        return [b.com.jacobian(q) for b in self.bodies]
+
+    def _mass_matrix(self, jacobians) -> np.ndarray:
+        m = np.zeros(jacobians[0].shape[:-2] + (self.n, self.n))
+        for b, jac in zip(self.bodies, jacobians):
             m += b.mass * np.swapaxes(jac, -1, -2) @ jac + b.inertia * np.outer(b.angle_row, b.angle_row)
         return m
 
-    def bias(self, q, v) -> np.ndarray:
-        """c(q, qdot): Coriolis, centrifugal and gravity terms, shape (..., n)."""
-        q = np.asarray(q, dtype=float)
-        c = np.zeros(q.shape[:-1] + (self.n,))
-        for b in self.bodies:
-            jac = b.com.jacobian(q)
+    def _bias(self, q, v, jacobians) -> np.ndarray:
+        c = np.zeros(jacobians[0].shape[:-2] + (self.n,))
+        for b, jac in zip(self.bodies, jacobians):
             c += b.mass * np.einsum("...in,...i->...n", jac, b.com.bias(q, v) - self._g)
         return c
 
+    def mass_matrix(self, q) -> np.ndarray:
+        """M(q), shape (..., n, n)."""
+        return self._mass_matrix(self._com_jacobians(q))
+
+    def bias(self, q, v) -> np.ndarray:
+        """c(q, qdot): Coriolis, centrifugal and gravity terms, shape (..., n)."""
+        return self._bias(q, v, self._com_jacobians(q))
+
+    def mass_matrix_and_bias(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """M(q) and c(q, qdot) together, the body Jacobians computed once."""
+        jacobians = self._com_jacobians(q)
+        return self._mass_matrix(jacobians), self._bias(q, v, jacobians)
+
     def inverse_dynamics(self, q, v, a) -> np.ndarray:
         """Generalised force M a + c, shape (..., n)."""
-        return np.einsum("...ij,...j->...i", self.mass_matrix(q), np.asarray(a, dtype=float)) + self.bias(q, v)
+        m, c = self.mass_matrix_and_bias(q, v)
+        return np.einsum("...ij,...j->...i", m, np.asarray(a, dtype=float)) + c
 
     def hinge_jacobian(self, q) -> np.ndarray:
         """d[r_1; ...; r_nd]/dq, shape (..., 2 n_d, n) (J_p of seed 2.6, J_pr of 3.35)."""
@@ -268,8 +284,9 @@ class PlanarModel:
         qdd = q.derivative().derivative()
         out = None
         for b in self.bodies:
-            acc = b.com.position_jet(q).derivative().derivative() - self._g
-            term = jets.matmul(b.com.jacobian_jet(q.truncate(k)).mT, acc[..., None])[..., 0] * b.mass
+            position, jac = b.com.position_and_jacobian_jet(q, k)
+            acc = position.derivative().derivative() - self._g
+            term = jets.matmul(jac.mT, acc[..., None])[..., 0] * b.mass
             term = term + Jet(np.multiply.outer(qdd.d @ b.angle_row, b.angle_row)) * b.inertia
             out = term if out is None else out + term
         return out
