@@ -404,14 +404,17 @@ def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Rob
     Args:
         name: "fpr" (two drones and the end-effector) or "prototype" (one drone, chain pinned).
         urdf: a URDF file to use instead of the committed ``urdf/<name>.urdf``.
-        **xacro_args: parameter overrides (keys of ``urdf/parameters.yaml``, e.g.
-            ``link_length=1.0``): the URDF is then regenerated from xacro with them.
+        **xacro_args: overrides of the description's xacro arguments (the geometric and inertial
+            keys of ``urdf/parameters.yaml`` and ``rotor_arm``, e.g. ``link_length=1.0``): the URDF
+            is then regenerated from xacro with them, and ``robot.parameters`` shows them too.
 
     Returns:
         the :class:`Robot`.
 
     Raises:
         UnknownRobotError: for a name other than "fpr" or "prototype".
+        ValueError: a key that is not a xacro argument (rotor constants, margins: edit the
+            parameter file instead), or both ``urdf`` and overrides given.
     """
     if name not in ROBOTS:
         raise UnknownRobotError(name, ROBOTS)
@@ -421,10 +424,7 @@ def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Rob
         text = description.generate_urdf(name, **xacro_args)
     else:
         text = Path(urdf or description.urdf_path(name)).read_text(encoding="utf-8")
-    params = load_parameters()
-    for key, value in xacro_args.items():
-        if key in params:
-            params[key] = value
+    params = {**load_parameters(), **xacro_args}
     return Robot(name, text, params)
 
 
