@@ -78,6 +78,34 @@ class SingularityError(FprError, ValueError):
         super().__init__(msg + (f": {hint}" if hint else ""))
 
 
+class MissionError(FprError, ValueError):
+    """A mission (file or object) with a missing, malformed or inconsistent field.
+
+    Attributes:
+        field: the offending field, as written in the mission file (e.g. ``times[2]``).
+        source: where the mission came from (file path or mission name), or ``""``.
+    """
+
+    def __init__(self, field: str, reason: str, source: str = ""):
+        self.field = field
+        self.source = str(source)
+        self.reason = reason
+        where = f"{self.source}: " if self.source else ""
+        super().__init__(f"{where}field {field!r}: {reason}")
+
+
+class PlanningError(FprError, RuntimeError):
+    """The optimiser could not produce a motion that satisfies every constraint.
+
+    Attributes:
+        result: the best result obtained (a :class:`planners.optimize.PlanResult`), still usable.
+    """
+
+    def __init__(self, message: str, result=None):
+        self.result = result
+        super().__init__(message)
+
+
 def check_shape(argument: str, x, expected: tuple[int | None, ...]) -> np.ndarray:
     """Return ``x`` as a float array after checking its shape.
 

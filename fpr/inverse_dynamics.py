@@ -90,7 +90,7 @@ class MotionInputs:
 
 def _motion_array(robot, motion) -> np.ndarray:
     n_s = len(robot.layout.chain)
-    m = np.asarray(motion.d if isinstance(motion, Jet) else motion, dtype=float)
+    m = jets.inexact(motion.d if isinstance(motion, Jet) else motion)
     if m.ndim == 2:
         m = m[:, None, :]
     if m.ndim != 3 or m.shape[0] < 5 or m.shape[2] != n_s:
@@ -169,7 +169,7 @@ def inverse_dynamics(robot, motion) -> MotionInputs:
     q = np.concatenate([m[0], roll.value], axis=-1)
     v = np.concatenate([m[1], roll.d[1]], axis=-1)
     tau_x = roll_torques(robot, q, v, thrust.value, roll.d[2])
-    torque = np.zeros(tau_x.shape + (3,))
+    torque = np.zeros(tau_x.shape + (3,), tau_x.dtype)
     torque[..., 0] = tau_x
     w2 = np.stack([rotor.speeds_squared(thrust.value[:, i], torque[:, i]) for i, rotor in enumerate(robot.rotors)],
                   axis=1)

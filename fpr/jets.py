@@ -48,6 +48,22 @@ def _lift(x, order):
     return x if isinstance(x, Jet) else Jet.constant(x, order)
 
 
+def inexact(x) -> np.ndarray:
+    """``x`` as an array of floats, complex values kept (complex-step differentiation
+    passes through every function of this package that converts its inputs this way)."""
+    x = np.asarray(x)
+    return x if np.issubdtype(x.dtype, np.inexact) else x.astype(float)
+
+
+def _atan2_value(y, x):
+    """``arctan2`` that also takes complex-step arguments ``a + i h b`` (h tiny): the real part is
+    the angle of the real parts, the imaginary part its first-order change (exact for h -> 0)."""
+    if not (np.iscomplexobj(y) or np.iscomplexobj(x)):
+        return np.arctan2(y, x)
+    yr, xr = np.real(y), np.real(x)
+    return np.arctan2(yr, xr) + 1j * (xr * np.imag(y) - yr * np.imag(x)) / (xr * xr + yr * yr)
+
+
 def _leibniz(da, db, K, op=np.multiply):
     """Derivatives of ``op(a, b)`` for a bilinear ``op``: sum_k C(n,k) op(a^(k), b^(n-k))."""
     return np.stack([_wsum(_B[n, :n + 1], op(da[:n + 1], db[n::-1])) for n in range(K + 1)])
@@ -269,10 +285,10 @@ def atan2(y, x):
     """Four-quadrant angle with continuous derivatives across the branch cut:
     value ``np.arctan2(y, x)``, derivative jet ``(x y' - y x') / (x^2 + y^2)``."""
     if not isinstance(y, Jet) and not isinstance(x, Jet):
-        return np.arctan2(y, x)
+        return _atan2_value(y, x)
     K = min(j.order for j in (y, x) if isinstance(j, Jet))
     y, x = _lift(y, K).truncate(K), _lift(x, K).truncate(K)
-    value = np.arctan2(y.value, x.value)
+    value = _atan2_value(y.value, x.value)
     if K == 0:
         return Jet(value[None])
     y0, x0 = y.truncate(K - 1), x.truncate(K - 1)

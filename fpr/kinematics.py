@@ -17,24 +17,25 @@ from __future__ import annotations
 import numpy as np
 
 from fpr.errors import ShapeError, SingularityError, WorkspaceError
+from fpr.jets import inexact
 from fpr.parameters import Margins
 from fpr.parameters import margins as default_margins
 
 
 def u(a) -> np.ndarray:
     """Unit vector (cos a, sin a), shape (..., 2)."""
-    a = np.asarray(a, dtype=float)
+    a = inexact(a)
     return np.stack([np.cos(a), np.sin(a)], axis=-1)
 
 
 def u_perp(a) -> np.ndarray:
     """du/da = (-sin a, cos a), shape (..., 2)."""
-    a = np.asarray(a, dtype=float)
+    a = inexact(a)
     return np.stack([-np.sin(a), np.cos(a)], axis=-1)
 
 
 def _last(x, n: int, name: str) -> np.ndarray:
-    x = np.asarray(x, dtype=float)
+    x = inexact(x)
     if x.ndim == 0 or x.shape[-1] != n:
         raise ShapeError(name, x.shape, f"(..., {n})")
     return x
@@ -207,7 +208,8 @@ def prototype_workspace_margins(xi, link_length: float, margins: Margins) -> dic
         "ground_3": r[..., 1, 1] - ground,
         "fixed_point_2": r[..., 0, 0] - margins.ground,
         "fixed_point_3": r[..., 1, 0] - margins.ground,
-        "q1_bound": (np.pi / 2 - margins.angle) - np.abs(xi[..., 0]),
+        "q1_low": xi[..., 0] + (np.pi / 2 - margins.angle),
+        "q1_high": (np.pi / 2 - margins.angle) - xi[..., 0],
         "q2_low": xi[..., 1] - margins.angle,
         "q2_high": (np.pi - margins.angle) - xi[..., 1],
     }

@@ -56,13 +56,13 @@ class PlanarPoint:
 
     def _rotated(self, q):
         """Components (y, z) of each Rot(a_k.q + b_k) v_k, each of shape (..., K)."""
-        th = np.asarray(q, dtype=float) @ self.rows.T + self.offsets
+        th = jets.inexact(q) @ self.rows.T + self.offsets
         return _rotate(np.cos(th), np.sin(th), self.vectors)
 
     def position(self, q) -> np.ndarray:
         """p(q), shape (..., 2) [m]."""
         y, z = self._rotated(q)
-        return np.stack([y.sum(-1), z.sum(-1)], axis=-1) + np.asarray(q, dtype=float) @ self.selector.T
+        return np.stack([y.sum(-1), z.sum(-1)], axis=-1) + jets.inexact(q) @ self.selector.T
 
     def jacobian(self, q) -> np.ndarray:
         """dp/dq, shape (..., 2, n)."""
@@ -72,7 +72,7 @@ class PlanarPoint:
     def bias(self, q, v) -> np.ndarray:
         """dJ/dt qdot = -sum_k Rot(theta_k) v_k (a_k . qdot)^2, shape (..., 2) [m/s^2]."""
         y, z = self._rotated(q)
-        w2 = (np.asarray(v, dtype=float) @ self.rows.T) ** 2
+        w2 = (jets.inexact(v) @ self.rows.T) ** 2
         return -np.stack([(y * w2).sum(-1), (z * w2).sum(-1)], axis=-1)
 
     def _rotated_jet(self, q: Jet):
@@ -230,13 +230,13 @@ class PlanarModel:
         return [b.com.jacobian(q) for b in self.bodies]
 
     def _mass_matrix(self, jacobians) -> np.ndarray:
-        m = np.zeros(jacobians[0].shape[:-2] + (self.n, self.n))
+        m = np.zeros(jacobians[0].shape[:-2] + (self.n, self.n), jacobians[0].dtype)
         for b, jac in zip(self.bodies, jacobians):
             m += b.mass * np.swapaxes(jac, -1, -2) @ jac + b.inertia * np.outer(b.angle_row, b.angle_row)
         return m
 
     def _bias(self, q, v, jacobians) -> np.ndarray:
-        c = np.zeros(jacobians[0].shape[:-2] + (self.n,))
+        c = np.zeros(jacobians[0].shape[:-2] + (self.n,), np.result_type(jacobians[0], jets.inexact(v)))
         for b, jac in zip(self.bodies, jacobians):
             c += b.mass * np.einsum("...in,...i->...n", jac, b.com.bias(q, v) - self._g)
         return c
@@ -257,7 +257,7 @@ class PlanarModel:
     def inverse_dynamics(self, q, v, a) -> np.ndarray:
         """Generalised force M a + c, shape (..., n)."""
         m, c = self.mass_matrix_and_bias(q, v)
-        return np.einsum("...ij,...j->...i", m, np.asarray(a, dtype=float)) + c
+        return np.einsum("...ij,...j->...i", m, jets.inexact(a)) + c
 
     def hinge_jacobian(self, q) -> np.ndarray:
         """d[r_1; ...; r_nd]/dq, shape (..., 2 n_d, n) (J_p of seed 2.6, J_pr of 3.35)."""
@@ -265,7 +265,7 @@ class PlanarModel:
 
     def energy(self, q, v) -> np.ndarray:
         """Kinetic plus potential energy (zero at z = 0), shape (...) [J]."""
-        q = np.asarray(q, dtype=float)
+        q = jets.inexact(q)
         kinetic = 0.5 * np.einsum("...i,...ij,...j->...", v, self.mass_matrix(q), v)
         potential = sum(b.mass * self.gravity * b.com.position(q)[..., 1] for b in self.bodies)
         return kinetic + potential

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fpr.errors import ShapeError
+from fpr.jets import inexact
 from fpr.parameters import RotorConstants
 
 
@@ -60,7 +61,7 @@ class RotorModel:
         Returns:
             [f, tau_x, tau_y, tau_z], shape (..., 4) [N, N m].
         """
-        return np.asarray(speeds_squared, dtype=float) @ self.mixing_matrix.T
+        return inexact(speeds_squared) @ self.mixing_matrix.T
 
     def speeds_squared(self, thrust, torque) -> np.ndarray:
         """Squared rotor speeds that produce a thrust and body torques (seed 3.47).
@@ -72,7 +73,7 @@ class RotorModel:
         Returns:
             w^2, shape (..., 4); a negative entry means that no real rotor speed gives this wrench.
         """
-        u = np.concatenate([np.asarray(thrust, dtype=float)[..., None], np.asarray(torque, dtype=float)], axis=-1)
+        u = np.concatenate([inexact(thrust)[..., None], inexact(torque)], axis=-1)
         return u @ self.inverse_mixing_matrix.T
 
     def speeds(self, thrust, torque) -> np.ndarray:
