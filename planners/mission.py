@@ -1,0 +1,651 @@
+"""Missions: the user's input of the motion planner (way points, travel times, via points, weights).
+
+A :class:`Mission` says *where* the robot must pass (way points, seed 3.2.1), *when* (the travel
+time of each way-to-way travel), how many free via points the optimiser may place inside each
+travel (n_vp, seed 3.2.4) and how it weighs energy against drone perturbation (alpha, seed 3.25).
+It is validated when it is built: every error is a :class:`fpr.errors.MissionError` naming the
+offending field as it is written in the file (``times[2]``, ``way_points[1]``...). Whether the way
+points are reachable is a property of the robot as well; :meth:`Mission.positions` checks it and
+raises :class:`fpr.errors.WorkspaceError` / :class:`fpr.errors.SingularityError`.
+
+Missions are written in TOML files; the built-in ones (:data:`BUILTIN_MISSIONS`) live in
+``planners/missions/`` and are meant to be copied and edited. Load one with :func:`load_mission`
+(a built-in name or a path).
+
+File format (every key at the top level, except the optional ``[robot_parameters]`` table):
+
+``name`` (string, optional)
+    The mission's name, used in messages and file names. Default: the file name without ``.toml``.
+``description`` (string, optional)
+    Free text. Default ``""``.
+``robot`` (string, required)
+    ``"fpr"`` (two drones and the end-effector) or ``"prototype"`` (one drone, chain pinned at the
+    origin).
+``space`` (string, optional)
+    In which coordinates the way points are written. Default ``"task"``.
+
+    * FPR: task and joint space are the same, s = [y, z, phi, q21] [m, m, rad, rad]: the
+      end-effector position p = (y, z), the absolute angle phi of link 1 (from the drone joint r1
+      to p: r1 = p - L u(phi)) and the angle q21 between the links (DESIGN.md conventions).
+    * prototype, ``"task"``: the drone joint position [y, z] [m] in the vertical plane, fixed point
+      at the origin; the planner converts it to xi with the assembly mode ``arm``.
+    * prototype, ``"joint"``: xi = [q1, q2] [rad], joint 2 = L u(q1), drone joint = L u(q1) + L u(q1 + q2).
+``arm`` (string, optional)
+    Assembly mode of the prototype: ``"down"`` (q2 > 0, the elbow below the line fixed point ->
+    drone) or ``"up"`` (q2 < 0). Default ``"down"``. Must be one of the two for the FPR too, where
+    it is ignored.
+``way_points`` (array of arrays of numbers, required)
+    k >= 2 way points, each with 4 numbers (FPR) or 2 (prototype), in the coordinates of ``space``.
+    The robot starts at rest at the first and stops at rest at the last.
+``times`` (array of numbers, required)
+    k - 1 travel times [s], finite and > 0: ``times[i]`` is the time from way point i to i + 1.
+``via_points`` (integer or array of integers, optional)
+    n_vp >= 0, the number of via points the optimiser places inside each travel; one integer is
+    used for every travel, an array gives one per travel (k - 1 entries). Default 1.
+``alpha`` (number, optional)
+    Weight in [0, 1] of the energy term of the objective (seed 3.25)
+    J = alpha Je / Je0 + (1 - alpha) Jphi / Jphi0: 1 minimises the energy only, 0 the drone
+    perturbation (roll rates) only. Default 0.5.
+``[robot_parameters]`` (table of numbers, optional)
+    Overrides of the robot description's xacro arguments (keys of ``urdf/parameters.yaml`` that
+    the URDF uses, e.g. ``link_length``), passed to ``fpr.load(robot, **robot_parameters)``.
+    Default: none (the committed URDF).
+
+Full example (the built-in ``square`` mission, with a longer link)::
+
+    description = "FPR square, seed 3.2.6"
+    robot = "fpr"
+    space = "task"
+    arm = "down"
+    way_points = [
+        [0.0, 0.0, 3.9269908169872414, 1.5707963267948966],
+        [1.0, 0.0, 3.9269908169872414, 1.5707963267948966],
+        [1.0, 1.0, 3.9269908169872414, 1.5707963267948966],
+        [0.0, 1.0, 3.9269908169872414, 1.5707963267948966],
+        [0.0, 0.0, 3.9269908169872414, 1.5707963267948966],
+    ]
+    times = [3.0, 3.0, 3.0, 3.0]
+    via_points = 1
+    alpha = 0.5
+
+    [robot_parameters]
+    link_length = 1.0
+
+In Python::
+
+    from planners.mission import load_mission
+    mission = load_mission("square").replace(alpha=0.3, via_points=2)
+    robot = mission.load_robot()
+    s = mission.positions(robot)   # (k, 4) FPR s, or (k, 2) prototype xi, margins checked
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import importlib.resources
+import logging
+import numbers
+import os
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from fpr import description
+from fpr.errors import MissionError, SingularityError, WorkspaceError
+from fpr.kinematics import (
+    check_margins,
+    fpr_workspace_margins,
+    prototype_inverse_kinematics,
+    prototype_workspace_margins,
+    singularity_margin,
+)
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10: tomllib joined the standard library in 3.11; "tomli" is the same parser
+    import tomli as tomllib
+
+logger = logging.getLogger(__name__)
+
+ROBOTS = description.ROBOTS  # the same tuple as fpr.robots.ROBOTS, without importing Pinocchio
+SPACES = ("task", "joint")
+ARMS = ("down", "up")
+BUILTIN_MISSIONS = ("square", "study", "prototype-tour")
+"""Names of the built-in missions, files ``planners/missions/<name>.toml``."""
+
+_COORDINATES = {
+    ("fpr", "task"): ("y [m]", "z [m]", "phi [rad]", "q21 [rad]"),
+    ("fpr", "joint"): ("y [m]", "z [m]", "phi [rad]", "q21 [rad]"),
+    ("prototype", "task"): ("y [m]", "z [m]"),
+    ("prototype", "joint"): ("q1 [rad]", "q2 [rad]"),
+}
+_REQUIRED_KEYS = ("robot", "way_points", "times")
+_FILE_KEYS = ("name", "description", "robot", "space", "arm", "way_points", "times", "via_points", "alpha",
+              "robot_parameters")
+
+
+def _is_number(x) -> bool:
+    """True for int and float scalars (numpy's too), False for bool and anything else."""
+    return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_))
+
+
+def _is_integer(x) -> bool:
+    """True for int scalars (numpy's too), False for bool, float and anything else."""
+    return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
+
+
+def _is_sequence(x) -> bool:
+    return isinstance(x, (list, tuple)) or (isinstance(x, np.ndarray) and x.ndim >= 1)
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Mission:
+    """A motion-planning task: way points, travel times, via points and objective weight.
+
+    Built and validated from keyword arguments or from a file (:func:`load_mission`); the arrays
+    are stored read-only. Two missions are equal when every field but ``source`` is equal.
+
+    Attributes:
+        name: the mission's name.
+        robot: "fpr" or "prototype".
+        way_points: shape (k, n), k >= 2, in the coordinates of ``space``: FPR n = 4,
+            s = [y z phi q21] [m, m, rad, rad]; prototype n = 2, task [y z] of the drone joint [m]
+            or joint xi = [q1 q2] [rad].
+        times: shape (k - 1,), travel time from way point i to i + 1 [s], finite and > 0.
+        via_points: shape (k - 1,), int >= 0, number n_vp of via points inside each travel
+            (a single integer is broadcast; default 1).
+        alpha: weight of the energy term in J = alpha Je/Je0 + (1 - alpha) Jphi/Jphi0, in [0, 1].
+        space: "task" or "joint", the coordinates of ``way_points``.
+        arm: prototype assembly mode, "down" (q2 > 0) or "up" (q2 < 0); ignored for the FPR.
+        description: free text.
+        robot_parameters: xacro overrides for ``fpr.load(robot, **robot_parameters)``, e.g.
+            ``{"link_length": 1.0}`` [SI units]; stored as a read-only mapping.
+        source: where the mission came from (file path or ``"built-in <name>"``), for messages.
+
+    Raises:
+        MissionError: on construction, for any missing, malformed or inconsistent field.
+    """
+
+    name: str
+    robot: str
+    way_points: np.ndarray
+    times: np.ndarray
+    via_points: np.ndarray = 1  # type: ignore[assignment]  (broadcast to an array)
+    alpha: float = 0.5
+    space: str = "task"
+    arm: str = "down"
+    description: str = ""
+    robot_parameters: Mapping[str, float] = field(default_factory=dict)
+    source: str = ""
+
+    # ------------------------------------------------------------------ validation
+    def __post_init__(self):
+        self._set("source", str(self.source))
+        self._set("name", self._text("name", self.name, allow_empty=False))
+        self._set("description", self._text("description", self.description))
+        self._set("robot", self._choice("robot", self.robot, ROBOTS, "the robot to plan for"))
+        self._set("space", self._choice("space", self.space, SPACES, "the coordinates of way_points"))
+        self._set("arm", self._choice("arm", self.arm, ARMS, "the prototype's assembly mode, down: q2 > 0"))
+        way_points = self._way_points(self.way_points)
+        self._set("way_points", way_points)
+        k = way_points.shape[0]
+        self._set("times", self._times(self.times, k))
+        self._set("via_points", self._via_points(self.via_points, k))
+        self._set("alpha", self._alpha(self.alpha))
+        self._set("robot_parameters", self._robot_parameters(self.robot_parameters))
+        self._check_arm_signs()
+
+    def _set(self, name: str, value) -> None:
+        object.__setattr__(self, name, value)
+
+    def _error(self, field_name: str, reason: str) -> MissionError:
+        return MissionError(field_name, reason, self.source)
+
+    def _text(self, field_name: str, value, allow_empty: bool = True) -> str:
+        if not isinstance(value, str):
+            raise self._error(field_name, f"{value!r} is a {type(value).__name__}: write a string in quotes")
+        if not allow_empty and not value.strip():
+            raise self._error(field_name, "is empty: give the mission a name")
+        return value
+
+    def _choice(self, field_name: str, value, choices: tuple[str, ...], meaning: str) -> str:
+        if not isinstance(value, str) or value not in choices:
+            raise self._error(field_name, f"{value!r} is not known ({meaning}): use one of "
+                                          f"{', '.join(map(repr, choices))}")
+        return value
+
+    def _way_points(self, value) -> np.ndarray:
+        coords = _COORDINATES[(self.robot, self.space)]
+        n, listed = len(coords), ", ".join(coords)
+        shape_hint = f"a list of way points, each a list of {n} numbers [{listed}]"
+        if not _is_sequence(value):
+            raise self._error("way_points", f"{value!r} is not a list: give {shape_hint}")
+        rows = list(value)
+        if len(rows) < 2:
+            reason = f"{len(rows)} way point(s): give at least 2 (a start and an end), as {shape_hint}"
+            raise self._error("way_points", reason)
+        for i, row in enumerate(rows):
+            name = f"way_points[{i}]"
+            if not _is_sequence(row) or np.ndim(row) != 1:
+                raise self._error(name, f"{row!r} is not a list of numbers: give {n} numbers [{listed}]")
+            if len(row) != n:
+                reason = f"has {len(row)} entries; a {self.robot} way point in {self.space} space has {n}: " \
+                         f"[{listed}]"
+                raise self._error(name, reason)
+            for j, x in enumerate(row):
+                if not _is_number(x):
+                    raise self._error(name, f"entry {j} ({coords[j]}) is {x!r}, not a number")
+                if not np.isfinite(x):
+                    raise self._error(name, f"entry {j} ({coords[j]}) is {x}: give a finite number")
+        return _read_only(np.array([[float(x) for x in row] for row in rows], dtype=float))
+
+    def _times(self, value, k: int) -> np.ndarray:
+        count = f"{k} way points make {k - 1} travel(s): give {k - 1} travel time(s) [s]"
+        if not _is_sequence(value) or np.ndim(value) != 1:
+            raise self._error("times", f"{value!r} is not a list: {count}, e.g. times = {[3.0] * (k - 1)}")
+        if len(value) != k - 1:
+            raise self._error("times", f"has {len(value)} entries; {count}, one per travel")
+        for i, t in enumerate(value):
+            if not _is_number(t):
+                raise self._error(f"times[{i}]", f"{t!r} is not a number: give a travel time in seconds")
+            if not (np.isfinite(t) and t > 0):
+                raise self._error(f"times[{i}]", f"{t} s: a travel time must be finite and > 0 [s]")
+        return _read_only(np.array([float(t) for t in value], dtype=float))
+
+    def _via_points(self, value, k: int) -> np.ndarray:
+        if not _is_sequence(value):
+            self._check_via_point("via_points", value)
+            return _read_only(np.full(k - 1, int(value), dtype=int))
+        if np.ndim(value) != 1 or len(value) != k - 1:
+            reason = (f"has {len(value)} entries; {k} way points make {k - 1} travel(s): give one integer "
+                      "per travel, or a single integer for all of them")
+            raise self._error("via_points", reason)
+        for i, n_vp in enumerate(value):
+            self._check_via_point(f"via_points[{i}]", n_vp)
+        return _read_only(np.array([int(n_vp) for n_vp in value], dtype=int))
+
+    def _check_via_point(self, field_name: str, value) -> None:
+        if not _is_integer(value):
+            reason = (f"{value!r} is not an integer: give the number of via points of a travel as an integer "
+                      ">= 0 (e.g. 1, not 1.0)")
+            raise self._error(field_name, reason)
+        if value < 0:
+            raise self._error(field_name, f"{value}: the number of via points must be >= 0")
+
+    def _alpha(self, value) -> float:
+        if not _is_number(value) or not np.isfinite(value) or not 0.0 <= value <= 1.0:
+            reason = f"{value!r}: give a number in [0, 1] (1: energy only, 0: drone perturbation only)"
+            raise self._error("alpha", reason)
+        return float(value)
+
+    def _robot_parameters(self, value) -> Mapping[str, float]:
+        if not isinstance(value, Mapping):
+            reason = f"{value!r} is not a table: write [robot_parameters] then lines like link_length = 1.0"
+            raise self._error("robot_parameters", reason)
+        known = description.xacro_arguments()
+        checked = {}
+        for key, x in value.items():
+            name = f"robot_parameters.{key}"
+            if key not in known:
+                reason = (f"unknown robot parameter{_did_you_mean(key, known)}: use some of "
+                          f"{', '.join(known)} (rotor constants, margins: edit urdf/parameters.yaml instead)")
+                raise self._error(name, reason)
+            if not _is_number(x) or not np.isfinite(x) or x < 0 or (key == "link_length" and x == 0):
+                raise self._error(name, f"{x!r}: give a finite number >= 0 (> 0 for link_length) [SI units]")
+            checked[key] = float(x)
+        return MappingProxyType(checked)
+
+    def _check_arm_signs(self) -> None:
+        """Prototype in joint space: sign(q2) must match ``arm`` (q2 = 0 is left to the singularity check)."""
+        if self.robot != "prototype" or self.space != "joint":
+            return
+        sign = 1.0 if self.arm == "down" else -1.0
+        wrong = np.flatnonzero(sign * self.way_points[:, 1] < 0)
+        if wrong.size == 0:
+            return
+        mode, other = ("up (q2 < 0)", "up") if sign > 0 else ("down (q2 > 0)", "down")
+        if wrong.size == self.way_points.shape[0]:
+            reason = (f"{self.arm!r}, but every way point has its elbow {mode}: set arm = {other!r} or "
+                      "change the sign of q2")
+            raise self._error("arm", reason)
+        i = int(wrong[0])
+        reason = (f"q2 = {self.way_points[i, 1]:.6g} rad puts the elbow {mode}, arm = {self.arm!r}: change "
+                  "the sign of q2 (the assembly mode cannot change at a way point; q2 = 0 is a singularity)")
+        raise self._error(f"way_points[{i}]", reason)
+
+    # ------------------------------------------------------------------ comparisons and copies
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, Mission):
+            return NotImplemented
+        return all(_field_equal(getattr(self, f.name), getattr(other, f.name))
+                   for f in dataclasses.fields(self) if f.name != "source")
+
+    __hash__ = None  # type: ignore[assignment]  (holds arrays)
+
+    def replace(self, **changes) -> Mission:
+        """A validated copy with some fields changed, e.g. ``replace(alpha=0.3, via_points=2)``.
+
+        A scalar ``via_points`` is broadcast to every travel. When ``way_points`` change (and with
+        them the number of travels) and ``via_points`` is not given, a uniform ``via_points`` stays
+        uniform; ``times`` must then be given too.
+
+        Raises:
+            MissionError: an unknown field, or a changed value that is not valid.
+        """
+        names = [f.name for f in dataclasses.fields(self)]
+        for key in changes:
+            if key not in names:
+                reason = f"not a mission field{_did_you_mean(key, names)}: use some of {', '.join(names)}"
+                raise self._error(key, reason)
+        if "way_points" in changes and "via_points" not in changes and np.unique(self.via_points).size == 1:
+            changes["via_points"] = int(self.via_points[0])
+        return dataclasses.replace(self, **changes)
+
+    # ------------------------------------------------------------------ derived quantities
+    @property
+    def n_way_points(self) -> int:
+        """k, the number of way points."""
+        return int(self.way_points.shape[0])
+
+    @property
+    def duration(self) -> float:
+        """Total time of the mission, sum of ``times`` [s]."""
+        return float(np.sum(self.times))
+
+    def load_robot(self):
+        """The robot to plan for: ``fpr.load(robot, **robot_parameters)`` (a :class:`fpr.robots.Robot`).
+
+        Raises:
+            MissionError: a robot parameter that the description does not accept
+                (field ``robot_parameters.<key>``).
+        """
+        from fpr import robots  # Pinocchio is imported on first use only
+
+        try:
+            return robots.load(self.robot, **self.robot_parameters)
+        except (ValueError, TypeError) as error:
+            known = description.xacro_arguments()
+            bad = next((k for k in self.robot_parameters if k not in known), None)
+            if bad is None:
+                raise
+            raise self._error(f"robot_parameters.{bad}", f"rejected by fpr.load: {error}") from error
+
+    def positions(self, robot=None) -> np.ndarray:
+        """The way points in planning coordinates, each checked against the workspace margins.
+
+        Args:
+            robot: the :class:`fpr.robots.Robot` to plan for (only ``name``, ``link_length`` and
+                ``margins`` are used); default :meth:`load_robot`.
+
+        Returns:
+            shape (k, n_s): FPR s = [y z phi q21] [m, m, rad, rad] (both spaces), prototype
+            xi = [q1 q2] [rad] (task-space way points converted with the assembly mode ``arm``).
+
+        Raises:
+            MissionError: ``robot`` is not the mission's robot, or was built with another link length.
+            WorkspaceError: a way point out of reach or violating a geometric margin (ground,
+                fixed point, link angles); the message names the way point and the bound.
+            SingularityError: a way point closer than m_ga to a Type-2 singularity.
+        """
+        robot = robot if robot is not None else self.load_robot()
+        self._check_robot(robot)
+        poses = []
+        for i, point in enumerate(self.way_points):
+            pose = self._planning_pose(i, point, robot)
+            self._check_way_point(i, point, pose, robot)
+            poses.append(pose)
+        return np.array(poses, dtype=float)
+
+    def _check_robot(self, robot) -> None:
+        if robot.name != self.robot:
+            reason = f"the mission is for the {self.robot!r} but a {robot.name!r} model was given: use " \
+                     "mission.load_robot()"
+            raise self._error("robot", reason)
+        wanted = self.robot_parameters.get("link_length")
+        if wanted is not None and not np.isclose(robot.link_length, wanted, rtol=1e-12, atol=0.0):
+            raise self._error("robot_parameters.link_length",
+                              f"{wanted} m, but the robot given has L = {robot.link_length} m: build it with "
+                              "mission.load_robot()")
+
+    def _where(self, i: int, point: np.ndarray) -> str:
+        return f"way_points[{i}] = {_text_of(point)} of mission {self.name!r}"
+
+    def _planning_pose(self, i: int, point: np.ndarray, robot) -> np.ndarray:
+        if self.robot == "fpr" or self.space == "joint":
+            return point.copy()
+        try:
+            return prototype_inverse_kinematics(point, robot.link_length, self.arm,
+                                                min_margin=robot.margins.angle)
+        except WorkspaceError as error:
+            raise WorkspaceError(point, f"{self._where(i, point)}: {error.reason}; move the way point closer "
+                                        "to the fixed point (the origin)") from error
+        except SingularityError as error:
+            near = 2 * robot.link_length * np.sin(robot.margins.angle / 2)
+            far = 2 * robot.link_length * np.cos(robot.margins.angle / 2)
+            raise SingularityError(
+                error.configuration, error.margin, error.required,
+                f"{self._where(i, point)}: the links are (nearly) aligned; move the way point so that its "
+                f"distance to the fixed point is between {near:.4g} m and {far:.4g} m",
+            ) from error
+
+    def _check_way_point(self, i: int, point: np.ndarray, pose: np.ndarray, robot) -> None:
+        what = self._where(i, point) + ("" if np.array_equal(point, pose) else f" (xi = {_text_of(pose)})")
+        if self.robot == "fpr":
+            check_margins(fpr_workspace_margins(pose, robot.link_length, robot.margins), pose, what,
+                          margins=robot.margins)
+            return
+        values = prototype_workspace_margins(pose, robot.link_length, robot.margins)
+        if self.arm == "down":
+            check_margins(values, pose, what, margins=robot.margins)
+            return
+        # prototype_workspace_margins encodes arm down (m_ga <= q2 <= pi - m_ga): mirror its q2 bounds.
+        m = robot.margins.angle
+        values["q2_low"], values["q2_high"] = -pose[1] - m, np.pi - m + pose[1]
+        try:
+            check_margins(values, pose, what, margins=robot.margins)
+        except SingularityError as error:
+            raise SingularityError(
+                pose, float(singularity_margin(pose[1])), m,
+                f"{what}: q2 = {pose[1]:.4g} rad; with arm 'up' keep -pi + {m:.4g} <= q2 <= -{m:.4g} rad",
+            ) from error
+
+    # ------------------------------------------------------------------ output
+    def to_dict(self) -> dict[str, Any]:
+        """The mission as plain Python types (lists, floats, ints, str), ready for JSON or TOML.
+
+        ``source`` is left out: it is where the mission was read from, not part of it, and
+        ``mission_from_dict(m.to_dict()) == m``.
+        """
+        return {
+            "name": self.name,
+            "description": self.description,
+            "robot": self.robot,
+            "space": self.space,
+            "arm": self.arm,
+            "way_points": self.way_points.tolist(),
+            "times": self.times.tolist(),
+            "via_points": [int(n) for n in self.via_points],
+            "alpha": float(self.alpha),
+            "robot_parameters": dict(self.robot_parameters),
+        }
+
+    def to_toml(self) -> str:
+        """The mission as a TOML document that :func:`mission_from_toml` reads back equal.
+
+        Floats are written with ``repr`` (shortest text that reads back to the same double).
+        """
+        d = self.to_dict()
+        rows = "".join(f"    {_toml_value(row)},\n" for row in d["way_points"])
+        lines = [
+            "# Mission written by planners.mission.Mission.to_toml (format: see planners/mission.py)",
+            f"name = {_toml_value(d['name'])}",
+            f"description = {_toml_value(d['description'])}",
+            f"robot = {_toml_value(d['robot'])}  # \"fpr\" or \"prototype\"",
+            f"space = {_toml_value(d['space'])}  # coordinates of way_points: \"task\" or \"joint\"",
+            f"arm = {_toml_value(d['arm'])}  # prototype assembly mode: \"down\" (q2 > 0) or \"up\" (q2 < 0)",
+            f"# {', '.join(_COORDINATES[(self.robot, self.space)])} per way point",
+            f"way_points = [\n{rows}]",
+            f"times = {_toml_value(d['times'])}  # travel time of each way-to-way travel [s]",
+            f"via_points = {_toml_value(d['via_points'])}  # via points inside each travel",
+            f"alpha = {_toml_value(d['alpha'])}  # weight of the energy term, in [0, 1]",
+            "",
+            "[robot_parameters]  # overrides of urdf/parameters.yaml for the URDF [SI units]",
+            *(f"{key} = {_toml_value(value)}" for key, value in d["robot_parameters"].items()),
+        ]
+        return "\n".join(lines) + "\n"
+
+
+def _text_of(values: np.ndarray) -> str:
+    return np.array2string(values, precision=6, separator=", ")
+
+
+def _field_equal(a, b) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.shape(a) == np.shape(b) and bool(np.array_equal(a, b))
+    return a == b
+
+
+def _did_you_mean(key, known) -> str:
+    close = difflib.get_close_matches(str(key), list(known), n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+_TOML_ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
+
+
+def _toml_value(value) -> str:
+    """TOML text of a str, bool, int, finite float or list of them."""
+    if isinstance(value, str):
+        body = "".join(_TOML_ESCAPES.get(c, f"\\u{ord(c):04X}" if ord(c) < 0x20 or ord(c) == 0x7F else c)
+                       for c in value)
+        return f'"{body}"'
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write a {type(value).__name__} as TOML")
+
+
+# ---------------------------------------------------------------------------------------- readers
+def mission_from_dict(data: Mapping[str, Any], source: str = "", *,
+                      default_name: str | None = None) -> Mission:
+    """Build a :class:`Mission` from a dictionary with the keys of the file format.
+
+    Args:
+        data: the keys of the file format (module docstring); ``robot``, ``way_points`` and ``times``
+            are required.
+        source: where the data came from, for messages (file path).
+        default_name: the name when ``data`` has none; default: the stem of ``source`` (file name
+            without ``.toml``), else ``"unnamed"``.
+
+    Raises:
+        MissionError: unknown or missing keys, or invalid values.
+    """
+    source = str(source)
+    if not isinstance(data, Mapping):
+        raise MissionError("<toml>", f"expected a table of keys, got a {type(data).__name__}", source)
+    for key in data:
+        if key not in _FILE_KEYS:
+            reason = f"unknown key{_did_you_mean(key, _FILE_KEYS)}: the keys of a mission are " \
+                     f"{', '.join(_FILE_KEYS)}"
+            raise MissionError(str(key), reason, source)
+    missing = [key for key in _REQUIRED_KEYS if key not in data]
+    if missing:
+        raise MissionError(missing[0], f"missing: a mission needs {', '.join(_REQUIRED_KEYS)} (missing: "
+                                       f"{', '.join(missing)}); see the built-in missions "
+                                       f"({', '.join(BUILTIN_MISSIONS)}) for examples", source)
+    if default_name is None:
+        default_name = Path(source).stem if source else "unnamed"
+    values = dict(data)
+    values.setdefault("name", default_name)
+    return Mission(**values, source=source)
+
+
+def mission_from_toml(text: str, source: str = "", *, default_name: str | None = None) -> Mission:
+    """Build a :class:`Mission` from the text of a TOML mission file.
+
+    Args:
+        text: the TOML document (module docstring).
+        source: where the text came from, for messages and the default name (file path).
+        default_name: see :func:`mission_from_dict`.
+
+    Raises:
+        MissionError: a TOML syntax error (field ``"<toml>"``, the reason gives line and column),
+            or any error of :func:`mission_from_dict`.
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        reason = str(error)
+        if "end of document" in reason:  # tomllib gives no line number there: add it
+            reason += f" (line {text.count(chr(10)) + 1})"
+        raise MissionError("<toml>", f"not valid TOML: {reason}; see the format in planners/mission.py",
+                           source) from error
+    return mission_from_dict(data, source, default_name=default_name)
+
+
+def builtin_mission_text(name: str) -> str:
+    """The TOML text of a built-in mission (a starting point for your own file).
+
+    Raises:
+        MissionError: ``name`` is not in :data:`BUILTIN_MISSIONS`.
+    """
+    if name not in BUILTIN_MISSIONS:
+        reason = f"no built-in mission {name!r}: use one of {', '.join(BUILTIN_MISSIONS)}"
+        raise MissionError("<file>", reason, name)
+    folder = importlib.resources.files(__package__ or "planners").joinpath("missions")
+    return folder.joinpath(f"{name}.toml").read_text(encoding="utf-8")
+
+
+def load_mission(name_or_path: str | os.PathLike) -> Mission:
+    """Load a built-in mission by name, or a mission file.
+
+    Args:
+        name_or_path: one of :data:`BUILTIN_MISSIONS` (e.g. ``"square"``), or the path of a
+            ``.toml`` file (a built-in name wins over a file of the same name without suffix).
+
+    Raises:
+        MissionError: no such built-in mission or readable file (field ``"<file>"``, the message
+            lists the built-in missions), or an invalid file.
+    """
+    if isinstance(name_or_path, str) and name_or_path in BUILTIN_MISSIONS:
+        logger.debug("loading the built-in mission %s", name_or_path)
+        return mission_from_toml(builtin_mission_text(name_or_path), f"built-in {name_or_path}",
+                                 default_name=name_or_path)
+    path = Path(name_or_path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        reason = (f"cannot read {str(path)!r} ({error.__class__.__name__}: {error}): give the path of a "
+                  f".toml mission file or a built-in mission: {', '.join(BUILTIN_MISSIONS)}")
+        raise MissionError("<file>", reason, str(name_or_path)) from error
+    logger.debug("loading the mission file %s", path)
+    return mission_from_toml(text, str(path))
+
+
+__all__ = [
+    "ARMS",
+    "BUILTIN_MISSIONS",
+    "Mission",
+    "ROBOTS",
+    "SPACES",
+    "builtin_mission_text",
+    "load_mission",
+    "mission_from_dict",
+    "mission_from_toml",
+]
