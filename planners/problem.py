@@ -1,0 +1,337 @@
+"""The motion-planning problem of the thesis' chapter 3, with exact derivatives.
+
+A motion is a chain of degree-9 segments through points P (way points and via points, each
+``[s, s', s'', s''', s'''']``, see :mod:`planners.polynomial`). Given the segment durations, the
+motion and its derivatives at any time are *linear* in P (the Hermite basis weights W), and
+everything the planner looks at is a function of the motion at that instant only:
+
+* the objective J = alpha J_e / J_e0 + (1 - alpha) J_phi / J_phi0 (seed 3.24-3.26), with
+  J_e = integral of sum_i |F_i . r_i'| and J_phi = integral of sum_i phi_i'^2;
+* the constraints, as signed margins >= 0: ground, end-effector orientation and Type-2
+  singularity bounds (3.27-3.29; prototype 3.40-3.46), drone roll |phi_i| <= pi/2 - m_ga (3.33,
+  3.45) and rotor speeds 0 <= w <= w_max - m_gr (3.48, applied to the FPR too).
+
+The per-sample quantities come from :func:`fpr.inverse_dynamics.inverse_dynamics` (planning model:
+point-mass drones for the thrusts and rolls, the exact rigid drones for the torques). Their
+partial derivatives with respect to the 5 n entries of the local motion jet are computed by
+*complex-step differentiation*: every function on that path is analytic and written to carry a
+complex perturbation, so Im(f(X + i h e)) / h is the derivative to machine precision (no
+subtractive cancellation, h = 1e-30). The chain rule through W then gives exact gradients
+with respect to P. The 5 n perturbed copies of all samples go through one batched call.
+
+Integrals use Simpson's rule on K equally spaced nodes per segment (the optimisation grid).
+Constraints are enforced on the same nodes, aggregated as the minimum over short windows
+(a few nodes each) to keep the number of NLP constraints small; :func:`evaluate_motion` checks
+the result on a dense grid afterwards.
+
+The absolute value in J_e is smoothed for the optimiser, |x| ~ sqrt(x^2 + eps^2) - eps with
+eps = ``POWER_SMOOTHING`` (its effect on J_e is below eps times the duration per drone); every
+reported J_e uses the exact absolute value.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import product
+
+import numpy as np
+
+from fpr.inverse_dynamics import MotionInputs, inverse_dynamics
+from fpr.kinematics import fpr_workspace_margins, prototype_workspace_margins
+from planners.polynomial import N_DERIVS, PiecewisePolynomial
+
+COMPLEX_STEP = 1e-30
+POWER_SMOOTHING = 1e-2  # [W]
+POWER_CURVATURE_FLOOR = 1e-2  # [W]
+
+
+@dataclass(frozen=True)
+class Limits:
+    """The bounds of the planning constraints, from the robot's margins (DESIGN.md).
+
+    Attributes:
+        roll: largest |phi_i|, pi/2 - m_ga [rad].
+        speed: largest rotor speed, w_max - m_gr [rad/s].
+    """
+
+    roll: float
+    speed: float
+
+    @classmethod
+    def from_robot(cls, robot) -> "Limits":
+        """Limits of ``robot`` (``robot.margins``, ``robot.rotor_constants``)."""
+        return cls(roll=np.pi / 2 - robot.margins.angle,
+                   speed=robot.rotor_constants.max_speed - robot.margins.rotor_speed)
+
+
+# kind -> (unit, what it bounds)
+CONSTRAINT_KINDS = {
+    "ground": ("m", "drone joint height above the ground margin z >= -L + m_gd (3.27, 3.40-3.41)"),
+    "fixed_point": ("m", "joint distance y >= m_gd from the fixed point's vertical (3.42-3.43)"),
+    "phi": ("rad", "end-effector orientation pi + m_ga <= phi <= 2 pi - m_ga (3.28)"),
+    "q21": ("rad", "Type-2 singularity m_ga <= q21 <= pi - m_ga (3.29)"),
+    "q1": ("rad", "|q1| <= pi/2 - m_ga (3.44)"),
+    "q2": ("rad", "Type-2 singularity m_ga <= q2 <= pi - m_ga (3.46)"),
+    "roll": ("rad", "drone roll |phi_i| <= pi/2 - m_ga (3.33, 3.45)"),
+    "rotor_speed_low": ("rad/s", "rotor speed w >= 0 (3.48)"),
+    "rotor_speed_high": ("rad/s", "rotor speed w <= w_max - m_gr (3.48)"),
+}
+
+
+def constraint_kind(name: str) -> str:
+    """The kind (key of :data:`CONSTRAINT_KINDS`) of a constraint name such as ``ground_2``."""
+    return next(k for k in sorted(CONSTRAINT_KINDS, key=len, reverse=True) if name.startswith(k))
+
+
+def _workspace(robot, s) -> dict:
+    if robot.name == "fpr":
+        return fpr_workspace_margins(s, robot.link_length, robot.margins)
+    return prototype_workspace_margins(s, robot.link_length, robot.margins)
+
+
+def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool):
+    """Every constraint margin at every sample (>= 0 where satisfied).
+
+    Args:
+        robot: the robot.
+        motion: s and its derivatives, shape (5, N, n_s) (complex allowed).
+        inputs: :func:`~fpr.inverse_dynamics.inverse_dynamics` of ``motion``.
+        scaled: False gives natural units (m, rad, rad/s; rotor margins on the signed speed).
+            True gives the smooth, O(1) rows the optimiser uses: rotor margins on w^2 / w_lim^2
+            and 1 - w^2 / w_lim^2 (w^2 is smooth where the signed speed is not).
+
+    Returns:
+        (rows (N, R), names (R,) of the constraint each row belongs to, details (R,) e.g. "rotor 3").
+    """
+    lim = Limits.from_robot(robot)
+    cols, names, details = [], [], []
+    for name, value in _workspace(robot, motion[0]).items():
+        cols.append(value)
+        names.append(name)
+        details.append("")
+    for i in range(robot.n_drones):
+        roll = inputs.roll[:, i]
+        cols += [lim.roll + roll, lim.roll - roll]
+        names += [f"roll_{i + 1}"] * 2
+        details += ["negative", "positive"]
+        for m in range(4):
+            if scaled:
+                w2 = inputs.rotor_speed_squared[:, i, m] / lim.speed**2
+                cols += [w2, 1.0 - w2]
+            else:
+                w = inputs.rotor_speed[:, i, m]
+                cols += [w, lim.speed - w]
+            names += [f"rotor_speed_low_{i + 1}", f"rotor_speed_high_{i + 1}"]
+            details += [f"rotor {m + 1}"] * 2
+    return np.stack(cols, axis=-1), names, details
+
+
+def objective_rates(inputs: MotionInputs, smoothing: float = 0.0) -> np.ndarray:
+    """Integrands of J_e and J_phi at every sample, shape (N, 2) [W, rad^2/s^2].
+
+    ``smoothing`` > 0 replaces |x| by sqrt(x^2 + eps^2) - eps (analytic, complex-step safe).
+    """
+    power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)  # (N, n_d)
+    if smoothing > 0:
+        power = np.sqrt(power * power + smoothing**2) - smoothing
+    else:
+        power = np.abs(power)
+    return np.stack([power.sum(-1), (inputs.roll_rate**2).sum(-1)], axis=-1)
+
+
+def simpson_weights(count: int, duration: float) -> np.ndarray:
+    """Simpson's rule weights on ``count`` (odd, >= 3) equally spaced nodes over ``duration``."""
+    if count < 3 or count % 2 == 0:
+        raise ValueError(f"count={count}: Simpson's rule needs an odd number of nodes >= 3")
+    w = np.ones(count)
+    w[1:-1:2], w[2:-1:2] = 4.0, 2.0
+    return w * duration / (3.0 * (count - 1))
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Objective and constraints of one motion on the optimisation grid.
+
+    Attributes:
+        J: weighted, normalised objective (3.26).
+        terms: [J_e, J_phi] on the grid (J_e with the smoothed |.|) [J, rad^2/s].
+        constraints: windowed minima of the scaled constraint rows, shape (n_windows * R,).
+        gradient: dJ/dx, shape (n_x,), or None.
+        jacobian: d constraints / dx, shape (n_windows * R, n_x), or None.
+        hessian: Gauss-Newton approximation of d^2 J / dx^2 (positive semi-definite), or None.
+    """
+
+    J: float
+    terms: np.ndarray
+    constraints: np.ndarray
+    gradient: np.ndarray | None = None
+    jacobian: np.ndarray | None = None
+    hessian: np.ndarray | None = None
+
+
+class MotionProblem:
+    """J and the constraints of a piecewise motion as functions of its free point entries.
+
+    The decision vector x holds the free entries of ``points`` (mask ``free``), each scaled by the
+    local time scale: entry k (derivative order) of point p is x * k! / T_p^k, T_p the mean duration
+    of the segments that meet at p (the Taylor coefficient of s in units of T_p), so that every entry
+    of x moves the motion by about as much.
+
+    Args:
+        robot: the robot.
+        points: template points (m+1, 5, n): fixed entries are kept, free ones replaced by x.
+        durations: segment durations (m,) [s].
+        free: boolean mask (m+1, 5, n) of the entries that x sets.
+        alpha: energy weight in [0, 1].
+        normalisation: (J_e0, J_phi0) [J, rad^2/s], the stop-at-every-way-point values (3.26).
+        samples_per_segment: odd number of grid nodes per segment (ends included).
+        windows_per_segment: constraint windows per segment (min over each window's nodes).
+    """
+
+    def __init__(self, robot, points, durations, free, alpha: float, normalisation,
+                 samples_per_segment: int = 17, windows_per_segment: int = 4):
+        self.robot = robot
+        self.points = np.array(points, dtype=float)
+        self.durations = np.asarray(durations, dtype=float)
+        self.free = np.asarray(free, dtype=bool)
+        self.alpha = float(alpha)
+        self.normalisation = tuple(float(v) for v in normalisation)
+        if min(self.normalisation) <= 0:
+            raise ValueError(f"normalisation={self.normalisation}: J_e0 and J_phi0 must be > 0")
+        m, _, n = self.points.shape
+        m -= 1
+        k = int(samples_per_segment)
+        self.samples_per_segment = k
+        tau = np.linspace(0.0, 1.0, k)
+        knots = np.concatenate([[0.0], np.cumsum(self.durations)])
+        self.t = (knots[:-1, None] + tau[None, :] * self.durations[:, None]).reshape(-1)
+        self.t[k - 1::k] = knots[1:]  # segment ends exactly on the knots
+        self.segment = np.repeat(np.arange(m), k)
+        self.weights = np.concatenate([simpson_weights(k, d) for d in self.durations])
+        # Hermite weights, evaluated segment by segment so every node uses its own segment
+        shape = PiecewisePolynomial(np.zeros((m + 1, N_DERIVS, 1)), self.durations)
+        w = np.empty((N_DERIVS, m * k, 2, N_DERIVS))
+        for i, seg in enumerate(shape.segments):
+            w[:, i * k:(i + 1) * k] = seg.basis(tau * seg.duration, order=4)
+        self.basis = w
+        # windows: contiguous node ranges inside each segment
+        bounds = np.linspace(0, k - 1, int(windows_per_segment) + 1).round().astype(int)
+        self.windows = [(i * k + a, i * k + b + 1) for i in range(m) for a, b in zip(bounds[:-1], bounds[1:])]
+        # variable scaling by the local time scale
+        t_point = np.empty(m + 1)
+        t_point[0], t_point[-1] = self.durations[0], self.durations[-1]
+        t_point[1:-1] = 0.5 * (self.durations[:-1] + self.durations[1:])
+        orders = np.arange(N_DERIVS)
+        factorial = np.cumprod(np.maximum(orders, 1))  # k!
+        scale = (factorial * t_point[:, None] ** -orders)[:, :, None] * np.ones((1, 1, n))
+        self.scale = scale[self.free]
+        self.n_x = int(self.free.sum())
+        self._cache: tuple[bytes, bool, Evaluation] | None = None
+        self._rows_names: list[str] | None = None
+
+    # ------------------------------------------------------------------ x <-> points
+    def points_of(self, x) -> np.ndarray:
+        """Points (m+1, 5, n) with the free entries set from x."""
+        p = self.points.copy()
+        p[self.free] = np.asarray(x, dtype=float) * self.scale
+        return p
+
+    def x_of(self, points) -> np.ndarray:
+        """The decision vector of given points."""
+        return np.asarray(points, dtype=float)[self.free] / self.scale
+
+    def motion(self, points) -> np.ndarray:
+        """s and its derivatives 0..4 at the grid nodes, shape (5, N, n)."""
+        gathered = np.asarray(points)[self.segment[:, None] + np.arange(2)]  # (N, 2, 5, n)
+        return np.einsum("risk,iskn->rin", self.basis, gathered)
+
+    @property
+    def constraint_names(self) -> list[str]:
+        """Constraint name of each NLP constraint (windows are the slow index)."""
+        if self._rows_names is None:
+            self.evaluate(self.x_of(self.points))
+        return [name for _ in self.windows for name in self._rows_names]
+
+    # ------------------------------------------------------------------ evaluation
+    def _quantities(self, motion):
+        """Raw per-drone integrand pieces (N, 2 n_d): [F_i . r_i' ..., phi_i' ...], and the rows."""
+        inputs = inverse_dynamics(self.robot, motion)
+        power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)
+        rows, names, _ = constraint_rows(self.robot, motion, inputs, scaled=True)
+        self._rows_names = names
+        return np.concatenate([power, inputs.roll_rate], axis=-1), rows
+
+    def _weights(self):
+        return self.alpha / self.normalisation[0], (1.0 - self.alpha) / self.normalisation[1]
+
+    def evaluate(self, x, derivatives: bool = False) -> Evaluation:
+        """J, the constraints and (optionally) their exact derivatives at x (cached)."""
+        x = np.asarray(x, dtype=float)
+        key = x.tobytes()
+        if self._cache is not None and self._cache[0] == key and (self._cache[1] or not derivatives):
+            return self._cache[2]
+        points = self.points_of(x)
+        motion = self.motion(points)
+        n_r, n_s, n = motion.shape
+        a_e, a_phi = self._weights()
+        if not derivatives:
+            raw, rows = self._quantities(motion)
+            grad = jac = hess = None
+        else:
+            directions = list(product(range(n_r), range(n)))
+            big = np.repeat(motion[:, None].astype(complex), len(directions), axis=1)  # (5, D, N, n)
+            for d, (r, j) in enumerate(directions):
+                big[r, d, :, j] += 1j * COMPLEX_STEP
+            raw_c, rows_c = self._quantities(big.reshape(n_r, -1, n))
+            raw, rows = raw_c[:n_s].real, rows_c[:n_s].real
+            # sensitivities d q_i / d X[r, i, j], arranged (N, Q, r, j), then d q_i / d points (N, Q, 2 * 5 * n)
+            sens_raw = (raw_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+            sens_rows = (rows_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+            local = np.einsum("iqrj,risk->iqskj", sens_raw, self.basis).reshape(n_s, raw.shape[1], -1)
+            n_d = raw.shape[1] // 2
+            power, rate = raw[:, :n_d], raw[:, n_d:]
+            smooth = np.sqrt(power * power + POWER_SMOOTHING**2)
+            # J = sum_i w_i (a_e sum_d |P_id|_eps + a_phi sum_d rate_id^2)
+            dj = self.weights[:, None] * np.concatenate([a_e * power / smooth, 2 * a_phi * rate], axis=1)
+            # Gauss-Newton / reweighted least-squares curvature: 2 a_phi w grad(rate) grad(rate)^T, and
+            # a_e w grad(P) grad(P)^T / |P|_eps (the curvature of the quadratic that majorises |P| at P)
+            curv = self.weights[:, None] * np.concatenate([a_e / np.maximum(smooth, POWER_CURVATURE_FLOOR),
+                                                          2 * a_phi * np.ones_like(rate)], axis=1)
+            g_local = np.einsum("iq,iqv->iv", dj, local)  # (N, 2 * 5 * n)
+            h_local = np.einsum("iq,iqv,iqw->ivw", curv, local, local)
+            size = self.points.size
+            index = (self.segment[:, None] * (N_DERIVS * n) + np.arange(2 * N_DERIVS * n)).reshape(n_s, -1)
+            g_points = np.bincount(index.reshape(-1), g_local.reshape(-1), minlength=size)
+            h_points = np.zeros((size, size))
+            np.add.at(h_points, (index[:, :, None], index[:, None, :]), h_local)
+            free = np.flatnonzero(self.free.reshape(-1))
+            grad = g_points[free] * self.scale
+            hess = h_points[np.ix_(free, free)] * np.outer(self.scale, self.scale)
+        rates = np.stack([np.abs(raw[:, :raw.shape[1] // 2]).sum(-1), (raw[:, raw.shape[1] // 2:] ** 2).sum(-1)], -1)
+        smoothed = np.sqrt(raw[:, :raw.shape[1] // 2] ** 2 + POWER_SMOOTHING**2).sum(-1) \
+            - POWER_SMOOTHING * (raw.shape[1] // 2)
+        terms = self.weights @ np.stack([smoothed, rates[:, 1]], -1)
+        value = float(a_e * terms[0] + a_phi * terms[1])
+        mins, picks = [], []
+        for a, b in self.windows:
+            arg = a + np.argmin(rows[a:b], axis=0)  # (R,)
+            mins.append(rows[arg, np.arange(rows.shape[1])])
+            picks.append(arg)
+        constraints = np.concatenate(mins)
+        if derivatives:
+            sample = np.concatenate(picks)  # (W R,)
+            column = np.tile(np.arange(rows.shape[1]), len(self.windows))
+            local = np.einsum("xrj,rxsk->xskj", sens_rows[sample, column], self.basis[:, sample])
+            full = np.zeros((sample.size,) + self.points.shape)
+            rows_idx = np.arange(sample.size)[:, None]
+            full[rows_idx, self.segment[sample][:, None] + np.arange(2)] = local
+            jac = full[:, self.free] * self.scale
+        result = Evaluation(value, terms, constraints, grad, jac, hess)
+        self._cache = (key, derivatives, result)
+        return result
+
+    def objective_terms(self, points) -> np.ndarray:
+        """[J_e, J_phi] of given points on the grid (smoothed |.|, as the optimiser sees them)."""
+        inputs = inverse_dynamics(self.robot, self.motion(points))
+        return self.weights @ objective_rates(inputs, POWER_SMOOTHING)
+
