@@ -1,12 +1,21 @@
-"""``python -m fpr.plan``: plan a mission of the FPR and report what the drones must do.
+"""``python -m fpr.plan``: plan a mission of the FPR or the prototype, and write what the drones must do.
 
-This first version evaluates the *stop-at-every-way-point* motion of a mission (9th-degree
-segments with zero velocity, acceleration, jerk and snap at each way point, seed 3.2.2): it
-computes the drones' thrusts, rolls, torques and rotor speeds by inverse dynamics, checks them
-against the limits, prints a summary and writes ``trajectory.csv`` and ``plan.json``. The
-optimised methods (``two-step``, ``one-step``, seed 3.2.4) come with the planner issue.
+With no argument it plans the built-in ``square`` mission with the 2-step optimisation (seed
+3.2.4) and prints a table comparing the optimised motion with the stop-at-every-way-point one:
+J_e, J_phi, peak rotor force and speed, least ground clearance, least singularity margin and
+solve time, then the worst value of every constraint. Into ``--out`` (default
+``fpr-out/<mission>``) it writes:
 
-Exit codes: 0 feasible, 1 a limit is violated (results are still written), 2 bad input.
+* ``mission.toml``: the mission as planned (command-line overrides included), re-usable with --mission;
+* ``plan.json``: mission, robot parameters, summaries of both motions, solver stages, the
+  points, durations and monomial coefficients of every segment;
+* ``trajectory.csv``: one row per sample at ``--rate`` (columns and units in README.md);
+* ``reference.csv``: the same for the stop-at-every-way-point motion;
+* PNG figures of the thesis' planning chapter (``fpr.figures``).
+
+Exit codes: 0 every constraint holds; 1 the planned motion violates a constraint (the files
+are still written and the violated constraints are named); 2 bad input (mission file or
+option, unreachable way point, way point on a singularity).
 """
 
 from __future__ import annotations
@@ -15,114 +24,243 @@ import argparse
 import csv
 import json
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
-import fpr
 from fpr.errors import FprError
-from fpr.inverse_dynamics import inverse_dynamics
-from fpr.kinematics import fpr_workspace_margins, singularity_margin
-from planners.polynomial import PiecewisePolynomial, stop_points
-
-S0 = [0.0, 0.0, 5 * np.pi / 4, np.pi / 2]
-MISSIONS = {
-    # DESIGN.md "Reference missions": way positions s = [y z phi q21] and travel times [s]
-    "square": {"positions": [S0, [1.0, 0.0, 5 * np.pi / 4, np.pi / 2], [1.0, 1.0, 5 * np.pi / 4, np.pi / 2],
-                             [0.0, 1.0, 5 * np.pi / 4, np.pi / 2], S0], "times": [3.0, 3.0, 3.0, 3.0]},
-    "study": {"positions": [[0.0, 0.0, 3.9270, 1.5708], [1.0, 1.0, 3.9270, 1.5708]], "times": [3.0]},
-}
+from planners.mission import BUILTIN_MISSIONS, load_mission
+from planners.optimize import METHODS, PlanResult, plan
 
 
-def evaluate(robot, positions, times, rate: float) -> dict:
-    """Stop-at-way-points motion through ``positions`` and its inverse dynamics, sampled at ``rate`` [Hz]."""
-    trajectory = PiecewisePolynomial(stop_points(np.asarray(positions, dtype=float)), np.asarray(times, dtype=float))
-    t, motion = trajectory.sample(rate, order=4)
-    inputs = inverse_dynamics(robot, motion)
-    w = inputs.rotor_speed
-    margins = fpr_workspace_margins(motion[0], robot.link_length, robot.margins)
-    limit = robot.rotor_constants.max_speed - robot.margins.rotor_speed
-    checks = {name: float(np.min(value)) for name, value in margins.items()}
-    checks["rotor_speed_low"] = float(w.min())
-    checks["rotor_speed_high"] = float(limit - w.max())
-    checks["roll"] = float(np.pi / 2 - robot.margins.angle - np.abs(inputs.roll).max())
-    summary = {
-        "J_e": float(np.trapezoid(inputs.power.sum(axis=1), t)),
-        "J_phi": float(np.trapezoid((inputs.roll_rate**2).sum(axis=1), t)),
-        "peak_rotor_force_N": float(robot.rotor_constants.thrust_coefficient * inputs.rotor_speed_squared.max()),
-        "peak_rotor_speed_rad_s": float(w.max()),
-        "peak_thrust_N": float(inputs.thrust.max()),
-        "least_ground_clearance_m": float((inputs.joint_position[..., 1] + robot.link_length).min()),
-        "least_singularity_margin_rad": float(singularity_margin(motion[0][:, 3]).min()),
-        "constraint_margins": checks,
-        "feasible": bool(min(checks.values()) >= 0),
-    }
-    return {"t": t, "motion": motion, "inputs": inputs, "trajectory": trajectory, "summary": summary}
+def _floats(text: str, option: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{option} {text!r}: give numbers separated by commas") from None
+    if not values:
+        raise argparse.ArgumentTypeError(f"{option} {text!r}: give at least one number")
+    return values
 
 
-def write_csv(path: Path, t, motion, inputs) -> None:
-    """One row per sample; units in README.md."""
-    names = ["y", "z", "phi", "q21"]
-    header = ["t"] + names + [n + "_d" for n in names] + [n + "_dd" for n in names]
-    n_d = inputs.thrust.shape[1]
-    for i in range(1, n_d + 1):
-        header += [f"y_j{i}", f"z_j{i}", f"phi{i}", f"phi{i}_d", f"f{i}", f"tau{i}_x", f"tau{i}_y", f"tau{i}_z"]
-        header += [f"w{i}_{m}" for m in range(1, 5)]
-    columns = [t[:, None], motion[0], motion[1], motion[2]]
-    for i in range(n_d):
+def _ints(text: str) -> list[int]:
+    try:
+        return [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--via-points {text!r}: give integers >= 0 separated by commas") from None
+
+
+def _assignment(text: str) -> tuple[str, float]:
+    key, sep, value = text.partition("=")
+    try:
+        if not sep:
+            raise ValueError
+        return key.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--set {text!r}: write NAME=VALUE, e.g. --set link_length=1.0") from None
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command-line parser."""
+    p = argparse.ArgumentParser(prog="python -m fpr.plan", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--mission", default="square",
+                   help=f"built-in mission ({', '.join(BUILTIN_MISSIONS)}) or a mission TOML file")
+    p.add_argument("--robot", choices=["fpr", "prototype"], default=None,
+                   help="robot the mission must be for (checked; the mission file names its robot)")
+    p.add_argument("--set", dest="robot_parameters", type=_assignment, action="append", default=[],
+                   metavar="NAME=VALUE", help="override a robot parameter (xacro argument), e.g. link_length=1.0")
+    p.add_argument("--alpha", type=float, default=None, help="energy weight in [0, 1] (default: the mission's)")
+    p.add_argument("--via-points", type=_ints, default=None, metavar="N[,N...]",
+                   help="via points per travel, one number for all or one per travel (default: the mission's)")
+    p.add_argument("--times", type=lambda t: _floats(t, "--times"), default=None, metavar="T[,T...]",
+                   help="travel times [s], one for all or one per travel (default: the mission's)")
+    p.add_argument("--method", default="two-step", choices=list(METHODS),
+                   help="two-step / one-step optimisation (seed 3.2.4), or none (stop at every way point)")
+    p.add_argument("--solver", default="sqp", choices=["sqp", "slsqp"],
+                   help="NLP solver: Gauss-Newton SQP (ProxQP) or scipy SLSQP, both with exact gradients")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default fpr-out/<mission>)")
+    p.add_argument("--rate", type=float, default=200.0, help="sample rate of the CSV files [Hz]")
+    p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    return p
+
+
+def _mission(args):
+    mission = load_mission(args.mission)
+    changes = {}
+    n_travel = len(mission.times)
+    if args.times is not None:
+        changes["times"] = args.times * n_travel if len(args.times) == 1 else args.times
+    if args.via_points is not None:
+        changes["via_points"] = args.via_points[0] if len(args.via_points) == 1 else args.via_points
+    if args.alpha is not None:
+        changes["alpha"] = args.alpha
+    if args.robot_parameters:
+        changes["robot_parameters"] = {**mission.robot_parameters, **dict(args.robot_parameters)}
+    if changes:
+        mission = mission.replace(**changes)
+    if args.robot is not None and args.robot != mission.robot:
+        raise FprError(f"--robot {args.robot}: mission {mission.name!r} is for the {mission.robot!r} robot; "
+                       f"drop --robot or pick a mission for {args.robot!r}")
+    return mission
+
+
+# ------------------------------------------------------------------------------------------- files
+def csv_columns(robot) -> list[tuple[str, str]]:
+    """(name, unit) of every column of ``trajectory.csv`` for ``robot``."""
+    coords = [("y", "m"), ("z", "m"), ("phi", "rad"), ("q21", "rad")] if robot.name == "fpr" \
+        else [("q1", "rad"), ("q2", "rad")]
+    cols = [("t", "s")] + coords + [(n + "_d", u + "/s") for n, u in coords] + [(n + "_dd", u + "/s^2")
+                                                                                 for n, u in coords]
+    for i in range(1, robot.n_drones + 1):
+        cols += [(f"y_j{i}", "m"), (f"z_j{i}", "m"), (f"phi{i}", "rad"), (f"phi{i}_d", "rad/s"), (f"f{i}", "N"),
+                 (f"tau{i}_x", "N m"), (f"tau{i}_y", "N m"), (f"tau{i}_z", "N m")]
+        cols += [(f"w{i}_{m}", "rad/s") for m in range(1, 5)]
+    return cols
+
+
+def write_csv(path: Path, robot, sampled) -> None:
+    """One row per sample of ``sampled`` (a :class:`planners.optimize.SampledPlan`); units in README.md."""
+    inputs, motion = sampled.inputs, sampled.motion
+    columns = [sampled.t[:, None], motion[0], motion[1], motion[2]]
+    for i in range(robot.n_drones):
         columns += [inputs.joint_position[:, i], inputs.roll[:, i:i + 1], inputs.roll_rate[:, i:i + 1],
                     inputs.thrust[:, i:i + 1], inputs.torque[:, i], inputs.rotor_speed[:, i]]
+    data = np.hstack(columns)
+    names = [n for n, _ in csv_columns(robot)]
+    assert data.shape[1] == len(names)
     with open(path, "w", newline="", encoding="utf-8") as stream:
         writer = csv.writer(stream)
-        writer.writerow(header)
-        writer.writerows(np.round(np.hstack(columns), 9).tolist())
+        writer.writerow(names)
+        writer.writerows(np.round(data, 9).tolist())
+
+
+def plan_document(mission, robot, result: PlanResult, reference: PlanResult) -> dict:
+    """The content of ``plan.json``."""
+    trajectory = result.trajectory
+    return {
+        "mission": mission.to_dict(),
+        "method": result.method,
+        "robot": {"name": robot.name, "parameters": robot.parameters},
+        "summary": result.summary(),
+        "reference_summary": reference.summary(),
+        "points": trajectory.points.tolist(),
+        "points_layout": "points[p][k][j]: k-th time derivative (k = 0..4) of coordinate j at point p",
+        "is_way_point": result.is_way.tolist(),
+        "durations_s": trajectory.durations.tolist(),
+        "knots_s": trajectory.knots.tolist(),
+        "coefficients": [seg.coefficients.tolist() for seg in trajectory.segments],
+        "coefficients_layout": "coefficients[i][c][j]: s_j(t) = sum_c a[c] (t - knots[i])^c on segment i, SI units",
+    }
+
+
+def _table(reference: PlanResult, result: PlanResult | None) -> str:
+    rows = [("J (3.26)", "J", "", "{:.4f}"), ("J_e (energy index)", "J_e", "J", "{:.3f}"),
+            ("J_phi (perturbation index)", "J_phi", "rad^2/s", "{:.4f}"),
+            ("peak thrust", "peak_thrust_N", "N", "{:.3f}"),
+            ("peak rotor force", "peak_rotor_force_N", "N", "{:.3f}"),
+            ("peak rotor speed", "peak_rotor_speed_rad_s", "rad/s", "{:.1f}"),
+            ("least rotor speed", "least_rotor_speed_rad_s", "rad/s", "{:.1f}"),
+            ("peak |roll|", "peak_roll_rad", "rad", "{:.4f}"),
+            ("least ground clearance", "least_ground_clearance_m", "m", "{:.4f}"),
+            ("least singularity margin", "least_singularity_margin_rad", "rad", "{:.4f}"),
+            ("solve time", "wall_time_s", "s", "{:.3f}"),
+            ("every constraint holds", "feasible", "", "{}")]
+    results = [reference] + ([result] if result is not None else [])
+    summaries = [r.summary() for r in results]
+    names = ["stop at way points"] + ([f"optimised ({result.method})"] if result is not None else [])
+    lines = [f"  {'':28s} {'unit':8s}" + "".join(f"{n:>24s}" for n in names)]
+    for label, key, unit, fmt in rows:
+        lines.append(f"  {label:28s} {unit:8s}" + "".join(f"{fmt.format(s[key]):>24s}" for s in summaries))
+    return "\n".join(lines)
+
+
+class _Progress:
+    """Prints one line per solver stage, updated in place on a terminal."""
+
+    def __init__(self, stream):
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.stage = None
+
+    def __call__(self, stage, iteration, value, violation):
+        end = "\r" if self.tty else "\n"
+        if self.tty and self.stage is not None and stage != self.stage:
+            self.stream.write("\n")
+        if self.tty or iteration == 1 or iteration % 10 == 0:
+            self.stream.write(f"  {stage}: iteration {iteration:3d}  J = {value:.5f}  violation = {violation:.2e}{end}")
+            self.stream.flush()
+        self.stage = stage
+
+    def close(self):
+        if self.tty and self.stage is not None:
+            self.stream.write("\n")
 
 
 def main(argv=None) -> int:
-    """Command line entry point."""
-    parser = argparse.ArgumentParser(prog="python -m fpr.plan", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--mission", default="square", choices=sorted(MISSIONS), help="built-in mission")
-    parser.add_argument("--method", default="none", choices=["none", "two-step", "one-step"],
-                        help="'none': stop at every way point (the optimisers are not available yet)")
-    parser.add_argument("--rate", type=float, default=200.0, help="sample rate of trajectory.csv [Hz]")
-    parser.add_argument("--out", type=Path, default=None, help="output folder (default fpr-out/<mission>)")
-    parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    args = parser.parse_args(argv)
-    if args.method != "none":
-        print(f"error: --method {args.method} is not available yet; use --method none", file=sys.stderr)
-        return 2
+    """Command line entry point; returns the exit code."""
+    args = parser().parse_args(argv)
+    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, flush=True))
     if not np.isfinite(args.rate) or args.rate <= 0:
-        print(f"error: --rate {args.rate} must be a positive number of samples per second", file=sys.stderr)
+        print(f"error: --rate {args.rate}: give a positive number of samples per second", file=sys.stderr)
         return 2
-    out = args.out or Path("fpr-out") / args.mission
+    start = time.perf_counter()
     try:
-        robot = fpr.load("fpr")
-        mission = MISSIONS[args.mission]
-        result = evaluate(robot, mission["positions"], mission["times"], args.rate)
-    except (FprError, ValueError) as error:
+        mission = _mission(args)
+        robot = mission.load_robot()
+        mission.positions(robot)  # every way point reachable and away from singularities
+    except (FprError, ValueError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+    out = args.out or Path("fpr-out") / mission.name
+    say(f"mission {mission.name!r} ({mission.robot}): {len(mission.times)} travels, "
+        f"{float(np.sum(mission.times)):g} s, via points {list(map(int, mission.via_points))}, "
+        f"alpha {mission.alpha:g}, method {args.method}")
+    progress = None if args.quiet else _Progress(sys.stderr)
+    reference = plan(mission, "none", robot=robot)
+    result = None
+    if args.method != "none":
+        result = plan(mission, args.method, robot=robot, progress=progress, solver=args.solver)
+        if progress is not None:
+            progress.close()
+    final = result or reference
     out.mkdir(parents=True, exist_ok=True)
-    write_csv(out / "trajectory.csv", result["t"], result["motion"], result["inputs"])
-    summary = result["summary"]
-    plan = {"mission": {"name": args.mission, **mission}, "method": args.method, "robot": robot.parameters,
-            "summary": summary, "points": result["trajectory"].points.tolist(),
-            "durations": result["trajectory"].durations.tolist()}
-    (out / "plan.json").write_text(json.dumps(plan, indent=2), encoding="utf-8")
-    if not args.quiet:
-        print(f"mission {args.mission}: stop-at-every-way-point motion, {len(result['t'])} samples at {args.rate:g} Hz")
-        rows = [("J_e (energy index)", summary["J_e"], "J"), ("J_phi (perturbation index)", summary["J_phi"], "rad^2/s"),
-                ("peak thrust", summary["peak_thrust_N"], "N"), ("peak rotor force", summary["peak_rotor_force_N"], "N"),
-                ("peak rotor speed", summary["peak_rotor_speed_rad_s"], "rad/s"),
-                ("least ground clearance", summary["least_ground_clearance_m"], "m"),
-                ("least singularity margin", summary["least_singularity_margin_rad"], "rad")]
-        for name, value, unit in rows:
-            print(f"  {name:28s} {value:12.4f} {unit}")
-        for name, margin in summary["constraint_margins"].items():
-            if margin < 0:
-                print(f"  VIOLATED {name}: by {-margin:.4g}")
-        print(f"wrote {out / 'trajectory.csv'} and {out / 'plan.json'}")
-    return 0 if summary["feasible"] else 1
+    (out / "mission.toml").write_text(mission.to_toml(), encoding="utf-8")
+    (out / "plan.json").write_text(json.dumps(plan_document(mission, robot, final, reference), indent=1),
+                                   encoding="utf-8")
+    sampled = final.sampled(args.rate)
+    write_csv(out / "trajectory.csv", robot, sampled)
+    written = ["mission.toml", "plan.json", "trajectory.csv"]
+    reference_sampled = None
+    if result is not None:
+        reference_sampled = reference.sampled(args.rate)
+        write_csv(out / "reference.csv", robot, reference_sampled)
+        written.append("reference.csv")
+    if not args.no_plots:
+        try:
+            from fpr.figures import plan_figures
+
+            figures = plan_figures(out, robot, sampled, reference_sampled)
+            written += [f.name for f in figures]
+        except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the computed plan
+            print(f"warning: figures not written: {error}", file=sys.stderr)
+    say(_table(reference, result))
+    say("constraints of the " + ("optimised" if result is not None else "stop-at-way-points") + " motion "
+        "(dense grid, margin >= 0 holds):")
+    for report in final.report.constraints.values():
+        say("  " + report.describe())
+    for stage in final.stages:
+        say(f"  solver {stage.name}: {stage.message} ({stage.iterations} iterations, {stage.wall_time:.3f} s)")
+    say(f"wrote {', '.join(written)} into {out} ({time.perf_counter() - start:.1f} s)")
+    if not final.feasible:
+        names = ", ".join(f"{c.name} (margin {c.margin:.4g} {c.unit} at t = {c.time:.3f} s)"
+                          for c in final.report.violations)
+        print(f"error: the planned motion violates {names}; give more time (--times), more via points "
+              "(--via-points) or move the way points", file=sys.stderr)
+        return 1
+    return 0
 
 
 if __name__ == "__main__":
