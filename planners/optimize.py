@@ -345,7 +345,7 @@ def _with_via_points(trajectory: PiecewisePolynomial, way_times, n_via):
 
 def plan(mission, method: str = "two-step", *, robot=None, progress=None, samples_per_segment: int = 17,
          windows_per_segment: int = 4, max_iterations: int = 100, tolerance: float = 1e-4,
-         dense_rate: float = 500.0, solver: str = "sqp") -> PlanResult:
+         dense_rate: float = 500.0, solver: str = "sqp", max_refinements: int = 2) -> PlanResult:
     """Plan ``mission`` with ``method`` (see the module docstring).
 
     Args:
@@ -359,6 +359,8 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
         max_iterations: iteration limit per solve.
         tolerance: stop when an iteration improves J (about 1) by less than this.
         dense_rate: rate of the final check [Hz].
+        max_refinements: when the result holds every constraint on the optimisation grid but not on
+            the dense grid, solve again on a grid twice as fine, at most this many times.
         solver: ``"sqp"`` (:mod:`planners.sqp`, Gauss-Newton trust-region SQP, the default) or
             ``"slsqp"`` (scipy's SLSQP with the same exact gradients, quasi-Newton curvature).
 
@@ -379,47 +381,60 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
     alpha = float(mission.alpha)
     stop = PiecewisePolynomial(stop_points(positions), way_times)
     reference = evaluate_motion(robot, stop, dense_rate)
-    options = {"samples_per_segment": samples_per_segment, "windows_per_segment": windows_per_segment}
 
-    def problem(points, durations, free, normalisation):
-        return MotionProblem(robot, points, durations, free, alpha, normalisation, **options)
-
-    free_way = np.zeros(stop.points.shape, dtype=bool)
-    free_way[1:-1, 1:] = True
-    step1 = problem(stop.points, way_times, free_way, (1.0, 1.0))
-    normalisation = tuple(step1.objective_terms(stop.points))
-    stages = []
     solve_args = {"progress": progress, "max_iterations": max_iterations, "tolerance": tolerance,
                   "solver": solver}
-    if method == "none":
-        trajectory, is_way = stop, np.ones(len(positions), dtype=bool)
-    elif method == "two-step":
-        step1 = problem(stop.points, way_times, free_way, normalisation)
-        x, stage = _solve(step1, step1.x_of(stop.points), "step 1", **solve_args)
-        stages.append(stage)
-        first = PiecewisePolynomial(step1.points_of(x), way_times)
-        points, durations, is_way = _with_via_points(first, way_times, n_via)
-        way_index = np.flatnonzero(is_way)
-        for j in range(len(way_times)):
-            if n_via[j] == 0:
-                continue
-            a, b = way_index[j], way_index[j + 1]
-            free = np.zeros(points[a:b + 1].shape, dtype=bool)
-            free[1:-1] = True
-            travel = problem(points[a:b + 1], durations[a:b], free, normalisation)
-            x, stage = _solve(travel, travel.x_of(points[a:b + 1]), f"step 2, travel {j + 1}", **solve_args)
+
+    def attempt(samples: int, windows: int, suffix: str):
+        def problem(points, durations, free, normalisation):
+            return MotionProblem(robot, points, durations, free, alpha, normalisation,
+                                 samples_per_segment=samples, windows_per_segment=windows)
+
+        free_way = np.zeros(stop.points.shape, dtype=bool)
+        free_way[1:-1, 1:] = True
+        normalisation = tuple(problem(stop.points, way_times, free_way, (1.0, 1.0)).objective_terms(stop.points))
+        stages = []
+        if method == "two-step":
+            step1 = problem(stop.points, way_times, free_way, normalisation)
+            x, stage = _solve(step1, step1.x_of(stop.points), "step 1" + suffix, **solve_args)
             stages.append(stage)
-            points[a:b + 1] = travel.points_of(x)
-        trajectory = PiecewisePolynomial(points, durations)
-    else:
+            first = PiecewisePolynomial(step1.points_of(x), way_times)
+            points, durations, is_way = _with_via_points(first, way_times, n_via)
+            way_index = np.flatnonzero(is_way)
+            for j in range(len(way_times)):
+                if n_via[j] == 0:
+                    continue
+                a, b = way_index[j], way_index[j + 1]
+                free = np.zeros(points[a:b + 1].shape, dtype=bool)
+                free[1:-1] = True
+                travel = problem(points[a:b + 1], durations[a:b], free, normalisation)
+                x, stage = _solve(travel, travel.x_of(points[a:b + 1]), f"step 2, travel {j + 1}{suffix}",
+                                  **solve_args)
+                stages.append(stage)
+                points[a:b + 1] = travel.points_of(x)
+            return PiecewisePolynomial(points, durations), is_way, stages
         points, durations, is_way = _with_via_points(stop, way_times, n_via)
         free = np.zeros(points.shape, dtype=bool)
         free[~is_way] = True
         free[np.flatnonzero(is_way)[1:-1], 1:] = True
         whole = problem(points, durations, free, normalisation)
-        x, stage = _solve(whole, whole.x_of(points), "one-step", **solve_args)
-        stages.append(stage)
-        trajectory = PiecewisePolynomial(whole.points_of(x), durations)
-    report = evaluate_motion(robot, trajectory, dense_rate)
+        x, stage = _solve(whole, whole.x_of(points), "one-step" + suffix, **solve_args)
+        return PiecewisePolynomial(whole.points_of(x), durations), is_way, [stage]
+
+    if method == "none":
+        trajectory, is_way, stages = stop, np.ones(len(positions), dtype=bool), []
+        report = reference
+    else:
+        samples, windows, stages = samples_per_segment, windows_per_segment, []
+        for refinement in range(max_refinements + 1):
+            suffix = "" if refinement == 0 else f" (grid refined x{2 ** refinement})"
+            trajectory, is_way, new = attempt(samples, windows, suffix)
+            stages += new
+            report = evaluate_motion(robot, trajectory, dense_rate)
+            grid_feasible = all(st.violation_end <= 1e-6 for st in new)
+            if report.feasible or not grid_feasible:
+                break
+            # feasible on the optimisation grid but not between its nodes: refine the grid
+            samples, windows = 2 * samples - 1, 2 * windows
     return PlanResult(mission, method, alpha, trajectory, is_way, report, reference, stages,
                       time.perf_counter() - start, robot)
