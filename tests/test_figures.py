@@ -3,7 +3,7 @@
 import os
 import subprocess
 import sys
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -12,8 +12,9 @@ import pytest
 
 import fpr
 from fpr import figures
-from fpr.inverse_dynamics import MotionInputs, inverse_dynamics
+from fpr.inverse_dynamics import inverse_dynamics
 from fpr.kinematics import prototype_joints
+from planners.optimize import SampledPlan
 from planners.polynomial import PiecewisePolynomial, stop_points
 
 RATE = 50.0  # sampling rate of the test plans [Hz]
@@ -24,17 +25,7 @@ SQUARE = [S0, [1.0, 0.0, 5 * np.pi / 4, np.pi / 2], [1.0, 1.0, 5 * np.pi / 4, np
 PROTOTYPE_XI = [[-0.84, 1.68], [-0.14, 0.87], [0.23, 1.12]]
 
 
-@dataclass(frozen=True)
-class Sampled:
-    """A sampled plan as fpr.figures expects it."""
-
-    label: str
-    t: np.ndarray
-    motion: np.ndarray
-    inputs: MotionInputs
-    knots: np.ndarray
-    is_way: np.ndarray
-    points: np.ndarray
+Sampled = SampledPlan  # the object the planner hands to the figures
 
 
 def _sampled(robot, trajectory: PiecewisePolynomial, is_way, label: str) -> Sampled:
