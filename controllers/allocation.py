@@ -1,0 +1,173 @@
+"""Rotor allocation of the drones as a box-constrained QP solved by ProxQP (seed 2.13, 2.24, 3.10, 3.31).
+
+The inner loop wants the attitude accelerations u_a (psi'', theta'', roll'' of each drone for the
+FPR; psi'', theta'', phi1'' for the prototype) and the outer loop wants the thrusts f_d. With the
+attitude model (2.13)
+
+.. math:: \\ddot q_a = A_\\tau \\tau + M_{inv,a} (J_f^T f - c)
+
+and each drone's rotor map [f_i; tau_i] = R_f,i w_i^2 (3.10), the allocation chooses the squared
+rotor speeds z = w^2 of all drones:
+
+.. math:: \\min_z \\tfrac12 \\|W_a (A_\\tau S_\\tau z + M_{inv,a} J_f^T S_f z - M_{inv,a} c - u_a)\\|^2
+          + \\tfrac12 \\|W_f (S_f z - f_d)\\|^2 + \\tfrac{\\varepsilon}2 \\|S_\\tau z\\|^2
+          \\quad \\text{s.t.}\\; 0 \\le z \\le w_{max}^2.
+
+N_tau = I - A_tau^+ A_tau projects on the torques that do not change the attitude accelerations
+(the FPR's A_tau is 4 x 6: two such directions; the prototype's is square and N_tau = 0). Without
+active bounds the first two terms vanish at the thesis' law (2.24), f = f_d and
+tau = A_tau^+ (u_a + M_inv,a c - M_inv,a J_f^T f_d), whose torque has no component along N_tau:
+that law is then *the* minimiser, to the solver's accuracy. Penalising only the null-space
+component (rather than all of tau with a tiny weight) keeps the QP well conditioned. With bounds active the QP returns the closest command the rotors can
+produce in the weighted sense (W_a = 1 per rad/s^2 and W_f = 1 per N by default, so that one
+rotor's full range weighs about 30 times more on the attitude rows: a drone that cannot hold its
+attitude loses its thrust direction anyway), and says which rotors are at a bound. ProxQP solves
+for z / w_max^2 in [0, 1], which keeps the problem well scaled.
+
+:func:`allocation_qp` builds the QP matrices (testable without a solver); :class:`Allocator`
+holds one ProxQP workspace, built once and warm-started at every call.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import proxsuite
+
+
+@dataclass(frozen=True)
+class AllocationResult:
+    """One allocation.
+
+    Attributes:
+        speeds_squared: w^2 of every rotor, shape (n_d, 4) [(rad/s)^2], within the bounds.
+        thrust: f of each drone, shape (n_d,) [N].
+        torque: body torques, shape (n_d, 3) [N m].
+        saturated: rotors at a bound (within 1e-6 of it), shape (n_d, 4) bool.
+        attitude_error: achieved minus wanted attitude accelerations, shape (n_a,) [rad/s^2].
+        thrust_error: achieved minus wanted thrusts, shape (n_d,) [N].
+        iterations: ProxQP iterations (0 when the unconstrained law was used).
+    """
+
+    speeds_squared: np.ndarray
+    thrust: np.ndarray
+    torque: np.ndarray
+    saturated: np.ndarray
+    attitude_error: np.ndarray
+    thrust_error: np.ndarray
+    iterations: int
+
+    @property
+    def any_saturated(self) -> bool:
+        """Whether a rotor bound is active."""
+        return bool(self.saturated.any())
+
+
+def selectors(robot) -> tuple[np.ndarray, np.ndarray]:
+    """S_f (n_d, 4 n_d) and S_tau (3 n_d, 4 n_d): thrusts and torques from all w^2 (R_f of each drone)."""
+    n_d = robot.n_drones
+    s_f = np.zeros((n_d, 4 * n_d))
+    s_tau = np.zeros((3 * n_d, 4 * n_d))
+    for i, rotor in enumerate(robot.rotors):
+        mix = rotor.mixing_matrix  # [f, tau_x, tau_y, tau_z] = mix @ w^2
+        s_f[i, 4 * i:4 * i + 4] = mix[0]
+        s_tau[3 * i:3 * i + 3, 4 * i:4 * i + 4] = mix[1:]
+    return s_f, s_tau
+
+
+def allocation_qp(attitude, s_f, s_tau, thrust_desired, attitude_desired, attitude_weight, thrust_weight,
+                  regularisation):
+    """H and g of the allocation QP (module docstring) for one state.
+
+    Args:
+        attitude: the :class:`fpr.robots.AttitudeModel` at the measured state.
+        s_f, s_tau: :func:`selectors`.
+        thrust_desired: f_d, shape (n_d,) [N].
+        attitude_desired: u_a, shape (n_a,) [rad/s^2].
+        attitude_weight: W_a diagonal, shape (n_a,) or scalar [1/(rad/s^2)].
+        thrust_weight: W_f diagonal, shape (n_d,) or scalar [1/N].
+        regularisation: epsilon, weight of the torque component along N_tau [1/(N m)^2].
+
+    Returns:
+        (H, g): the objective 0.5 z^T H z + g^T z (+ const).
+    """
+    a = attitude.a_tau @ s_tau + attitude.m_inv_a @ attitude.j_f.T @ s_f  # d qdd_a / d z
+    null = np.eye(s_tau.shape[0]) - np.linalg.pinv(attitude.a_tau) @ attitude.a_tau
+    reg = null @ s_tau
+    r = np.asarray(attitude_desired, dtype=float) + attitude.m_inv_a @ attitude.c
+    wa = np.broadcast_to(np.asarray(attitude_weight, dtype=float), r.shape)[:, None] * a
+    wf = np.broadcast_to(np.asarray(thrust_weight, dtype=float), (s_f.shape[0],))
+    ra = np.broadcast_to(np.asarray(attitude_weight, dtype=float), r.shape) * r
+    h = wa.T @ wa + (wf[:, None] * s_f).T @ (wf[:, None] * s_f) + regularisation * reg.T @ reg
+    g = -(wa.T @ ra + (wf[:, None] * s_f).T @ (wf * np.asarray(thrust_desired, dtype=float)))
+    return 0.5 * (h + h.T), g
+
+
+def pseudo_inverse_law(attitude, thrust_desired, attitude_desired) -> np.ndarray:
+    """The thesis' torques (2.24): tau = A_tau^+ (u_a + M_inv,a c - M_inv,a J_f^T f), shape (n_d, 3)."""
+    rhs = np.asarray(attitude_desired, dtype=float) + attitude.m_inv_a @ (
+        attitude.c - attitude.j_f.T @ np.asarray(thrust_desired, dtype=float))
+    return (np.linalg.pinv(attitude.a_tau) @ rhs).reshape(-1, 3)
+
+
+class Allocator:
+    """The allocation QP of one controller: one ProxQP workspace, warm-started at every call.
+
+    Args:
+        robot: the robot (rotor maps and limits).
+        attitude_weight: W_a (module docstring), scalar or (n_a,).
+        thrust_weight: W_f, scalar or (n_d,).
+        regularisation: epsilon, picks the least-norm torque (the pseudo-inverse's) [1/(N m)^2].
+        max_speed: upper rotor speed bound [rad/s] (default: the robot's w_max).
+    """
+
+    def __init__(self, robot, attitude_weight=1.0, thrust_weight=1.0, regularisation: float = 100.0,
+                 max_speed: float | None = None):
+        self.robot = robot
+        self.s_f, self.s_tau = selectors(robot)
+        self.n = self.s_f.shape[1]
+        self.attitude_weight = attitude_weight
+        self.thrust_weight = thrust_weight
+        self.regularisation = float(regularisation)
+        speed = robot.rotor_constants.max_speed if max_speed is None else float(max_speed)
+        self.upper = np.full(self.n, speed**2)
+        self.lower = np.zeros(self.n)
+        self.scale = speed**2  # ProxQP solves for zeta = z / w_max^2 in [0, 1]: well scaled
+        self.qp = proxsuite.proxqp.dense.QP(self.n, 0, 0, True)
+        self.qp.settings.eps_abs = 1e-9
+        self.qp.settings.eps_rel = 0.0
+        self.qp.settings.verbose = False
+        self._initialised = False
+
+    def build(self, attitude, thrust_desired, attitude_desired):
+        """(H, g) at this state (see :func:`allocation_qp`)."""
+        return allocation_qp(attitude, self.s_f, self.s_tau, thrust_desired, attitude_desired,
+                             self.attitude_weight, self.thrust_weight, self.regularisation)
+
+    def solve(self, attitude, thrust_desired, attitude_desired) -> AllocationResult:
+        """Allocate the rotor speeds for wanted thrusts and attitude accelerations."""
+        h, g = self.build(attitude, thrust_desired, attitude_desired)
+        h, g = h * self.scale**2, g * self.scale
+        if not self._initialised:
+            self.qp.init(h, g, None, None, None, None, None, self.lower / self.scale, self.upper / self.scale)
+            self.qp.solve()
+            # only once a result exists (ProxQP 0.8 crashes warm-starting from nothing)
+            self.qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+            self._initialised = True
+        else:
+            self.qp.update(H=h, g=g, update_preconditioner=False)
+            self.qp.solve()
+        z = np.clip(np.asarray(self.qp.results.x) * self.scale, self.lower, self.upper)
+        return self._result(attitude, z, thrust_desired, attitude_desired, int(self.qp.results.info.iter))
+
+    def _result(self, attitude, z, thrust_desired, attitude_desired, iterations) -> AllocationResult:
+        thrust = self.s_f @ z
+        torque = (self.s_tau @ z).reshape(-1, 3)
+        achieved = attitude.attitude_acceleration(thrust, torque)
+        tol = 1e-6 * self.upper[0]
+        saturated = (z <= self.lower + tol) | (z >= self.upper - tol)
+        n_d = self.robot.n_drones
+        return AllocationResult(z.reshape(n_d, 4), thrust, torque, saturated.reshape(n_d, 4),
+                                achieved - np.asarray(attitude_desired, dtype=float),
+                                thrust - np.asarray(thrust_desired, dtype=float), iterations)

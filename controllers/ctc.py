@@ -1,0 +1,198 @@
+"""The cascaded computed-torque controller of the thesis (seed 2.2), for the FPR and the prototype.
+
+**Outer loop** (passive chain, eq. 2.14-2.16, 2.20): from the planned s_d and its derivatives and
+the measured chain state,
+
+.. math:: u_p = \\ddot s_d - K_{pp} (s - s_d) - K_{dp} (\\dot s - \\dot s_d), \\qquad
+          J_h(s)^T F = M_s(s) u_p + c_s(s, \\dot s)
+
+gives the force F_i each drone must apply at its joint (point-mass drones, the planning model);
+the desired roll is its direction, phi_d,i = atan2(-F_iy, F_iz) (2.20). The thrust is its
+component on the drone's measured thrust axis b_z(phi_i) = (-sin phi_i, cos phi_i) (2.15),
+corrected for the drone's offset d_i: the exact multibody model gives, along the thrust axis,
+f_i = b_z . F_i - m_i d_i phi_i'^2 (the thesis' 2.21 adds m_i d_i phi_i'' instead: in the exact
+model that term lies across the thrust axis, where a thrust cannot cancel it; DESIGN.md).
+
+**Out of the plane** (FPR): the pitch theta tilts every thrust out of the plane, so the lateral
+position x is held by a desired pitch theta_d = (-k_px x - k_dx x') / (d x'' / d theta), the
+sensitivity taken from the model at the hover pose; psi_d = 0. The prototype's chain is pinned:
+psi_d = theta_d = 0.
+
+**Inner loop** (attitude, eq. 2.23): u_a = q_a,d'' - K_pa (q_a - q_a,d) - K_da (q_a' - q_a,d') for
+q_a = [psi, theta, phi_1, (phi_2)], with the planned roll rate and acceleration as feed-forward;
+then the rotor allocation QP (:mod:`controllers.allocation`) turns u_a and the thrusts into rotor
+speeds under 0 <= w <= w_max, equal to the thesis' pseudo-inverse law (2.24) when no rotor is at
+a bound.
+
+The two loops run at their own rates (:class:`ControllerSettings`); :meth:`CascadedController.update`
+is called by the simulator at every inner-loop tick and recomputes the outer loop when it is due.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controllers.allocation import AllocationResult, Allocator
+
+
+@dataclass
+class ControllerSettings:
+    """Gains and rates.
+
+    Attributes:
+        outer_rate, inner_rate: loop rates [Hz].
+        chain_frequency, chain_damping: natural frequency [rad/s] and damping ratio of the
+            chain's error dynamics (K_pp = w^2, K_dp = 2 zeta w).
+        attitude_frequency, attitude_damping: same for the drone rolls in the attitude loop.
+        orientation_frequency, orientation_damping: same for psi and theta, the orientation of the
+            whole robot out of the plane: its inertia is large and the drones move it with weak
+            torques, so this loop is slower.
+        lateral_frequency, lateral_damping: same for x (FPR only).
+        max_pitch: bound on theta_d [rad].
+        attitude_weight, thrust_weight: allocation weights (:class:`controllers.allocation.Allocator`).
+    """
+
+    outer_rate: float = 100.0
+    inner_rate: float = 500.0
+    chain_frequency: float = 3.0
+    chain_damping: float = 1.0
+    attitude_frequency: float = 15.0
+    attitude_damping: float = 1.0
+    orientation_frequency: float = 5.0
+    orientation_damping: float = 1.0
+    lateral_frequency: float = 1.5
+    lateral_damping: float = 1.0
+    max_pitch: float = 0.3
+    attitude_weight: float = 1.0
+    thrust_weight: float = 1.0
+
+
+@dataclass
+class Reference:
+    """What the controller tracks at one instant (from the plan).
+
+    Attributes:
+        motion: s_d and its derivatives 0..4, shape (5, n_s).
+        roll_rate, roll_acceleration: planned phi_i', phi_i'' (feed-forward), shape (n_d,).
+    """
+
+    motion: np.ndarray
+    roll_rate: np.ndarray
+    roll_acceleration: np.ndarray
+
+
+@dataclass
+class ControlOutput:
+    """One inner-loop tick.
+
+    Attributes:
+        speeds: commanded rotor speeds, shape (n_d, 4) [rad/s].
+        allocation: the :class:`~controllers.allocation.AllocationResult`.
+        force: F_i of the outer loop, shape (n_d, 2) [N].
+        roll_desired: phi_d,i, shape (n_d,) [rad].
+        thrust_desired: f_i wanted from the allocation, shape (n_d,) [N].
+        attitude_desired: u_a, shape (n_a,) [rad/s^2].
+        pitch_desired: theta_d [rad].
+    """
+
+    speeds: np.ndarray
+    allocation: AllocationResult
+    force: np.ndarray
+    roll_desired: np.ndarray
+    thrust_desired: np.ndarray
+    attitude_desired: np.ndarray
+    pitch_desired: float
+
+
+@dataclass
+class CascadedController:
+    """The thesis' cascaded CTC for one robot (the controller's own model of it).
+
+    Args:
+        robot: the model the controller uses (it may differ from the plant: mass mismatch tests).
+        settings: :class:`ControllerSettings`.
+    """
+
+    robot: object
+    settings: ControllerSettings = field(default_factory=ControllerSettings)
+
+    def __post_init__(self):
+        r, st = self.robot, self.settings
+        self.point = r.planar("point")
+        self.chain = r.indices(r.layout.chain)
+        self.rolls = r.indices(r.layout.rolls)
+        self.attitude = r.indices(r.layout.attitude)
+        self.allocator = Allocator(r, st.attitude_weight, st.thrust_weight)
+        self.offset = r.hinge_offset
+        self.mass = r.drone_mass
+        self.lateral = "x" in r.layout.coordinates
+        self._pitch_gain = self._lateral_sensitivity() if self.lateral else 1.0
+        self._force = None
+        self._last_outer = -np.inf
+
+    def reset(self) -> None:
+        """Forget the held outer-loop output (a new run)."""
+        self._force, self._last_outer = None, -np.inf
+
+    def _lateral_sensitivity(self) -> float:
+        """d x'' / d theta at the hover pose s0 with hover thrusts (FPR)."""
+        from fpr.inverse_dynamics import inverse_dynamics
+
+        r = self.robot
+        s0 = np.array([0.0, 0.0, 5 * np.pi / 4, np.pi / 2])
+        hover = inverse_dynamics(r, np.concatenate([s0[None, None], np.zeros((4, 1, 4))]))
+        q = np.zeros(r.nq)
+        q[self.chain] = s0
+        q[self.rolls] = hover.roll[0]
+        delta = 1e-6
+        q[r.index["theta"]] = delta
+        a = r.forward_dynamics(q, np.zeros(r.nq), hover.thrust[0], hover.torque[0])
+        return float(a[r.index["x"]] / delta)
+
+    # ------------------------------------------------------------------ loops
+    def outer(self, q, v, reference: Reference) -> np.ndarray:
+        """F_i (world y, z) each drone must apply at its joint, shape (n_d, 2) [N] (2.14-2.16)."""
+        st = self.settings
+        kp, kd = st.chain_frequency**2, 2 * st.chain_damping * st.chain_frequency
+        s, ds = q[self.chain], v[self.chain]
+        sd = reference.motion
+        u = sd[2] - kp * (s - sd[0]) - kd * (ds - sd[1])
+        m, c = self.point.mass_matrix_and_bias(s, ds)
+        jac = self.point.hinge_jacobian(s)
+        force = np.linalg.solve(jac.T, m @ u + c)
+        return force.reshape(-1, 2)
+
+    def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
+        """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""
+        st = self.settings
+        if self._force is None or t - self._last_outer >= 1.0 / st.outer_rate - 1e-9:
+            self._force = self.outer(q, v, reference)
+            self._last_outer = t
+        force = self._force
+        roll = q[self.rolls]
+        roll_rate = v[self.rolls]
+        roll_desired = np.arctan2(-force[:, 0], force[:, 1])
+        axis = np.stack([-np.sin(roll), np.cos(roll)], axis=-1)
+        thrust = np.einsum("ij,ij->i", axis, force) - self.mass * self.offset * roll_rate**2
+        # attitude references [psi, theta, rolls...]
+        r = self.robot
+        pitch = 0.0
+        if self.lateral:
+            kp, kd = st.lateral_frequency**2, 2 * st.lateral_damping * st.lateral_frequency
+            x, dx = q[r.index["x"]], v[r.index["x"]]
+            pitch = float(np.clip((-kp * x - kd * dx) / self._pitch_gain, -st.max_pitch, st.max_pitch))
+        qa, dqa = q[self.attitude], v[self.attitude]
+        target = np.concatenate([[0.0, pitch], roll_desired])
+        rate = np.concatenate([[0.0, 0.0], reference.roll_rate])
+        acc = np.concatenate([[0.0, 0.0], reference.roll_acceleration])
+        kp = np.array([st.orientation_frequency**2] * 2 + [st.attitude_frequency**2] * len(self.rolls))
+        kd = np.array([2 * st.orientation_damping * st.orientation_frequency] * 2
+                      + [2 * st.attitude_damping * st.attitude_frequency] * len(self.rolls))
+        error = qa - target
+        error[2:] = np.angle(np.exp(1j * error[2:]))  # rolls: shortest angle
+        u_a = acc - kp * error - kd * (dqa - rate)
+        allocation = self.allocator.solve(r.attitude_model(q, v), thrust, u_a)
+        speeds = np.sqrt(np.maximum(allocation.speeds_squared, 0.0))
+        return ControlOutput(speeds, allocation, force, roll_desired, thrust, u_a, pitch)
