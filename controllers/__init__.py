@@ -1,1 +1,5 @@
-"""Controllers of the FPR (seed ch. 2.2); the cascaded CTC with ProxQP allocation lands with its issue."""
+"""Controllers of the FPR and the prototype (seed ch. 2.2).
+
+* :mod:`controllers.ctc`: the cascaded computed-torque controller (outer chain loop, attitude loop).
+* :mod:`controllers.allocation`: the rotor allocation as a box-constrained QP solved by ProxQP.
+"""
