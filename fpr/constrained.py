@@ -17,6 +17,11 @@ the :class:`~fpr.robots.Robot`'s Pinocchio model), but with another tree and a l
 
 Each free flyer's frame is the drone's hinge frame (drone axes, at the joint), so the free-flyer
 velocity is the drone body twist there. Closure drift is held by Baumgarte stabilisation.
+
+:meth:`ClosedChainModel.from_minimal` maps a state of the minimal model onto the closed chain;
+:meth:`ClosedChainModel.to_minimal` is its inverse (how the simulator's controller "measures" the
+plant). Angles read from rotations are only known modulo 2 pi: ``to_minimal`` takes a reference
+configuration (e.g. the previous measurement) and returns every angle within pi of it.
 """
 
 from __future__ import annotations
@@ -27,6 +32,30 @@ import numpy as np
 import pinocchio as pin
 
 from fpr.errors import check_shape
+
+#: Roll of the FPR's end-effector at the reference pose s0 = [0 0 5pi/4 pi/2] (DESIGN.md) [rad]: without a
+#: reference, :meth:`ClosedChainModel.to_minimal` returns the root roll phi within pi of it.
+NOMINAL_ROOT_ROLL = {"fpr": 5 * np.pi / 4, "prototype": 0.0}
+
+
+def wrap_angle(a):
+    """Angle(s) mapped to [-pi, pi) [rad]."""
+    return np.mod(np.asarray(a, dtype=float) + np.pi, 2 * np.pi) - np.pi
+
+
+def _euler_zyx(rotation, reference=None) -> np.ndarray:
+    """Z-Y-X Euler angles [psi, theta, phi] of R = Rz(psi) Ry(theta) Rx(phi) [rad].
+
+    Of the two solutions (theta in [-pi/2, pi/2] and (psi + pi, pi - theta, phi + pi)) the first is
+    returned, or, given a ``reference`` [psi, theta, phi], the one closer to it modulo 2 pi.
+    """
+    phi, theta, psi = pin.rpy.matrixToRpy(rotation)
+    angles = np.array([psi, theta, phi])
+    if reference is not None:
+        other = np.array([psi + np.pi, np.pi - theta, phi + np.pi])
+        if np.linalg.norm(wrap_angle(other - reference)) < np.linalg.norm(wrap_angle(angles - reference)):
+            angles = other
+    return angles
 
 
 @dataclass
@@ -80,6 +109,109 @@ class ClosedChainModel:
             ac[self.model.joints[jid].idx_v] = sign * ap[src.idx_v]
         out = (qc, vc) + ((ac,) if a is not None else ())
         return out if v is not None else qc
+
+    def to_minimal(self, qc, vc=None, reference=None):
+        """Thesis coordinates of the minimal model from a closed-chain state (inverse of from_minimal).
+
+        Configuration, by extraction (exact on a closed loop; with closure drift, the loop is read
+        from drone 1 along the tree, the closure only fixing what the tree cannot):
+
+        * FPR: the end-effector placement is drone 1's free flyer times the reversed hinge 1 and the
+          inverse of hinge 1's joint placement; it gives x, y, z and the Z-Y-X Euler angles psi,
+          theta, phi of the root joint. q21 and hinge 1 are the tree's joints; hinge 2's angle is the
+          rotation about x between link 2's hinge frame and drone 2's free flyer.
+        * Prototype: yaw, pitch and q1 are the Z-Y-X Euler angles of link 1 (pivot joints about
+          z, y, x at the fixed point); q2 and the hinge are the reversed joints.
+
+        Velocity: ``from_minimal`` is linear in v, vc = K(q) v with K the drone hinges' body
+        Jacobians and the rows of the reversed joints; v is the least-squares solution of
+        K v = vc (K has full column rank), exact when vc satisfies the closure.
+
+        Angles: without ``reference``, psi and theta are in [-pi, pi) and [-pi/2, pi/2], the
+        end-effector roll phi (FPR) within pi of 5pi/4 (the reference pose), q1 (prototype) in
+        [-pi, pi), drone 2's absolute roll phi2 (FPR) in [-pi, pi) (within pi of level); q21, q2 and
+        phi1 keep the continuous values of the tree's joints. With ``reference``, every angle is
+        returned within pi of it (the Euler solution closer to it is chosen), which keeps a sequence of
+        measurements continuous when each is given the previous one.
+
+        Args:
+            qc: closed-chain configuration, shape (model.nq,).
+            vc: closed-chain velocity, shape (model.nv,), or None.
+            reference: thesis configuration the angles are unwrapped to, shape (n,), or None.
+
+        Returns:
+            q, shape (n,) [m, rad]; or (q, v) when ``vc`` is given, v = qdot [m/s, rad/s].
+        """
+        r = self.robot
+        qc = check_shape("qc", qc, (self.model.nq,))
+        if reference is not None:
+            reference = check_shape("reference", reference, (r.nq,))
+        pin.forwardKinematics(self.model, self.data, qc)
+        omi = self.data.oMi
+        src = r.model
+        jp = src.jointPlacements
+        qp = np.zeros(r.nq)
+        for name, (source, sign) in self.reversed_ids.items():
+            jq = self.model.joints[self.model.getJointId(name)].idx_q
+            qp[src.joints[src.getJointId(source)].idx_q] = sign * qc[jq]
+        h1 = r.hinge_joint_ids[0]
+        reversed_1 = self.model.getJointId("drone_1_hinge_reversed")
+        if r.name == "fpr":
+            root = src.getJointId("end_effector_root")
+            motion = jp[root].inverse() * omi[reversed_1] * jp[h1].inverse()  # M of the composite joint
+            i0 = src.joints[root].idx_q
+            ref = None if reference is None else reference[r.indices(("psi", "theta", "phi"))]
+            euler = _euler_zyx(motion.rotation, ref)
+            if ref is None:
+                euler[2] = NOMINAL_ROOT_ROLL[r.name] + wrap_angle(euler[2] - NOMINAL_ROOT_ROLL[r.name])
+            qp[i0:i0 + 3] = motion.translation
+            qp[i0 + 3:i0 + 6] = euler
+            h2 = r.hinge_joint_ids[1]
+            hinge_frame = omi[self.model.getJointId("q21")] * jp[h2]
+            rel = hinge_frame.rotation.T @ omi[self.freeflyer_ids[1]].rotation
+            qp[src.joints[h2].idx_q] = np.arctan2(rel[2, 1], rel[1, 1])
+        else:
+            link_1 = omi[self.model.getJointId("q2_reversed")] * jp[src.getJointId("q2")].inverse()
+            names = ("pivot_yaw", "pivot_pitch", "q1")
+            ref = None if reference is None else reference[r.indices(("psi", "theta", "q1"))]
+            euler = _euler_zyx(link_1.rotation, ref)  # the pivot joints' placements have no rotation
+            for name, angle in zip(names, euler):
+                qp[src.joints[src.getJointId(name)].idx_q] = angle
+        q = r.from_pinocchio(qp)
+        if reference is None and r.name == "fpr":
+            q[r.index["phi2"]] = wrap_angle(q[r.index["phi2"]])  # drone 2's roll within pi of level
+        if reference is not None:
+            angular = self._angular
+            q[angular] = reference[angular] + wrap_angle(q[angular] - reference[angular])
+        if vc is None:
+            return q
+        vc = check_shape("vc", vc, (self.model.nv,))
+        v = np.linalg.lstsq(self.velocity_map(q), vc, rcond=None)[0]
+        return q, v
+
+    @property
+    def _angular(self) -> np.ndarray:
+        """Positions of the angular thesis coordinates (all but the end-effector position x, y, z)."""
+        names = self.robot.layout.coordinates
+        return np.array([i for i, c in enumerate(names) if c not in ("x", "y", "z")], dtype=int)
+
+    def velocity_map(self, q) -> np.ndarray:
+        """K(q): the closed-chain velocity of thesis velocities, vc = K v, shape (model.nv, n).
+
+        Rows of the free flyers: the body Jacobians of the minimal model's drone hinges; rows of the
+        reversed joints: +-1 on their source joint.
+        """
+        r = self.robot
+        qp = r.to_pinocchio(check_shape("q", q, (r.nq,)))
+        pin.computeJointJacobians(r.model, r.data, qp)
+        k = np.zeros((self.model.nv, r.nq))
+        for fly, hinge in zip(self.freeflyer_ids, r.hinge_joint_ids):
+            jv = self.model.joints[fly].idx_v
+            k[jv:jv + 6] = pin.getJointJacobian(r.model, r.data, hinge, pin.LOCAL) @ r.T
+        for name, (source, sign) in self.reversed_ids.items():
+            jv = self.model.joints[self.model.getJointId(name)].idx_v
+            k[jv] = sign * r.T[r.model.joints[r.model.getJointId(source)].idx_v]
+        return k
 
     def generalized_input(self, qc, thrust, torque) -> np.ndarray:
         """J_c^T w: generalised force of the drones' thrusts and torques in the closed-chain model."""
