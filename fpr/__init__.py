@@ -10,7 +10,15 @@ Quick start::
 See README.md for the command line (``python -m fpr.plan``) and the notebooks.
 """
 
-from fpr.errors import FprError, ShapeError, SingularityError, UnknownRobotError, WorkspaceError
+import os as _os
+
+# The planner and the simulator work on many small matrices, where multi-threaded BLAS only adds
+# synchronisation: measured 5-10x slower on a shared 2-core machine. This takes effect when fpr is
+# imported before numpy (the command-line tools, the tests); export the variables to override.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    _os.environ.setdefault(_var, "1")
+
+from fpr.errors import FprError, ShapeError, SingularityError, UnknownRobotError, WorkspaceError  # noqa: E402
 
 
 def __getattr__(name):
