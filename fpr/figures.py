@@ -669,3 +669,96 @@ def alpha_study_figure(path: str | Path, alphas, energy_ratio, perturbation_rati
     """
     target = _png_path(path)
     return _save_to_file(_alpha_study(alphas, energy_ratio, perturbation_ratio), target)
+
+
+# ------------------------------------------------------------------------------------ simulation
+SIMULATION_FIGURES = ("sim_coordinates", "sim_out_of_plane", "sim_roll", "sim_heights", "sim_rotor_speeds")
+
+
+def _sim_coordinates(log) -> Figure:
+    """Planned vs simulated planning coordinates, and the tracking error (Fig 3.19, 3.21-3.22, 3.25-3.26, 3.43)."""
+    units = {"y": "m", "z": "m", "phi": "rad", "q21": "rad", "q1": "rad", "q2": "rad"}
+    fig, axes = _new_figure(2 * len(log.chain))
+    err = log.tracking_error
+    for i, name in enumerate(log.chain):
+        ax, ax_err = axes[2 * i], axes[2 * i + 1]
+        ax.plot(log.t, log.reference[0][:, i], color=STYLE["reference_color"], linestyle="--", label="planned")
+        ax.plot(log.t, log.column(name), color=STYLE["plan_color"], label="simulated")
+        ax.set_ylabel(f"{name} [{units[name]}]")
+        ax_err.plot(log.t, err[:, i], color=STYLE["plan_color"], label="error")
+        ax_err.set_ylabel(f"{name} error [{units[name]}]")
+    axes[-1].set_xlabel("t [s]")
+    return _finish(fig, "Fig. 3.19-3.26 / 3.43 — tracking of the planned motion", axes)
+
+
+def _sim_out_of_plane(log) -> Figure:
+    """x, psi, theta of the simulated robot (Fig 3.20, 3.23-3.24), which the plan keeps at zero."""
+    names = [c for c in ("x", "psi", "theta") if c in log.coordinates]
+    fig, axes = _new_figure(len(names))
+    for ax, name in zip(axes, names):
+        ax.plot(log.t, log.column(name), color=STYLE["plan_color"], label="simulated")
+        ax.set_ylabel(f"{name} [{'m' if name == 'x' else 'rad'}]")
+    axes[-1].set_xlabel("t [s]")
+    return _finish(fig, "Fig. 3.20, 3.23-3.24 — motion out of the plane", axes)
+
+
+def _sim_roll(log, robot) -> Figure:
+    """Drone rolls: planned, desired by the outer loop, simulated (Fig 3.27-3.28)."""
+    n_d = log.planned_roll.shape[1]
+    fig, axes = _new_figure(n_d)
+    bound = np.pi / 2 - robot.margins.angle
+    for i, ax in enumerate(axes):
+        ax.plot(log.t, log.planned_roll[:, i], color=STYLE["reference_color"], linestyle="--", label="planned")
+        ax.plot(log.t, log.roll_desired[:, i], color="tab:orange", linewidth=0.8, label="desired (outer loop)")
+        ax.plot(log.t, log.column(f"phi{i + 1}"), color=STYLE["plan_color"], label="simulated")
+        ax.set_ylabel(f"phi{i + 1} [rad]")
+        _limit(ax, bound)
+        _limit(ax, -bound)
+    axes[-1].set_xlabel("t [s]")
+    return _finish(fig, "Fig. 3.27-3.28 — roll angle of each drone", axes)
+
+
+def _sim_heights(log, robot) -> Figure:
+    """Height of each drone's centre of mass in the plant, with the ground margin (Fig 3.29-3.30)."""
+    n_d = log.drone_height.shape[1]
+    fig, axes = _new_figure(n_d)
+    for i, ax in enumerate(axes):
+        ax.plot(log.t, log.drone_height[:, i], color=STYLE["plan_color"], label="simulated")
+        ax.set_ylabel(f"z of drone {i + 1} [m]")
+        _limit(ax, -robot.link_length + robot.margins.ground)
+    axes[-1].set_xlabel("t [s]")
+    return _finish(fig, "Fig. 3.29-3.30 — height of each drone", axes)
+
+
+def _sim_rotor_speeds(log) -> Figure:
+    """Rotor speeds in the plant against w_max and the planning limit (Fig 3.31-3.32, 3.48-3.49)."""
+    n_d = log.speed.shape[1]
+    fig, axes = _new_figure(n_d)
+    for i, ax in enumerate(axes):
+        for m in range(4):
+            ax.plot(log.t, log.speed[:, i, m], linewidth=1.0, label=f"rotor {m + 1}")
+        ax.set_ylabel(f"drone {i + 1} rotor speed [rad/s]")
+        _limit(ax, log.max_speed)
+        _limit(ax, 0.0)
+        ax.axhline(log.speed_limit, color="grey", linestyle=":", linewidth=0.8, label="planning limit")
+    axes[-1].set_xlabel("t [s]")
+    return _finish(fig, "Fig. 3.31-3.32 — rotor speeds in the simulation", axes)
+
+
+def simulation_figures(out_dir: str | Path, robot, log) -> list[Path]:
+    """Write the thesis' simulation figures of a :class:`fpr.simulate.SimulationLog` as PNG files.
+
+    Returns:
+        the paths of ``sim_coordinates.png``, ``sim_out_of_plane.png`` (FPR and prototype: psi,
+        theta; FPR also x), ``sim_roll.png``, ``sim_heights.png``, ``sim_rotor_speeds.png``.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    builders = {"sim_coordinates": lambda: _sim_coordinates(log), "sim_out_of_plane": lambda: _sim_out_of_plane(log),
+                "sim_roll": lambda: _sim_roll(log, robot), "sim_heights": lambda: _sim_heights(log, robot),
+                "sim_rotor_speeds": lambda: _sim_rotor_speeds(log)}
+    paths = []
+    with _styled():
+        for name in SIMULATION_FIGURES:
+            paths.append(_save(builders[name](), out / f"{name}.png"))
+    return paths

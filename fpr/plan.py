@@ -11,7 +11,10 @@ solve time, then the worst value of every constraint. Into ``--out`` (default
   points, durations and monomial coefficients of every segment;
 * ``trajectory.csv``: one row per sample at ``--rate`` (columns and units in README.md);
 * ``reference.csv``: the same for the stop-at-every-way-point motion;
-* PNG figures of the thesis' planning chapter (``fpr.figures``).
+* PNG figures of the thesis' planning chapter (``fpr.figures``);
+* with ``--simulate``: ``simulation.npz`` (the :class:`fpr.simulate.SimulationLog`), ``sim_*``
+  columns in ``trajectory.csv`` and the simulation figures; the summary adds tracking errors,
+  out-of-plane motion, rotor speeds in the plant, allocation saturations and the real-time factor.
 
 Exit codes: 0 every constraint holds; 1 the planned motion violates a constraint (the files
 are still written and the violated constraints are named); 2 bad input (mission file or
@@ -83,6 +86,20 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=None, help="output folder (default fpr-out/<mission>)")
     p.add_argument("--rate", type=float, default=200.0, help="sample rate of the CSV files [Hz]")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
+    sim = p.add_argument_group("closed-loop simulation (--simulate)")
+    sim.add_argument("--simulate", action="store_true",
+                     help="track the plan with the cascaded CTC on the closed-chain plant")
+    sim.add_argument("--initial-error", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
+                     help="offset of a coordinate at the start, e.g. y=0.05 [m or rad]")
+    sim.add_argument("--model-mass-scale", type=float, default=1.0,
+                     help="the controller's model has every mass times this (1.1: believes 10 %% heavier)")
+    sim.add_argument("--rotor-constant-scale", type=float, default=1.0,
+                     help="the plant's rotors give this times the nominal force and drag")
+    sim.add_argument("--wind", type=lambda t: _floats(t, "--wind"), default=None, metavar="FX,FY,FZ",
+                     help="constant wind force on each drone, world frame [N]")
+    sim.add_argument("--noise", type=lambda t: _floats(t, "--noise"), default=None, metavar="SQ,SV",
+                     help="standard deviations of the measurement noise on q and v")
+    sim.add_argument("--hold", type=float, default=1.0, help="time simulated after the plan's end [s]")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     return p
 
@@ -121,15 +138,45 @@ def csv_columns(robot) -> list[tuple[str, str]]:
     return cols
 
 
-def write_csv(path: Path, robot, sampled) -> None:
-    """One row per sample of ``sampled`` (a :class:`planners.optimize.SampledPlan`); units in README.md."""
+def _simulated_columns(robot, log, t) -> tuple[list[str], np.ndarray]:
+    """sim_ columns: the simulated counterparts of the planned ones, interpolated at times t."""
+    from fpr.kinematics import fpr_drone_joints, prototype_joints
+
+    chain = [log.coordinates.index(c) for c in log.chain]
+    s = log.q[:, chain]
+    joints = fpr_drone_joints(s, robot.link_length) if robot.name == "fpr" \
+        else prototype_joints(s, robot.link_length)[:, 1:]
+    data = {}
+    for c in log.coordinates:
+        data[c] = log.q[:, log.coordinates.index(c)]
+        data[c + "_d"] = log.v[:, log.coordinates.index(c)]
+    for i in range(robot.n_drones):
+        data[f"y_j{i + 1}"], data[f"z_j{i + 1}"] = joints[:, i, 0], joints[:, i, 1]
+        data[f"f{i + 1}"] = log.thrust[:, i]
+        for k, axis in enumerate("xyz"):
+            data[f"tau{i + 1}_{axis}"] = log.torque[:, i, k]
+        for m in range(4):
+            data[f"w{i + 1}_{m + 1}"] = log.speed[:, i, m]
+    names = ["sim_" + n for n in data]
+    return names, np.stack([np.interp(t, log.t, v) for v in data.values()], axis=1)
+
+
+def write_csv(path: Path, robot, sampled, log=None) -> None:
+    """One row per sample of ``sampled`` (a :class:`planners.optimize.SampledPlan`); units in README.md.
+
+    With a :class:`fpr.simulate.SimulationLog`, the simulated columns follow, prefixed ``sim_``.
+    """
     inputs, motion = sampled.inputs, sampled.motion
     columns = [sampled.t[:, None], motion[0], motion[1], motion[2]]
     for i in range(robot.n_drones):
         columns += [inputs.joint_position[:, i], inputs.roll[:, i:i + 1], inputs.roll_rate[:, i:i + 1],
                     inputs.thrust[:, i:i + 1], inputs.torque[:, i], inputs.rotor_speed[:, i]]
-    data = np.hstack(columns)
     names = [n for n, _ in csv_columns(robot)]
+    if log is not None:
+        sim_names, sim_data = _simulated_columns(robot, log, sampled.t)
+        names += sim_names
+        columns.append(sim_data)
+    data = np.hstack(columns)
     assert data.shape[1] == len(names)
     with open(path, "w", newline="", encoding="utf-8") as stream:
         writer = csv.writer(stream)
@@ -199,6 +246,63 @@ class _Progress:
             self.stream.write("\n")
 
 
+def _simulate(args, robot, final, out, sampled, written, say):
+    """Run the closed-loop simulation, write its files; returns the log (None if it diverged)."""
+    from fpr.plant import PlantDivergedError
+    from fpr.simulate import SimulationSettings, simulate
+
+    if args.wind is not None and len(args.wind) != 3:
+        raise FprError(f"--wind {args.wind}: give three numbers FX,FY,FZ [N]")
+    if args.noise is not None and len(args.noise) != 2:
+        raise FprError(f"--noise {args.noise}: give two numbers SQ,SV")
+    settings = SimulationSettings(hold=args.hold, initial_error=dict(args.initial_error),
+                                  model_mass_scale=args.model_mass_scale,
+                                  rotor_constant_scale=args.rotor_constant_scale,
+                                  measurement_noise=tuple(args.noise or (0.0, 0.0)),
+                                  wind=tuple(args.wind or (0.0, 0.0, 0.0)))
+    quiet = args.quiet
+
+    def progress(t, total):
+        if not quiet:
+            print(f"  simulating: {t:6.1f} / {total:.1f} s", file=sys.stderr, flush=True)
+
+    try:
+        log = simulate(final, settings, progress)
+    except PlantDivergedError as error:
+        print(f"error: the closed-loop simulation diverged: {error}", file=sys.stderr)
+        return None
+    log.save(out / "simulation.npz")
+    write_csv(out / "trajectory.csv", robot, sampled, log)
+    written.append("simulation.npz")
+    if not args.no_plots:
+        try:
+            from fpr.figures import simulation_figures
+
+            written += [f.name for f in simulation_figures(out, robot, log)]
+        except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the results
+            print(f"warning: simulation figures not written: {error}", file=sys.stderr)
+    return log
+
+
+def _simulation_table(log) -> str:
+    s = log.summary()
+    lines = ["closed-loop simulation (cascaded CTC, closed-chain plant):"]
+    for name in log.chain:
+        lines.append(f"  tracking error {name:5s}  rms {s['tracking_rms'][name]:.3e}  max {s['tracking_max'][name]:.3e}"
+                     f"  final {s['final_error'][name]:+.3e}")
+    for name, value in s["max_abs_out_of_plane"].items():
+        lines.append(f"  largest |{name}| {value:.3e}")
+    lines.append(f"  rotor speeds in the plant: {s['least_rotor_speed_rad_s']:.1f} .. {s['peak_rotor_speed_rad_s']:.1f} "
+                 f"rad/s (limits 0 .. {s['rotor_speed_limit_rad_s']:.0f}; planning limit "
+                 f"{s['planning_speed_limit_rad_s']:.0f})")
+    lines.append(f"  allocation saturated on {s['saturated_ticks']} of {s['ticks']} control ticks")
+    lines.append(f"  largest closure error {s['max_closure_error_m']:.2e} m; least drone height "
+                 f"{s['least_drone_height_m']:.3f} m")
+    lines.append(f"  {s['simulated_s']:.1f} s simulated in {s['wall_time_s']:.1f} s "
+                 f"(real-time factor {s['real_time_factor']:.2f})")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     """Command line entry point; returns the exit code."""
     args = parser().parse_args(argv)
@@ -246,6 +350,9 @@ def main(argv=None) -> int:
             written += [f.name for f in figures]
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the computed plan
             print(f"warning: figures not written: {error}", file=sys.stderr)
+    log = None
+    if args.simulate:
+        log = _simulate(args, robot, final, out, sampled, written, say)
     say(_table(reference, result))
     say("constraints of the " + ("optimised" if result is not None else "stop-at-way-points") + " motion "
         "(dense grid, margin >= 0 holds):")
@@ -253,6 +360,8 @@ def main(argv=None) -> int:
         say("  " + report.describe())
     for stage in final.stages:
         say(f"  solver {stage.name}: {stage.message} ({stage.iterations} iterations, {stage.wall_time:.3f} s)")
+    if log is not None:
+        say(_simulation_table(log))
     say(f"wrote {', '.join(written)} into {out} ({time.perf_counter() - start:.1f} s)")
     if not final.feasible:
         names = ", ".join(f"{c.name} (margin {c.margin:.4g} {c.unit} at t = {c.time:.3f} s)"
