@@ -198,9 +198,17 @@ def prototype_inverse_kinematics(r3, link_length: float, arm: str = "down", min_
     return xi
 
 
-def prototype_workspace_margins(xi, link_length: float, margins: Margins) -> dict[str, np.ndarray]:
-    """Signed margins of the prototype's geometric constraints (>= 0 where satisfied) (seed 3.40-3.46)."""
+def prototype_workspace_margins(xi, link_length: float, margins: Margins, arm: str = "down") -> dict[str, np.ndarray]:
+    """Signed margins of the prototype's geometric constraints (>= 0 where satisfied) (seed 3.40-3.46).
+
+    ``arm`` is the assembly mode: "down" keeps m_ga <= q2 <= pi - m_ga (3.46), "up" the mirror
+    -pi + m_ga <= q2 <= -m_ga; ``q2_low`` is then the margin to the singularity q2 = 0 and
+    ``q2_high`` the one to q2 = -pi.
+    """
     xi = _last(xi, 2, "xi")
+    if arm not in ("down", "up"):
+        raise ValueError(f"arm={arm!r}: use 'down' (q2 > 0) or 'up' (q2 < 0)")
+    q2 = xi[..., 1] if arm == "down" else -xi[..., 1]
     r = prototype_joints(xi, link_length)
     ground = -link_length + margins.ground
     return {
@@ -210,8 +218,8 @@ def prototype_workspace_margins(xi, link_length: float, margins: Margins) -> dic
         "fixed_point_3": r[..., 1, 0] - margins.ground,
         "q1_low": xi[..., 0] + (np.pi / 2 - margins.angle),
         "q1_high": (np.pi / 2 - margins.angle) - xi[..., 0],
-        "q2_low": xi[..., 1] - margins.angle,
-        "q2_high": (np.pi - margins.angle) - xi[..., 1],
+        "q2_low": q2 - margins.angle,
+        "q2_high": (np.pi - margins.angle) - q2,
     }
 
 

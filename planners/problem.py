@@ -86,7 +86,9 @@ def constraint_kind(name: str) -> str:
 def _workspace(robot, s) -> dict:
     if robot.name == "fpr":
         return fpr_workspace_margins(s, robot.link_length, robot.margins)
-    return prototype_workspace_margins(s, robot.link_length, robot.margins)
+    # the assembly mode the motion starts in (a motion that must stay in one mode: seed 3.46)
+    arm = "up" if np.real(np.reshape(s, (-1, 2))[0, 1]) < 0 else "down"
+    return prototype_workspace_margins(s, robot.link_length, robot.margins, arm)
 
 
 def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool):
