@@ -103,7 +103,10 @@ def _qp_step(ev, radius: float, penalty: float):
     model = ev.gradient @ d + 0.5 * d @ ev.hessian @ d
     linear = _violation(c + a @ d)  # the pruned constraints stay satisfied inside the region
     predicted = penalty * (_violation(c) - linear) - model
-    return d, predicted, linear
+    # multipliers of the constraint rows, back in the units of c (rows and objective were scaled)
+    duals = np.abs(np.asarray(qp.results.z)[:keep.size]) / (norms * scale) if keep.size else np.zeros(0)
+    multiplier = float(duals.max()) if duals.size else 0.0
+    return d, predicted, linear, multiplier
 
 
 def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, name: str = "") -> SqpOutcome:
@@ -128,11 +131,14 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
         ev = problem.evaluate(x, True)
         gradients += 1
         merit = ev.J + penalty * _violation(ev.constraints)
-        d, predicted, linear = _qp_step(ev, radius, penalty)
-        if linear > 1e-9 and penalty < 1e6:  # the linearisation cannot be met: weigh feasibility more
-            penalty *= 10.0
+        d, predicted, linear, multiplier = _qp_step(ev, radius, penalty)
+        # the l1 merit is exact only with rho above the multipliers; and while the linearisation cannot
+        # be met, weigh feasibility more
+        wanted = max(2.0 * multiplier, 10.0 * penalty if linear > 1e-9 else 0.0)
+        if wanted > penalty and penalty < 1e6:
+            penalty = min(wanted, 1e6)
             merit = ev.J + penalty * _violation(ev.constraints)
-            d, predicted, linear = _qp_step(ev, radius, penalty)
+            d, predicted, linear, _ = _qp_step(ev, radius, penalty)
         if predicted <= 1e-12 * max(1.0, abs(ev.J)):
             viol = float(max(0.0, -ev.constraints.min()))
             success = viol <= opt.feasibility
@@ -154,8 +160,8 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
         if progress is not None:
             progress(name, it, (trial if accepted else ev).J, viol)
         # an infeasible request: stop once the violation has not improved by 1 % in `patience` iterations
-        if viol < 0.99 * best_violation:
-            best_violation, last_progress = viol, it
+        if viol < 0.99 * best_violation or (accepted and viol <= 1e-3):  # small violations: keep polishing
+            best_violation, last_progress = min(viol, best_violation), it
         elif viol > opt.feasibility and it - last_progress >= opt.patience:
             message = (f"stopped: the constraint violation ({viol:.3g}) has not decreased for {opt.patience} "
                        "iterations (the request looks infeasible)")
