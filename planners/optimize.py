@@ -385,7 +385,8 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
     solve_args = {"progress": progress, "max_iterations": max_iterations, "tolerance": tolerance,
                   "solver": solver}
 
-    def attempt(samples: int, windows: int, suffix: str):
+    def attempt(samples: int, windows: int, suffix: str, previous=None):
+        """One solve on a grid; ``previous`` (points of an earlier solve, same layout) is the start."""
         def problem(points, durations, free, normalisation):
             return MotionProblem(robot, points, durations, free, alpha, normalisation,
                                  samples_per_segment=samples, windows_per_segment=windows)
@@ -396,7 +397,8 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
         stages = []
         if method == "two-step":
             step1 = problem(stop.points, way_times, free_way, normalisation)
-            x, stage = _solve(step1, step1.x_of(stop.points), "step 1" + suffix, **solve_args)
+            start = stop.points if previous is None else previous[is_way_of(previous)]
+            x, stage = _solve(step1, step1.x_of(start), "step 1" + suffix, **solve_args)
             stages.append(stage)
             first = PiecewisePolynomial(step1.points_of(x), way_times)
             points, durations, is_way = _with_via_points(first, way_times, n_via)
@@ -407,6 +409,8 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
                 a, b = way_index[j], way_index[j + 1]
                 free = np.zeros(points[a:b + 1].shape, dtype=bool)
                 free[1:-1] = True
+                if previous is not None:  # a refinement restarts from the earlier via points
+                    points[a + 1:b] = previous[a + 1:b]
                 travel = problem(points[a:b + 1], durations[a:b], free, normalisation)
                 x, stage = _solve(travel, travel.x_of(points[a:b + 1]), f"step 2, travel {j + 1}{suffix}",
                                   **solve_args)
@@ -418,8 +422,13 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
         free[~is_way] = True
         free[np.flatnonzero(is_way)[1:-1], 1:] = True
         whole = problem(points, durations, free, normalisation)
-        x, stage = _solve(whole, whole.x_of(points), "one-step" + suffix, **solve_args)
+        start = points if previous is None else previous
+        x, stage = _solve(whole, whole.x_of(start), "one-step" + suffix, **solve_args)
         return PiecewisePolynomial(whole.points_of(x), durations), is_way, [stage]
+
+    def is_way_of(points):
+        return _with_via_points(stop, way_times, n_via)[2] if len(points) != len(positions) \
+            else np.ones(len(points), dtype=bool)
 
     if method == "none":
         trajectory, is_way, stages = stop, np.ones(len(positions), dtype=bool), []
@@ -428,13 +437,15 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
         samples, windows, stages = samples_per_segment, windows_per_segment, []
         for refinement in range(max_refinements + 1):
             suffix = "" if refinement == 0 else f" (grid refined x{2 ** refinement})"
-            trajectory, is_way, new = attempt(samples, windows, suffix)
+            trajectory, is_way, new = attempt(samples, windows, suffix,
+                                              None if refinement == 0 else trajectory.points)
             stages += new
             report = evaluate_motion(robot, trajectory, dense_rate)
             grid_feasible = all(st.violation_end <= 1e-6 for st in new)
             if report.feasible or not grid_feasible:
                 break
-            # feasible on the optimisation grid but not between its nodes: refine the grid
+            # feasible on the optimisation grid but not between its nodes: refine the grid, and start
+            # from this solution
             samples, windows = 2 * samples - 1, 2 * windows
     return PlanResult(mission, method, alpha, trajectory, is_way, report, reference, stages,
                       time.perf_counter() - start, robot)

@@ -21,8 +21,9 @@ with respect to P. The 5 n perturbed copies of all samples go through one batche
 
 Integrals use Simpson's rule on K equally spaced nodes per segment (the optimisation grid).
 Constraints are enforced on the same nodes, aggregated as the minimum over short windows
-(a few nodes each) to keep the number of NLP constraints small; :func:`evaluate_motion` checks
-the result on a dense grid afterwards.
+(a few nodes each) to keep the number of NLP constraints small, with a small back-off
+(``CONSTRAINT_BACKOFF``) for what happens between nodes; :func:`planners.optimize.evaluate_motion`
+checks the result on a dense grid afterwards.
 
 The absolute value in J_e is smoothed for the optimiser, |x| ~ sqrt(x^2 + eps^2) - eps with
 eps = ``POWER_SMOOTHING`` (its effect on J_e is below eps times the duration per drone); every
@@ -43,6 +44,10 @@ from planners.polynomial import N_DERIVS, PiecewisePolynomial
 COMPLEX_STEP = 1e-30
 POWER_SMOOTHING = 1e-2  # [W]
 POWER_CURVATURE_FLOOR = 1e-2  # [W]
+# The optimiser asks every (scaled) margin to be at least this on its grid, so that what happens
+# between grid nodes (a rotor-speed peak a few milliseconds off a node) stays within the limits:
+# 1e-3 is 1 mm, 1 mrad, or about 0.4 rad/s at the rotor-speed limit.
+CONSTRAINT_BACKOFF = 1e-3
 
 
 @dataclass(frozen=True)
@@ -319,7 +324,7 @@ class MotionProblem:
             arg = a + np.argmin(rows[a:b], axis=0)  # (R,)
             mins.append(rows[arg, np.arange(rows.shape[1])])
             picks.append(arg)
-        constraints = np.concatenate(mins)
+        constraints = np.concatenate(mins) - CONSTRAINT_BACKOFF
         if derivatives:
             sample = np.concatenate(picks)  # (W R,)
             column = np.tile(np.arange(rows.shape[1]), len(self.windows))

@@ -6,14 +6,12 @@ provides; their Gauss-Newton / reweighted least-squares matrix is a good positiv
 model of the Hessian, far better than a quasi-Newton estimate built from scratch (SLSQP needs
 hundreds of iterations on these problems, this method a handful).
 
-Each iteration solves the subproblem
+Each iteration solves the elastic (S-l1-QP) subproblem
 
-.. math:: \\min_d \\tfrac12 d^T H d + g^T d - \\rho \\sum_{c_i < 0} A_i d \\quad
-          \\text{s.t.}\\; c_i + A_i d \\ge 0 \\;(c_i \\ge 0),\\; A_i d \\ge 0 \\;(c_i < 0),\\;
-          |d|_\\infty \\le \\Delta,
+.. math:: \\min_{d, s} \\tfrac12 d^T H d + g^T d + \\rho \\mathbf 1^T s \\quad
+          \\text{s.t.}\\; c + A d + s \\ge 0,\\; s \\ge 0,\\; |d|_\\infty \\le \\Delta,
 
-which d = 0 always satisfies (a violated constraint may not get worse, and its decrease earns the
-l1 penalty's slope), and accepts the step by the ratio of actual to predicted decrease of the exact l1 merit
+with slacks s only on the constraints violated at x (always feasible), and accepts the step by the ratio of actual to predicted decrease of the exact l1 merit
 J + rho * sum(max(0, -c)). Constraints that cannot become active inside the trust region
 (c_i > |A_i|_1 Delta) are left out of the QP, which keeps it small.
 """
@@ -70,43 +68,43 @@ def _violation(c) -> float:
 
 
 def _qp_step(ev, radius: float, penalty: float):
-    """Solve the step QP; returns (d, predicted decrease of the merit, linearised violation).
+    """Solve the elastic step QP; returns (d, predicted merit decrease, linearised violation, multiplier).
 
-    Constraints that hold at x must hold to first order after the step; those violated at x must not
-    get worse to first order and their linearised decrease is rewarded with the penalty weight (the
-    l1 penalty's slope while they stay violated). d = 0 is always feasible, so the QP is, and it has
-    only the free variables (no slack variables: the QP stays small and fast).
+    Only the constraints violated at x get a slack (the others hold at d = 0, so the QP is always
+    feasible). Rows are scaled to unit infinity norm and the objective to O(1): near a vanishing
+    thrust the roll rows reach 1e7 and the QP would crawl; the minimiser is unchanged. ProxQP's work
+    is bounded: an inexact step is judged by the merit ratio anyway.
     """
     n = ev.gradient.size
     c, a = ev.constraints, ev.jacobian
     keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
-    # rows scaled to unit infinity norm: near a vanishing thrust the roll rows reach 1e7 and the QP
-    # would crawl (the feasible set is the same)
     norms = np.maximum(np.abs(a[keep]).max(axis=1), 1.0)
     c_k, a_k = c[keep] / norms, a[keep] / norms[:, None]
-    violated = c_k < 0.0
-    h = ev.hessian + (1e-9 * max(np.trace(ev.hessian) / n, 1e-12)) * np.eye(n)
-    g = ev.gradient - penalty * (norms[violated, None] * a_k[violated]).sum(axis=0)
-    rows = np.vstack([a_k, np.eye(n)])
-    lower = np.concatenate([np.where(violated, 0.0, -c_k), np.full(n, -radius)])
-    upper = np.concatenate([np.full(keep.size, np.inf), np.full(n, radius)])
-    # objective scaled to O(1) (the minimiser is the same): near a vanishing thrust H reaches 1e7
-    scale = 1.0 / max(1.0, np.abs(h).max())
-    qp = proxsuite.proxqp.dense.QP(n, 0, rows.shape[0], False)
+    soft = np.flatnonzero(c_k < 0.0)
+    p = soft.size
+    scale = 1.0 / max(1.0, np.abs(ev.hessian).max())
+    h = np.zeros((n + p, n + p))
+    h[:n, :n] = (ev.hessian + (1e-9 * max(np.trace(ev.hessian) / n, 1e-12)) * np.eye(n)) * scale
+    g = np.concatenate([ev.gradient * scale, penalty * norms[soft] * scale])  # slack in row-scaled units
+    slack = np.zeros((keep.size, p))
+    slack[soft, np.arange(p)] = 1.0
+    rows = np.vstack([np.hstack([a_k, slack]), np.eye(n + p)])
+    lower = np.concatenate([-c_k, np.full(n, -radius), np.zeros(p)])
+    upper = np.concatenate([np.full(keep.size, np.inf), np.full(n, radius), np.full(p, np.inf)])
+    qp = proxsuite.proxqp.dense.QP(n + p, 0, rows.shape[0], False)
     qp.settings.eps_abs = 1e-9
-    qp.settings.max_iter = 300  # bounded work per QP: an inexact step is checked by the merit ratio anyway
+    qp.settings.max_iter = 300
     qp.settings.max_iter_in = 100
     qp.settings.verbose = False
-    qp.init(h * scale, g * scale, None, None, rows, lower, upper)
+    qp.init(h, g, None, None, rows, lower, upper)
     qp.solve()
-    d = np.clip(np.asarray(qp.results.x), -radius, radius)
+    d = np.clip(np.asarray(qp.results.x)[:n], -radius, radius)
     model = ev.gradient @ d + 0.5 * d @ ev.hessian @ d
     linear = _violation(c + a @ d)  # the pruned constraints stay satisfied inside the region
     predicted = penalty * (_violation(c) - linear) - model
-    # multipliers of the constraint rows, back in the units of c (rows and objective were scaled)
+    # multipliers of the constraint rows, back in the units of c
     duals = np.abs(np.asarray(qp.results.z)[:keep.size]) / (norms * scale) if keep.size else np.zeros(0)
-    multiplier = float(duals.max()) if duals.size else 0.0
-    return d, predicted, linear, multiplier
+    return d, predicted, linear, float(duals.max()) if duals.size else 0.0
 
 
 def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, name: str = "") -> SqpOutcome:
