@@ -91,19 +91,13 @@ def _qp_step(ev, radius: float, penalty: float):
     rows = np.vstack([np.hstack([a_k, slack]), np.eye(n + p)])
     lower = np.concatenate([-c_k, np.full(n, -radius), np.zeros(p)])
     upper = np.concatenate([np.full(keep.size, np.inf), np.full(n, radius), np.full(p, np.inf)])
-    qp = proxsuite.proxqp.dense.QP(n + p, 0, rows.shape[0], False)
-    qp.settings.eps_abs = 1e-9
-    qp.settings.max_iter = 300
-    qp.settings.max_iter_in = 100
-    qp.settings.verbose = False
-    qp.init(h, g, None, None, rows, lower, upper)
-    qp.solve()
-    d = np.clip(np.asarray(qp.results.x)[:n], -radius, radius)
+    res = proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
+    d = np.clip(np.asarray(res.x)[:n], -radius, radius)
     model = ev.gradient @ d + 0.5 * d @ ev.hessian @ d
     linear = _violation(c + a @ d)  # the pruned constraints stay satisfied inside the region
     predicted = penalty * (_violation(c) - linear) - model
     # multipliers of the constraint rows, back in the units of c
-    duals = np.abs(np.asarray(qp.results.z)[:keep.size]) / (norms * scale) if keep.size else np.zeros(0)
+    duals = np.abs(np.asarray(res.z)[:keep.size]) / (norms * scale) if keep.size else np.zeros(0)
     return d, predicted, linear, float(duals.max()) if duals.size else 0.0
 
 
