@@ -165,33 +165,8 @@ def _mission(mission: Mission | str | None, default: str) -> Mission:
 
 
 # ------------------------------------------------------------------------------------------ via points
-@dataclass(frozen=True, eq=False)
-class ViaPointStudy:
-    """J_e and J_phi against the number of via points (seed 3.2.5, Fig. 3.7-3.8).
-
-    Attributes:
-        mission: name of the mission planned.
-        method: the optimisation used.
-        alpha: the energy weight used.
-        counts: numbers of via points per travel, one per case.
-        cases: the numbers of each case (:class:`Case`), in the order of ``counts``.
-        energy_ratio: J_e / J_e(n_vp = 0), one per case (the thesis' normalisation) [-].
-        perturbation_ratio: J_phi / J_phi(n_vp = 0), one per case [-].
-        reference: the n_vp = 0 case the ratios divide by (planned even if 0 is not in ``counts``).
-        stop: the stop-at-every-way-point motion (its J_e, J_phi are the J_e0, J_phi0 of 3.26).
-        plans: the :class:`PlanResult` of each case (not compared, not printed).
-    """
-
-    mission: str
-    method: str
-    alpha: float
-    counts: tuple[int, ...]
-    cases: tuple[Case, ...]
-    energy_ratio: tuple[float, ...]
-    perturbation_ratio: tuple[float, ...]
-    reference: Case
-    stop: Case
-    plans: tuple[PlanResult, ...] = field(default=(), repr=False)
+class _CaseSeries:
+    """What the studies share: per-case accessors and the table rows (subclasses hold ``cases``, ``stop``)."""
 
     @property
     def J(self) -> tuple[float, ...]:
@@ -218,14 +193,47 @@ class ViaPointStudy:
         """Planning time of each case [s]."""
         return tuple(c.wall_time for c in self.cases)
 
-    def rows(self) -> list[dict]:
-        """Table rows: the stop-at-way-points motion, then one row per case."""
+    def _rows(self, energy: tuple[str, Case], perturbation: tuple[str, Case]) -> list[dict]:
+        """Rows of the stop motion and every case, with J_e and J_phi divided by the given references."""
         def row(label, case):
             return {"case": label, "J": case.J, "J_e [J]": case.J_e, "J_phi [rad^2/s]": case.J_phi,
-                    "J_e/J_e(n_vp=0)": _ratio(case.J_e, self.reference.J_e),
-                    "J_phi/J_phi(n_vp=0)": _ratio(case.J_phi, self.reference.J_phi),
+                    energy[0]: _ratio(case.J_e, energy[1].J_e),
+                    perturbation[0]: _ratio(case.J_phi, perturbation[1].J_phi),
                     "feasible": case.feasible, "iterations": case.iterations, "time [s]": case.wall_time}
         return [row("stop at way points", self.stop)] + [row(c.label, c) for c in self.cases]
+
+
+@dataclass(frozen=True, eq=False)
+class ViaPointStudy(_CaseSeries):
+    """J_e and J_phi against the number of via points (seed 3.2.5, Fig. 3.7-3.8).
+
+    Attributes:
+        mission: name of the mission planned.
+        method: the optimisation used.
+        alpha: the energy weight used.
+        counts: numbers of via points per travel, one per case.
+        cases: the numbers of each case (:class:`Case`), in the order of ``counts``.
+        energy_ratio: J_e / J_e(n_vp = 0), one per case (the thesis' normalisation) [-].
+        perturbation_ratio: J_phi / J_phi(n_vp = 0), one per case [-].
+        reference: the n_vp = 0 case the ratios divide by (planned even if 0 is not in ``counts``).
+        stop: the stop-at-every-way-point motion (its J_e, J_phi are the J_e0, J_phi0 of 3.26).
+        plans: the :class:`PlanResult` of each case (not compared, not printed).
+    """
+
+    mission: str
+    method: str
+    alpha: float
+    counts: tuple[int, ...]
+    cases: tuple[Case, ...]
+    energy_ratio: tuple[float, ...]
+    perturbation_ratio: tuple[float, ...]
+    reference: Case
+    stop: Case
+    plans: tuple[PlanResult, ...] = field(default=(), repr=False)
+
+    def rows(self) -> list[dict]:
+        """Table rows: the stop-at-way-points motion, then one row per case."""
+        return self._rows(("J_e/J_e(n_vp=0)", self.reference), ("J_phi/J_phi(n_vp=0)", self.reference))
 
     def to_dict(self) -> dict:
         """Numbers only, JSON-friendly."""
@@ -280,7 +288,7 @@ def via_point_study(mission: Mission | str | None = None, counts: Sequence[int] 
 
 # ------------------------------------------------------------------------------------------ alpha
 @dataclass(frozen=True, eq=False)
-class AlphaStudy:
+class AlphaStudy(_CaseSeries):
     """J_e and J_phi against the weight alpha (seed 3.2.5, Fig. 3.9-3.10).
 
     Attributes:
@@ -309,39 +317,9 @@ class AlphaStudy:
     stop: Case
     plans: tuple[PlanResult, ...] = field(default=(), repr=False)
 
-    @property
-    def J(self) -> tuple[float, ...]:
-        """J of each case (each with its own alpha, normalised by the stop motion)."""
-        return tuple(c.J for c in self.cases)
-
-    @property
-    def J_e(self) -> tuple[float, ...]:
-        """J_e of each case [J]."""
-        return tuple(c.J_e for c in self.cases)
-
-    @property
-    def J_phi(self) -> tuple[float, ...]:
-        """J_phi of each case [rad^2/s]."""
-        return tuple(c.J_phi for c in self.cases)
-
-    @property
-    def feasible(self) -> tuple[bool, ...]:
-        """Dense-grid feasibility of each case."""
-        return tuple(c.feasible for c in self.cases)
-
-    @property
-    def wall_time(self) -> tuple[float, ...]:
-        """Planning time of each case [s]."""
-        return tuple(c.wall_time for c in self.cases)
-
     def rows(self) -> list[dict]:
         """Table rows: the stop-at-way-points motion, then one row per case."""
-        def row(label, case):
-            return {"case": label, "J": case.J, "J_e [J]": case.J_e, "J_phi [rad^2/s]": case.J_phi,
-                    "J_e/J_e|a=0": _ratio(case.J_e, self.energy_reference.J_e),
-                    "J_phi/J_phi|a=1": _ratio(case.J_phi, self.perturbation_reference.J_phi),
-                    "feasible": case.feasible, "iterations": case.iterations, "time [s]": case.wall_time}
-        return [row("stop at way points", self.stop)] + [row(c.label, c) for c in self.cases]
+        return self._rows(("J_e/J_e|a=0", self.energy_reference), ("J_phi/J_phi|a=1", self.perturbation_reference))
 
     def to_dict(self) -> dict:
         """Numbers only, JSON-friendly."""
