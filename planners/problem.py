@@ -133,17 +133,22 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool):
     return np.stack(cols, axis=-1), names, details
 
 
+def _integrands(power, roll_rate, smoothing: float) -> np.ndarray:
+    """[sum_i |P_i|, sum_i phi_i'^2] per sample from the drone powers F_i . r_i' and roll rates (N, n_d)."""
+    if smoothing > 0:
+        power = np.sqrt(power * power + smoothing**2) - smoothing
+    else:
+        power = np.abs(power)
+    return np.stack([power.sum(-1), (roll_rate**2).sum(-1)], axis=-1)
+
+
 def objective_rates(inputs: MotionInputs, smoothing: float = 0.0) -> np.ndarray:
     """Integrands of J_e and J_phi at every sample, shape (N, 2) [W, rad^2/s^2].
 
     ``smoothing`` > 0 replaces |x| by sqrt(x^2 + eps^2) - eps (analytic, complex-step safe).
     """
     power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)  # (N, n_d)
-    if smoothing > 0:
-        power = np.sqrt(power * power + smoothing**2) - smoothing
-    else:
-        power = np.abs(power)
-    return np.stack([power.sum(-1), (inputs.roll_rate**2).sum(-1)], axis=-1)
+    return _integrands(power, inputs.roll_rate, smoothing)
 
 
 def simpson_weights(count: int, duration: float) -> np.ndarray:
@@ -295,7 +300,7 @@ class MotionProblem:
             sens_raw = (raw_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
             sens_rows = (rows_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
             local = np.einsum("iqrj,risk->iqskj", sens_raw, self.basis).reshape(n_s, raw.shape[1], -1)
-            n_d = raw.shape[1] // 2
+            n_d = raw.shape[1] // 2  # raw holds [powers..., roll rates...]
             power, rate = raw[:, :n_d], raw[:, n_d:]
             smooth = np.sqrt(power * power + POWER_SMOOTHING**2)
             # J = sum_i w_i (a_e sum_d |P_id|_eps + a_phi sum_d rate_id^2)
@@ -314,10 +319,8 @@ class MotionProblem:
             free = np.flatnonzero(self.free.reshape(-1))
             grad = g_points[free] * self.scale
             hess = h_points[np.ix_(free, free)] * np.outer(self.scale, self.scale)
-        rates = np.stack([np.abs(raw[:, :raw.shape[1] // 2]).sum(-1), (raw[:, raw.shape[1] // 2:] ** 2).sum(-1)], -1)
-        smoothed = np.sqrt(raw[:, :raw.shape[1] // 2] ** 2 + POWER_SMOOTHING**2).sum(-1) \
-            - POWER_SMOOTHING * (raw.shape[1] // 2)
-        terms = self.weights @ np.stack([smoothed, rates[:, 1]], -1)
+        n_d = raw.shape[1] // 2
+        terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
         mins, picks = [], []
         for a, b in self.windows:
