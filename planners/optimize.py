@@ -26,6 +26,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from fpr.inverse_dynamics import MotionInputs, inverse_dynamics
+from fpr.kinematics import singularity_margin
 from planners.polynomial import PiecewisePolynomial, stop_points
 from planners.sqp import SqpOptions, solve_sqp
 from planners.problem import (
@@ -114,8 +115,7 @@ class MotionReport:
             "least_rotor_speed_rad_s": float(self.inputs.rotor_speed.min()),
             "peak_roll_rad": float(np.abs(self.inputs.roll).max()),
             "least_ground_clearance_m": float(self.inputs.joint_position[..., 1].min() + robot.link_length),
-            "least_singularity_margin_rad": float(np.min(np.minimum(np.mod(singular, np.pi),
-                                                                    np.pi - np.mod(singular, np.pi)))),
+            "least_singularity_margin_rad": float(singularity_margin(singular).min()),
         }
 
 
@@ -125,8 +125,7 @@ def evaluate_motion(robot, trajectory: PiecewisePolynomial, rate: float = 500.0)
     Returns:
         the :class:`MotionReport` (J_e, J_phi by the trapezoidal rule on the samples).
     """
-    t_grid = np.arange(int(np.floor(trajectory.total_duration * rate)) + 1) / rate
-    t = np.unique(np.concatenate([t_grid[t_grid <= trajectory.total_duration], trajectory.knots]))
+    t = np.unique(np.concatenate([trajectory.sample_times(rate), trajectory.knots]))
     motion = trajectory.evaluate(t, order=4)
     inputs = inverse_dynamics(robot, motion)
     rates = objective_rates(inputs)
@@ -230,11 +229,9 @@ class PlanResult:
         return all(s.success for s in self.stages)
 
     def sampled(self, rate: float = 200.0, label: str | None = None, robot=None) -> SampledPlan:
-        """The motion sampled at ``rate`` [Hz] (knots included) with its inputs."""
+        """The motion sampled at ``rate`` [Hz] (end time included) with its inputs."""
         robot = robot or self.robot
-        t = np.arange(int(np.floor(self.trajectory.total_duration * rate)) + 1) / rate
-        t = np.unique(np.concatenate([t[t <= self.trajectory.total_duration], [self.trajectory.total_duration]]))
-        motion = self.trajectory.evaluate(t, order=4)
+        t, motion = self.trajectory.sample(rate, order=4)
         return SampledPlan(label or _label(self.method), t, motion, inverse_dynamics(robot, motion),
                            self.trajectory.knots, self.is_way, self.trajectory.points)
 

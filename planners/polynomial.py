@@ -311,13 +311,18 @@ class PiecewisePolynomial:
         Returns:
             (t (N,) [s], derivatives (order+1, N, n)); the last step may be shorter.
         """
+        t = self.sample_times(rate_hz)
+        return t, self.evaluate(t, order)
+
+    def sample_times(self, rate_hz: float) -> np.ndarray:
+        """The times of :meth:`sample`: t_k = k / rate_hz, then total_duration (the last step may be shorter)."""
         rate = float(_check_durations(rate_hz, "rate_hz", "Hz"))
         total = self.total_duration
         t = np.arange(int(np.floor(total * rate * (1.0 + _REL_TOL))) + 1) / rate
         if total - t[-1] > _REL_TOL * total:
             t = np.append(t, total)
         t[-1] = total
-        return t, self.evaluate(t, order)
+        return t
 
 
 def split_evenly(way_times, n_via) -> np.ndarray:
