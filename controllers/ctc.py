@@ -131,11 +131,10 @@ class CascadedController:
 
     def __post_init__(self):
         r, st = self.robot, self.settings
-        self.point = r.planar("point")
         # The outer loop's model at one sample, through Pinocchio: the robot with point-mass drones (the
-        # seed's planning model, whose closed form self.point is) restricted to the chain coordinates
-        # of an in-plane state. Equal to self.point to 1e-15 (relative), about 8 times cheaper for a single
-        # sample (self.point is vectorised for the planner's batches).
+        # seed's planning model, whose closed form is r.planar("point")) restricted to the chain
+        # coordinates of an in-plane state. Equal to the closed form to 1e-15 (relative), about 8 times
+        # cheaper for a single sample (the closed form is vectorised for the planner's batches).
         self._point_robot = r.with_drones_as("point")
         self._chain_map = self._point_robot.T[:, r.indices(r.layout.chain)]  # Pinocchio q of the chain s
         self._upper = np.triu(np.ones((r.nq, r.nq), dtype=bool))
@@ -187,7 +186,7 @@ class CascadedController:
     def _point_dynamics(self, s, ds):
         """M_s(s), c_s(s, s') and the hinge Jacobian J_h(s) (2 n_d, n_s) of the point-drone planning model.
 
-        The same as ``self.point.mass_matrix_and_bias(s, ds)`` and ``self.point.hinge_jacobian(s)`` to
+        The same as ``robot.planar("point").mass_matrix_and_bias(s, ds)`` and ``.hinge_jacobian(s)`` to
         round-off, from Pinocchio's CRBA, RNEA and joint Jacobians at q = (s, out-of-plane
         coordinates and rolls 0): the point drones' rolls carry no inertia.
         """
