@@ -269,7 +269,7 @@ def _solve(problem: MotionProblem, x0, name: str, progress, max_iterations: int,
     stage = StageReport(name, problem.n_x, ev0.constraints.size, J_start=ev0.J)
     if problem.n_x == 0:
         stage.success, stage.message, stage.status = True, "nothing to optimise", 0
-        stage.J_end, stage.violation_end = ev0.J, float(max(0.0, -ev0.constraints.min()))
+        stage.J_end, stage.violation_end = ev0.J, ev0.violation
         return np.asarray(x0, dtype=float), stage
     if solver == "sqp":
         out = solve_sqp(problem, x0, SqpOptions(max_iterations=max_iterations, tolerance=tolerance),
@@ -287,7 +287,7 @@ def _solve(problem: MotionProblem, x0, name: str, progress, max_iterations: int,
 
     def consider(x):
         ev = problem.evaluate(x)
-        viol = float(max(0.0, -ev.constraints.min()))
+        viol = ev.violation
         key = (viol > 1e-9, viol if viol > 1e-9 else ev.J)
         if best[0] is None or key < (best[2] > 1e-9, best[2] if best[2] > 1e-9 else best[1]):
             best[:] = [np.array(x), ev.J, viol]

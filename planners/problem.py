@@ -180,6 +180,11 @@ class Evaluation:
     jacobian: np.ndarray | None = None
     hessian: np.ndarray | None = None
 
+    @property
+    def violation(self) -> float:
+        """Largest constraint violation (0 when every constraint holds) [scaled units]."""
+        return float(max(0.0, -self.constraints.min()))
+
 
 class MotionProblem:
     """J and the constraints of a piecewise motion as functions of its free point entries.

@@ -132,7 +132,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
             merit = ev.J + penalty * _violation(ev.constraints)
             d, predicted, linear, _ = _qp_step(ev, radius, penalty)
         if predicted <= 1e-12 * max(1.0, abs(ev.J)):
-            viol = float(max(0.0, -ev.constraints.min()))
+            viol = ev.violation
             success = viol <= opt.feasibility
             message = "converged: no decrease predicted" if success else \
                 "stopped at a point where the linearised constraints cannot be met (locally infeasible)"
@@ -148,7 +148,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                 radius *= 2.0
         else:
             radius *= 0.25
-        viol = float(max(0.0, -(trial if accepted else ev).constraints.min()))
+        viol = (trial if accepted else ev).violation
         if progress is not None:
             progress(name, it, (trial if accepted else ev).J, viol)
         # an infeasible request: stop once the violation has not improved by 1 % in `patience` iterations
@@ -162,10 +162,10 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
             success, message = True, "converged: merit decrease below tolerance"
             break
         if radius < 1e-10:
-            viol = float(max(0.0, -problem.evaluate(x).constraints.min()))
+            viol = problem.evaluate(x).violation
             success = viol <= opt.feasibility
             message = "converged: trust region collapsed" if success else "trust region collapsed while infeasible"
             break
     final = problem.evaluate(x)
     return SqpOutcome(x, success, message, it, evaluations, gradients, time.perf_counter() - start, final.J,
-                      float(max(0.0, -final.constraints.min())))
+                      final.violation)
