@@ -95,21 +95,127 @@ def _motion_array(robot, motion) -> np.ndarray:
         m = m[:, None, :]
     if m.ndim != 3 or m.shape[0] < 5 or m.shape[2] != n_s:
         raise ShapeError("motion", m.shape, f"(5, N, {n_s}): s and its derivatives 0..4 at N samples")
-    return m[:5]
+    return m
 
 
-def thrust_vectors(robot, motion: Jet) -> Jet:
-    """F = J_h^-T (M_s s'' + c_s) along a motion (planning model), Jet of order K-2, shape (N, n_d, 2).
+def thrust_vectors(robot, motion: Jet, order: int | None = None) -> Jet:
+    """F = J_h^-T (M_s s'' + c_s) along a motion (planning model), Jet of shape (N, n_d, 2).
+
+    For the prototype the solve is written so that it stays exact through its Type-2 singularity
+    (see :func:`prototype_thrust_vectors`).
 
     Args:
         robot: the :class:`~fpr.robots.Robot`.
         motion: s as a Jet of order K >= 2, shape (N, n_s).
+        order: derivative order of the result (default K - 2).
     """
     point = robot.planar("point")
     generalized = point.inverse_dynamics_jet(motion)
+    if robot.name == "prototype":
+        return prototype_thrust_vectors(motion, generalized, robot.link_length,
+                                        generalized.order if order is None else order)[:, None, :]
+    if order is not None:
+        generalized = generalized.truncate(order)
     jac = point.hinge_jacobian_jet(motion.truncate(generalized.order))
     force = jets.solve(jac.mT, generalized)
     return force.reshape(force.shape[:-1] + (robot.n_drones, 2))
+
+
+#: Derivative order at which to evaluate planned motions for :func:`inverse_dynamics` (0..6: the
+#: prototype's crossing of its Type-2 singularity needs the 5th and 6th; elsewhere 0..4 suffice).
+MOTION_ORDER = 6
+
+#: |sin q2| below which the prototype's link tension is computed by deflation (about 5 ms from
+#: the crossing at 1 rad/s). Above it the plain quotient loses at most ~1e-9 relative in F''.
+SINGULAR_BAND = 5e-3
+
+
+def prototype_thrust_vectors(motion: Jet, generalized: Jet, link_length: float, order: int) -> Jet:
+    """The prototype's thrust vector F from J_pr^T F = b (seed 3.37), exact through q2 = 0.
+
+    With e = u(q1 + q2) along the second link and e_perp = u_perp(q1 + q2) across it, the columns of
+    J_pr are L (u_perp(q1) + e_perp) and L e_perp, so writing F = f_r e + f_p e_perp::
+
+        b2 = L f_p,      b1 - b2 (1 + cos q2) = L f_r sin q2.
+
+    The component across the link, f_p, is regular everywhere. The tension f_r = g / (L sin q2),
+    g = b1 - b2 (1 + cos q2), is a 0/0 limit at the singularity when the motion satisfies the
+    crossing criterion (seed 4.7: at q2 = 0, g = -[-1 2] b = 0). Close to q2 = 0 (|sin q2| <
+    :data:`SINGULAR_BAND`) the quotient's jet is computed without cancellation: both Taylor
+    polynomials are deflated by their common root t* (where sin q2 = 0) and f_r = g~ / s~. The
+    remainder g(t*), i.e. the criterion's residual, is the singular part of the force; it is
+    left out here and reported by :func:`crossing_residual`.
+
+    Args:
+        motion: xi = [q1, q2] as a Jet of order K, shape (N, 2).
+        generalized: b = M xi'' + c (point-mass drone), Jet of order >= ``order``, shape (N, 2).
+        link_length: L [m].
+        order: derivative order of F wanted; samples in the band need K >= order + 4 (F, F', F''
+            need xi up to its 6th derivative there: with one order less, the truncated Taylor
+            polynomials leave errors of ~1e-3 N in F and ~10 rad/s^2 in the roll acceleration at
+            the band's edge; with these, ~1e-7 N and ~3e-3 rad/s^2, tested).
+
+    Returns:
+        F, Jet of the given order, shape (N, 2) [N].
+    """
+    xi = motion
+    q12 = xi[..., 0] + xi[..., 1]
+    s_e, c_e = jets.sincos(q12.truncate(order))
+    sin2 = jets.sin(xi[..., 1])
+    b1, b2 = generalized[..., 0], generalized[..., 1]
+    g = b1 - b2 * (1.0 + jets.cos(xi[..., 1].truncate(b1.order)))
+    f_p = b2.truncate(order) / link_length
+    with np.errstate(divide="ignore", invalid="ignore"):
+        plain = g.truncate(order) / sin2.truncate(order)
+    near = np.abs(np.real(sin2.value)) < SINGULAR_BAND
+    d = np.array(plain.d)
+    if np.any(near):
+        if g.order < order + 2:
+            raise ValueError(
+                f"the motion passes within |sin q2| < {SINGULAR_BAND} of the Type-2 singularity at "
+                f"{int(near.sum())} sample(s): give xi with derivatives 0..{order + 4} (e.g. "
+                f"PiecewisePolynomial.evaluate(t, order={order + 4})) so that the link tension's limit "
+                "there is accurate")
+        k = min(g.order, sin2.order) + 1  # every Taylor coefficient available (more = more accurate)
+        d[:, near] = _deflated_quotient(g.d[:k, near], sin2.d[:k, near], order)
+    f_r = Jet(d) / link_length
+    fy = f_r * c_e - f_p * s_e
+    fz = f_r * s_e + f_p * c_e
+    return jets.stack([fy, fz], axis=-1)
+
+
+def _deflated_quotient(num: np.ndarray, den: np.ndarray, order: int) -> np.ndarray:
+    """Derivatives 0..order of num/den at samples where both share a simple root t* near 0.
+
+    ``num``, ``den``: derivatives 0..k-1 (leading axis, k >= order + 2) of each function at the samples.
+    Both Taylor polynomials are divided by (eps - eps*), eps* the root of den's polynomial found
+    by Newton's method, and the quotient's Taylor coefficients follow from the deflated ones. The
+    numerator's remainder num(t*) is dropped (the crossing criterion's residual). Analytic in the
+    inputs (complex-step safe).
+    """
+    k = num.shape[0]
+    fact = np.cumprod(np.r_[1.0, np.arange(1, k)])[:, None]
+    a = num / fact  # Taylor coefficients a_0..a_{k-1}
+    c = den / fact
+    root = -c[0] / c[1]
+    for _ in range(6):
+        value = sum(c[j] * root**j for j in range(k))
+        slope = sum(j * c[j] * root ** (j - 1) for j in range(1, k))
+        root = root - value / slope
+
+    def deflate(p):
+        q = [None] * (k - 1)
+        q[k - 2] = p[k - 1]
+        for j in range(k - 3, -1, -1):
+            q[j] = p[j + 1] + root * q[j + 1]
+        return q
+
+    at, ct = deflate(a), deflate(c)
+    f = []
+    for j in range(order + 1):
+        acc = at[j] - sum(f[i] * ct[j - i] for i in range(j))
+        f.append(acc / ct[0])
+    return np.stack(f) * fact[:order + 1]
 
 
 def roll_torques(robot, q, v, thrust, roll_acceleration) -> np.ndarray:
@@ -150,14 +256,17 @@ def inverse_dynamics(robot, motion) -> MotionInputs:
     Args:
         robot: the :class:`~fpr.robots.Robot` (FPR or prototype).
         motion: s and its time derivatives 0..4, shape (5, N, n_s) (or (5, n_s) for one sample),
-            e.g. from :meth:`planners.polynomial.PiecewisePolynomial.evaluate`.
+            e.g. from :meth:`planners.polynomial.PiecewisePolynomial.evaluate`. Rows 5 and 6 (the
+            5th and 6th derivatives) are used, and needed, where the prototype comes within
+            :data:`SINGULAR_BAND` of its Type-2 singularity (the link tension's limit there).
 
     Returns:
         the :class:`MotionInputs` at the N samples.
     """
     m = _motion_array(robot, motion)
-    s = Jet(m)
-    force = thrust_vectors(robot, s)  # order 2
+    near = robot.name == "prototype" and np.any(np.abs(np.sin(np.real(m[0, :, 1]))) < SINGULAR_BAND)
+    s = Jet(m if near else m[:5])  # higher derivatives only where the tension's limit needs them
+    force = thrust_vectors(robot, s, order=2)
     fy, fz = force[..., 0], force[..., 1]
     thrust = jets.sqrt(fy * fy + fz * fz)
     roll = jets.atan2(-fy, fz)
@@ -174,7 +283,7 @@ def inverse_dynamics(robot, motion) -> MotionInputs:
     w2 = np.stack([rotor.speeds_squared(thrust.value[:, i], torque[:, i]) for i, rotor in enumerate(robot.rotors)],
                   axis=1)
     return MotionInputs(
-        motion=m,
+        motion=m[:5],
         thrust_vector=force.value,
         thrust_vector_rate=force.d[1],
         thrust=thrust.value,

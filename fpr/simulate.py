@@ -23,7 +23,7 @@ import numpy as np
 
 import fpr
 from controllers.ctc import CascadedController, ControllerSettings, Reference
-from fpr.inverse_dynamics import inverse_dynamics
+from fpr.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from fpr.plant import Plant
 
 MASS_PARAMETERS = ("drone_mass", "link_mass", "end_effector_mass")
@@ -194,7 +194,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
     trajectory = result.trajectory
     total = trajectory.total_duration + st.hold
     ticks = np.arange(int(np.floor(total / tick + 1e-9)) + 1) * tick
-    motion = trajectory.evaluate(np.minimum(ticks, trajectory.total_duration), order=4)
+    motion = trajectory.evaluate(np.minimum(ticks, trajectory.total_duration), order=MOTION_ORDER)
     motion[1:, ticks > trajectory.total_duration] = 0.0  # at rest after the end
     planned = inverse_dynamics(robot, motion)
     q_plan = planned.full_state(robot)[0]

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize
 
-from fpr.inverse_dynamics import MotionInputs, inverse_dynamics
+from fpr.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from fpr.kinematics import singularity_margin
 from planners.polynomial import PiecewisePolynomial, stop_points
 from planners.sqp import SqpOptions, solve_sqp
@@ -126,7 +126,7 @@ def evaluate_motion(robot, trajectory: PiecewisePolynomial, rate: float = 500.0)
         the :class:`MotionReport` (J_e, J_phi by the trapezoidal rule on the samples).
     """
     t = np.unique(np.concatenate([trajectory.sample_times(rate), trajectory.knots]))
-    motion = trajectory.evaluate(t, order=4)
+    motion = trajectory.evaluate(t, order=MOTION_ORDER)
     inputs = inverse_dynamics(robot, motion)
     rates = objective_rates(inputs)
     rows, names, details = constraint_rows(robot, motion, inputs, scaled=False)
@@ -138,7 +138,7 @@ def evaluate_motion(robot, trajectory: PiecewisePolynomial, rate: float = 500.0)
         kind = constraint_kind(name)
         reports[name] = ConstraintReport(name, kind, float(sub[i, c]), float(t[i]), CONSTRAINT_KINDS[kind][0],
                                          details[cols[c]])
-    return MotionReport(t, motion, inputs, float(np.trapezoid(rates[:, 0], t)), float(np.trapezoid(rates[:, 1], t)),
+    return MotionReport(t, motion[:5], inputs, float(np.trapezoid(rates[:, 0], t)), float(np.trapezoid(rates[:, 1], t)),
                         reports)
 
 
@@ -231,8 +231,8 @@ class PlanResult:
     def sampled(self, rate: float = 200.0, label: str | None = None, robot=None) -> SampledPlan:
         """The motion sampled at ``rate`` [Hz] (end time included) with its inputs."""
         robot = robot or self.robot
-        t, motion = self.trajectory.sample(rate, order=4)
-        return SampledPlan(label or _label(self.method), t, motion, inverse_dynamics(robot, motion),
+        t, motion = self.trajectory.sample(rate, order=MOTION_ORDER)
+        return SampledPlan(label or _label(self.method), t, motion[:5], inverse_dynamics(robot, motion),
                            self.trajectory.knots, self.is_way, self.trajectory.points)
 
     def summary(self, robot=None) -> dict:
