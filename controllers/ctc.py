@@ -16,6 +16,15 @@ model that term lies across the thrust axis, where a thrust cannot cancel it; DE
 An integral term K_ip int(s - s_d) dt (not in the thesis) removes the steady error a wrong model
 leaves (mass or rotor-constant mismatch, wind).
 
+**Through the prototype's Type-2 singularity** (q2 = 0, seed ch. 4) J_h^T F = b cannot be inverted:
+with F = f_r e + f_p e_perp (e along the second link), b2 = L f_p gives the force across the link
+everywhere, but the tension f_r only through L sin(q2) f_r = b1 - b2 (1 + cos q2) = g. The outer
+loop then solves this row in the least-squares sense, regularised towards the planned tension
+f_r,d (the plan satisfies the crossing criterion, so f_r,d is finite):
+f_r = (L sin q2 g + eps^2 f_r,d) / ((L sin q2)^2 + eps^2), eps = L sin(``singular_band``). Away from
+the singularity this is the CTC law (within (eps / L sin q2)^2); near it the elbow's motion across
+the straight chain, which no drone force can act on, follows the plan open loop.
+
 **Out of the plane** (FPR): the pitch theta tilts every thrust out of the plane, so the lateral
 position x is held by a desired pitch theta_d = (-k_px x - k_dx x') / (d x'' / d theta), the
 sensitivity taken from the model at the hover pose; psi_d = 0. The prototype's chain is pinned:
@@ -61,6 +70,8 @@ class ControllerSettings:
         lateral_frequency, lateral_damping: same for x (FPR only).
         max_pitch: bound on theta_d [rad].
         attitude_weight, thrust_weight: allocation weights (:class:`controllers.allocation.Allocator`).
+        singular_band: prototype only, the angle [rad] that sets the regularisation eps = L sin(band)
+            of the tension near q2 = 0 (used when the reference carries the planned force).
     """
 
     outer_rate: float = 100.0
@@ -78,6 +89,7 @@ class ControllerSettings:
     max_pitch: float = 0.3
     attitude_weight: float = 1.0
     thrust_weight: float = 1.0
+    singular_band: float = 0.03
 
 
 @dataclass
@@ -87,11 +99,14 @@ class Reference:
     Attributes:
         motion: s_d and its derivatives 0..4, shape (5, n_s).
         roll_rate, roll_acceleration: planned phi_i', phi_i'' (feed-forward), shape (n_d,).
+        force: planned thrust vectors F_i, shape (n_d, 2) [N], or None. The prototype's outer loop
+            uses it near q2 = 0 (module docstring).
     """
 
     motion: np.ndarray
     roll_rate: np.ndarray
     roll_acceleration: np.ndarray
+    force: np.ndarray | None = None
 
 
 @dataclass
@@ -180,8 +195,22 @@ class CascadedController:
         sd = reference.motion
         u = sd[2] - kp * (s - sd[0]) - kd * (ds - sd[1]) - st.chain_integral * self._integral
         m, c, jac = self._point_dynamics(s, ds)
+        if self.robot.name == "prototype" and reference.force is not None:
+            return self._prototype_force(s, m @ u + c, reference.force[0])[None, :]
         force = np.linalg.solve(jac.T, m @ u + c)
         return force.reshape(-1, 2)
+
+    def _prototype_force(self, xi, b, planned) -> np.ndarray:
+        """F from J_pr^T F = b, the tension regularised towards the planned one (module docstring)."""
+        length = self.robot.link_length
+        q12 = xi[0] + xi[1]
+        along = np.array([np.cos(q12), np.sin(q12)])
+        across = np.array([-np.sin(q12), np.cos(q12)])
+        f_p = b[1] / length
+        lever = length * np.sin(xi[1])
+        eps2 = (length * np.sin(self.settings.singular_band)) ** 2
+        f_r = (lever * (b[0] - b[1] * (1.0 + np.cos(xi[1]))) + eps2 * (planned @ along)) / (lever**2 + eps2)
+        return f_r * along + f_p * across
 
     def _point_dynamics(self, s, ds):
         """M_s(s), c_s(s, s') and the hinge Jacobian J_h(s) (2 n_d, n_s) of the point-drone planning model.

@@ -228,7 +228,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
         log["drone_height"][k] = positions[:, 2]
         q_meas = q + noise_q * rng.normal(size=n) if noise_q else q
         v_meas = v + noise_v * rng.normal(size=n) if noise_v else v
-        reference = Reference(motion[:, k], planned.roll_rate[k], planned.roll_acceleration[k])
+        reference = Reference(motion[:5, k], planned.roll_rate[k], planned.roll_acceleration[k],
+                              planned.thrust_vector[k])
         out = controller.update(t, q_meas, v_meas, reference)
         log["roll_desired"][k] = out.roll_desired
         log["speed_command"][k] = out.speeds

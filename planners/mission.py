@@ -46,6 +46,12 @@ File format (every key at the top level, except the optional ``[robot_parameters
     Weight in [0, 1] of the energy term of the objective (seed 3.25)
     J = alpha Je / Je0 + (1 - alpha) Jphi / Jphi0: 1 minimises the energy only, 0 the drone
     perturbation (roll rates) only. Default 0.5.
+``cross_singularity`` (boolean, optional)
+    Prototype only: ``true`` asks for a motion that crosses the Type-2 singularity q2 = 0 exactly
+    once (seed ch. 4, :mod:`planners.crossing`). The mission then has 2 way points, the start in
+    the assembly mode ``arm`` and the end in the other one, and 2 travel times and via-point
+    counts: start -> crossing and crossing -> end (the times are first guesses; the planner
+    optimises them with the crossing state). Default ``false``.
 ``[robot_parameters]`` (table of numbers, optional)
     Overrides of the robot description's xacro arguments (keys of ``urdf/parameters.yaml`` that
     the URDF uses, e.g. ``link_length``), passed to ``fpr.load(robot, **robot_parameters)``.
@@ -116,7 +122,7 @@ logger = logging.getLogger(__name__)
 ROBOTS = description.ROBOTS  # the same tuple as fpr.robots.ROBOTS, without importing Pinocchio
 SPACES = ("task", "joint")
 ARMS = ("down", "up")
-BUILTIN_MISSIONS = ("square", "study", "prototype-tour")
+BUILTIN_MISSIONS = ("square", "study", "prototype-tour", "cross-singularity")
 """Names of the built-in missions, files ``planners/missions/<name>.toml``."""
 
 _COORDINATES = {
@@ -127,7 +133,7 @@ _COORDINATES = {
 }
 _REQUIRED_KEYS = ("robot", "way_points", "times")
 _FILE_KEYS = ("name", "description", "robot", "space", "arm", "way_points", "times", "via_points", "alpha",
-              "robot_parameters")
+              "cross_singularity", "robot_parameters")
 
 
 def _is_number(x) -> bool:
@@ -187,6 +193,7 @@ class Mission:
     arm: str = "down"
     description: str = ""
     robot_parameters: Mapping[str, float] = field(default_factory=dict)
+    cross_singularity: bool = False
     source: str = ""
 
     # ------------------------------------------------------------------ validation
@@ -200,8 +207,10 @@ class Mission:
         way_points = self._way_points(self.way_points)
         self._set("way_points", way_points)
         k = way_points.shape[0]
-        self._set("times", self._times(self.times, k))
-        self._set("via_points", self._via_points(self.via_points, k))
+        self._set("cross_singularity", self._crossing(self.cross_singularity, k))
+        travels = k if self.cross_singularity else k - 1
+        self._set("times", self._times(self.times, k, travels))
+        self._set("via_points", self._via_points(self.via_points, k, travels))
         self._set("alpha", self._alpha(self.alpha))
         self._set("robot_parameters", self._robot_parameters(self.robot_parameters))
         self._check_arm_signs()
@@ -250,11 +259,26 @@ class Mission:
                     raise self._error(name, f"entry {j} ({coords[j]}) is {x}: give a finite number")
         return _read_only(np.array([[float(x) for x in row] for row in rows], dtype=float))
 
-    def _times(self, value, k: int) -> np.ndarray:
-        count = f"{k} way points make {k - 1} travel(s): give {k - 1} travel time(s) [s]"
+    def _crossing(self, value, k: int) -> bool:
+        if not isinstance(value, (bool, np.bool_)):
+            raise self._error("cross_singularity", f"{value!r}: write true or false")
+        if value and (self.robot != "prototype" or k != 2):
+            reason = ("true needs the prototype and exactly 2 way points (the start, in the assembly mode "
+                      f"`arm`, and the end, in the other one); this mission has robot = {self.robot!r} and "
+                      f"{k} way points")
+            raise self._error("cross_singularity", reason)
+        return bool(value)
+
+    def _travels_text(self, k: int, travels: int) -> str:
+        if self.cross_singularity:
+            return "a singularity crossing has 2 travels (start -> crossing -> end)"
+        return f"{k} way points make {travels} travel(s)"
+
+    def _times(self, value, k: int, travels: int) -> np.ndarray:
+        count = f"{self._travels_text(k, travels)}: give {travels} travel time(s) [s]"
         if not _is_sequence(value) or np.ndim(value) != 1:
-            raise self._error("times", f"{value!r} is not a list: {count}, e.g. times = {[3.0] * (k - 1)}")
-        if len(value) != k - 1:
+            raise self._error("times", f"{value!r} is not a list: {count}, e.g. times = {[3.0] * travels}")
+        if len(value) != travels:
             raise self._error("times", f"has {len(value)} entries; {count}, one per travel")
         for i, t in enumerate(value):
             if not _is_number(t):
@@ -263,12 +287,12 @@ class Mission:
                 raise self._error(f"times[{i}]", f"{t} s: a travel time must be finite and > 0 [s]")
         return _read_only(np.array([float(t) for t in value], dtype=float))
 
-    def _via_points(self, value, k: int) -> np.ndarray:
+    def _via_points(self, value, k: int, travels: int) -> np.ndarray:
         if not _is_sequence(value):
             self._check_via_point("via_points", value)
-            return _read_only(np.full(k - 1, int(value), dtype=int))
-        if np.ndim(value) != 1 or len(value) != k - 1:
-            reason = (f"has {len(value)} entries; {k} way points make {k - 1} travel(s): give one integer "
+            return _read_only(np.full(travels, int(value), dtype=int))
+        if np.ndim(value) != 1 or len(value) != travels:
+            reason = (f"has {len(value)} entries; {self._travels_text(k, travels)}: give one integer "
                       "per travel, or a single integer for all of them")
             raise self._error("via_points", reason)
         for i, n_vp in enumerate(value):
@@ -311,6 +335,17 @@ class Mission:
         if self.robot != "prototype" or self.space != "joint":
             return
         sign = 1.0 if self.arm == "down" else -1.0
+        signs = np.full(self.way_points.shape[0], sign)
+        if self.cross_singularity:
+            signs[-1] = -sign  # the end is in the other assembly mode
+            wrong = np.flatnonzero(signs * self.way_points[:, 1] < 0)
+            if wrong.size:
+                i = int(wrong[0])
+                mode = "down (q2 > 0)" if signs[i] > 0 else "up (q2 < 0)"
+                reason = (f"q2 = {self.way_points[i, 1]:.6g} rad: a singularity crossing starts in the mode "
+                          f"`arm` = {self.arm!r} and ends in the other, so this way point needs its elbow {mode}")
+                raise self._error(f"way_points[{i}]", reason)
+            return
         wrong = np.flatnonzero(sign * self.way_points[:, 1] < 0)
         if wrong.size == 0:
             return
@@ -421,11 +456,17 @@ class Mission:
     def _where(self, i: int, point: np.ndarray) -> str:
         return f"way_points[{i}] = {_text_of(point)} of mission {self.name!r}"
 
+    def arm_of(self, i: int) -> str:
+        """Assembly mode of way point i: ``arm``, except the end of a singularity crossing."""
+        if self.cross_singularity and i == self.way_points.shape[0] - 1:
+            return "up" if self.arm == "down" else "down"
+        return self.arm
+
     def _planning_pose(self, i: int, point: np.ndarray, robot) -> np.ndarray:
         if self.robot == "fpr" or self.space == "joint":
             return point.copy()
         try:
-            return prototype_inverse_kinematics(point, robot.link_length, self.arm,
+            return prototype_inverse_kinematics(point, robot.link_length, self.arm_of(i),
                                                 min_margin=robot.margins.angle)
         except WorkspaceError as error:
             raise WorkspaceError(point, f"{self._where(i, point)}: {error.reason}; move the way point closer "
@@ -446,7 +487,7 @@ class Mission:
                           margins=robot.margins)
             return
         values = prototype_workspace_margins(pose, robot.link_length, robot.margins)
-        if self.arm == "down":
+        if self.arm_of(i) == "down":
             check_margins(values, pose, what, margins=robot.margins)
             return
         # prototype_workspace_margins encodes arm down (m_ga <= q2 <= pi - m_ga): mirror its q2 bounds.
@@ -477,6 +518,7 @@ class Mission:
             "times": self.times.tolist(),
             "via_points": [int(n) for n in self.via_points],
             "alpha": float(self.alpha),
+            "cross_singularity": bool(self.cross_singularity),
             "robot_parameters": dict(self.robot_parameters),
         }
 
@@ -499,6 +541,8 @@ class Mission:
             f"times = {_toml_value(d['times'])}  # travel time of each way-to-way travel [s]",
             f"via_points = {_toml_value(d['via_points'])}  # via points inside each travel",
             f"alpha = {_toml_value(d['alpha'])}  # weight of the energy term, in [0, 1]",
+            *(["cross_singularity = true  # prototype: cross q2 = 0 once (planners.crossing)"]
+              if d["cross_singularity"] else []),
             "",
             "[robot_parameters]  # overrides of urdf/parameters.yaml for the URDF [SI units]",
             *(f"{key} = {_toml_value(value)}" for key, value in d["robot_parameters"].items()),

@@ -38,7 +38,7 @@ from planners.problem import (
 )
 
 METHODS = ("two-step", "one-step", "none")
-FEASIBILITY_TOLERANCE = {"m": 1e-6, "rad": 1e-6, "rad/s": 1e-3}
+FEASIBILITY_TOLERANCE = {"m": 1e-6, "rad": 1e-6, "rad/s": 1e-3, "N": 1e-6}
 
 
 @dataclass(frozen=True)
@@ -119,8 +119,16 @@ class MotionReport:
         }
 
 
-def evaluate_motion(robot, trajectory: PiecewisePolynomial, rate: float = 500.0) -> MotionReport:
+def evaluate_motion(robot, trajectory: PiecewisePolynomial, rate: float = 500.0,
+                    crossing_time: float | None = None, min_thrust: float | None = None) -> MotionReport:
     """Sample ``trajectory`` at ``rate`` [Hz] (plus every knot) and check every constraint.
+
+    Args:
+        robot, trajectory, rate: what to check, and how densely [Hz].
+        crossing_time: for a prototype motion that crosses its Type-2 singularity once
+            (:mod:`planners.crossing`), the time of the crossing [s]: the assembly-mode bounds are
+            then checked on each side of it.
+        min_thrust: also check thrust >= this [N] (``thrust_low``), or None.
 
     Returns:
         the :class:`MotionReport` (J_e, J_phi by the trapezoidal rule on the samples).
@@ -129,7 +137,9 @@ def evaluate_motion(robot, trajectory: PiecewisePolynomial, rate: float = 500.0)
     motion = trajectory.evaluate(t, order=MOTION_ORDER)
     inputs = inverse_dynamics(robot, motion)
     rates = objective_rates(inputs)
-    rows, names, details = constraint_rows(robot, motion, inputs, scaled=False)
+    sign = None if crossing_time is None else np.sign(crossing_time - t) * (np.abs(t - crossing_time) > 1e-12)
+    rows, names, details = constraint_rows(robot, motion, inputs, scaled=False, crossing_sign=sign,
+                                           min_thrust=min_thrust)
     reports = {}
     for name in dict.fromkeys(names):
         cols = [c for c, n in enumerate(names) if n == name]
@@ -199,6 +209,9 @@ class PlanResult:
         stages: the NLP solves, in order.
         wall_time: total planning time [s].
         robot: the robot it was planned for.
+        crossing: for a singularity-crossing mission, the
+            :class:`planners.crossing.CrossingOutcome` (``reference`` is then its first guess, the
+            motion the optimisation started from); else None.
     """
 
     mission: object
@@ -211,11 +224,12 @@ class PlanResult:
     stages: list = field(default_factory=list)
     wall_time: float = 0.0
     robot: object = field(default=None, repr=False)
+    crossing: object = field(default=None, repr=False)
 
     @property
     def feasible(self) -> bool:
-        """Every constraint holds on the dense grid."""
-        return self.report.feasible
+        """Every constraint holds on the dense grid (and a crossing crosses exactly once)."""
+        return self.report.feasible if self.crossing is None else self.crossing.feasible
 
     @property
     def J(self) -> float:
@@ -254,11 +268,13 @@ class PlanResult:
                                 "satisfied": c.satisfied} for n, c in self.report.constraints.items()},
             "violated": [c.name for c in self.report.violations],
             "stages": [vars(s) for s in self.stages],
+            **({"crossing": self.crossing.summary(robot)} if self.crossing is not None else {}),
         }
 
 
 def _label(method: str) -> str:
-    return "stop at way points" if method == "none" else f"optimised ({method})"
+    return {"none": "stop at way points", "crossing": "optimised crossing",
+            "first guess": "first guess (crossing)"}.get(method, f"optimised ({method})")
 
 
 # ---------------------------------------------------------------------------------------- solving
@@ -373,6 +389,9 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
     start = time.perf_counter()
     robot = robot or mission.load_robot()
     positions = mission.positions(robot)
+    if getattr(mission, "cross_singularity", False):
+        return _plan_crossing(mission, method, robot, positions, progress, samples_per_segment,
+                              windows_per_segment, max_iterations, dense_rate, max_refinements, start)
     way_times = np.asarray(mission.times, dtype=float)
     n_via = np.broadcast_to(np.asarray(mission.via_points, dtype=int), way_times.shape)
     alpha = float(mission.alpha)
@@ -446,3 +465,28 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
             samples, windows = 2 * samples - 1, 2 * windows
     return PlanResult(mission, method, alpha, trajectory, is_way, report, reference, stages,
                       time.perf_counter() - start, robot)
+
+
+def _plan_crossing(mission, method, robot, positions, progress, samples, windows, max_iterations, dense_rate,
+                   max_refinements, start) -> PlanResult:
+    """A singularity-crossing mission (:mod:`planners.crossing`): ``method`` "none" gives the first
+    guess, any other the optimised crossing (the crossing has its own method)."""
+    from planners.crossing import CrossingOutcome, _report, crossing_layout, first_guess, optimise_crossing
+
+    n_via = tuple(int(n) for n in mission.via_points)
+    duration = float(np.sum(mission.times))
+    if method == "none":
+        guess = first_guess(robot, positions[0], positions[-1], duration, n_via)
+        report = _report(robot, guess, n_via, dense_rate)
+        outcome = CrossingOutcome("first guess", guess, n_via, report, report)
+    else:
+        outcome = optimise_crossing(robot, positions[0], positions[-1], duration, n_via, alpha=mission.alpha,
+                                    progress=progress, samples_per_segment=samples, windows_per_segment=windows,
+                                    max_iterations=max_iterations, dense_rate=dense_rate,
+                                    max_refinements=max_refinements)
+    index, _ = crossing_layout(n_via)
+    is_way = np.zeros(len(outcome.trajectory.points), dtype=bool)
+    is_way[[0, index, -1]] = True
+    return PlanResult(mission, "first guess" if method == "none" else "crossing", float(mission.alpha),
+                      outcome.trajectory, is_way, outcome.report, outcome.initial, outcome.stages,
+                      time.perf_counter() - start, robot, outcome)

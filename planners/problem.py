@@ -37,7 +37,7 @@ from itertools import product
 
 import numpy as np
 
-from fpr.inverse_dynamics import MotionInputs, inverse_dynamics
+from fpr.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from fpr.kinematics import fpr_workspace_margins, prototype_workspace_margins
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
 
@@ -77,9 +77,13 @@ CONSTRAINT_KINDS = {
     "q21": ("rad", "Type-2 singularity m_ga <= q21 <= pi - m_ga (3.29)"),
     "q1": ("rad", "|q1| <= pi/2 - m_ga (3.44)"),
     "q2": ("rad", "Type-2 singularity m_ga <= q2 <= pi - m_ga (3.46)"),
+    "crossing": ("rad", "a singularity crossing: q2 keeps the sign of its side of the single crossing, "
+                        "|q2| <= pi - m_ga"),
     "roll": ("rad", "drone roll |phi_i| <= pi/2 - m_ga (3.33, 3.45)"),
     "rotor_speed_low": ("rad/s", "rotor speed w >= 0 (3.48)"),
     "rotor_speed_high": ("rad/s", "rotor speed w <= w_max - m_gr (3.48)"),
+    "thrust_low": ("N", "thrust f_i >= f_min: the controller steers the thrust's direction, which a small "
+                        "thrust makes ill-conditioned (singularity crossings, planners.crossing)"),
 }
 
 
@@ -88,15 +92,24 @@ def constraint_kind(name: str) -> str:
     return next(k for k in sorted(CONSTRAINT_KINDS, key=len, reverse=True) if name.startswith(k))
 
 
-def _workspace(robot, s) -> dict:
+def _workspace(robot, s, crossing_sign=None) -> dict:
     if robot.name == "fpr":
         return fpr_workspace_margins(s, robot.link_length, robot.margins)
-    # the assembly mode the motion starts in (a motion that must stay in one mode: seed 3.46)
-    arm = "up" if np.real(np.reshape(s, (-1, 2))[0, 1]) < 0 else "down"
-    return prototype_workspace_margins(s, robot.link_length, robot.margins, arm)
+    if crossing_sign is None:
+        # the assembly mode the motion starts in (a motion that must stay in one mode: seed 3.46)
+        arm = "up" if np.real(np.reshape(s, (-1, 2))[0, 1]) < 0 else "down"
+        return prototype_workspace_margins(s, robot.link_length, robot.margins, arm)
+    margins = prototype_workspace_margins(s, robot.link_length, robot.margins, "down")
+    del margins["q2_low"], margins["q2_high"]
+    q2 = s[..., 1] * crossing_sign  # > 0 on the correct side of the crossing
+    at_crossing = crossing_sign == 0  # the crossing itself: q2 = 0 there by construction
+    margins["crossing_side"] = np.where(at_crossing, 1.0, q2)
+    margins["crossing_range"] = np.where(at_crossing, 1.0, (np.pi - robot.margins.angle) - q2)
+    return margins
 
 
-def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool):
+def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossing_sign=None,
+                    min_thrust: float | None = None):
     """Every constraint margin at every sample (>= 0 where satisfied).
 
     Args:
@@ -106,13 +119,17 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool):
         scaled: False gives natural units (m, rad, rad/s; rotor margins on the signed speed).
             True gives the smooth, O(1) rows the optimiser uses: rotor margins on w^2 / w_lim^2
             and 1 - w^2 / w_lim^2 (w^2 is smooth where the signed speed is not).
+        crossing_sign: prototype crossing its Type-2 singularity once (:mod:`planners.crossing`):
+            per sample +1 before the crossing, -1 after it, 0 at it (N,). The assembly-mode bounds
+            3.46 are then replaced by ``crossing_side`` (sign * q2 >= 0) and ``crossing_range``.
+        min_thrust: f_min [N] of the ``thrust_low`` rows (scaled by m_d g), or None for none.
 
     Returns:
         (rows (N, R), names (R,) of the constraint each row belongs to, details (R,) e.g. "rotor 3").
     """
     lim = Limits.from_robot(robot)
     cols, names, details = [], [], []
-    for name, value in _workspace(robot, motion[0]).items():
+    for name, value in _workspace(robot, motion[0], crossing_sign).items():
         cols.append(value)
         names.append(name)
         details.append("")
@@ -130,6 +147,11 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool):
                 cols += [w, lim.speed - w]
             names += [f"rotor_speed_low_{i + 1}", f"rotor_speed_high_{i + 1}"]
             details += [f"rotor {m + 1}"] * 2
+        if min_thrust is not None:
+            margin = inputs.thrust[:, i] - min_thrust
+            cols.append(margin / (robot.drone_mass * 9.81) if scaled else margin)
+            names.append(f"thrust_low_{i + 1}")
+            details.append("")
     return np.stack(cols, axis=-1), names, details
 
 
@@ -203,10 +225,16 @@ class MotionProblem:
         normalisation: (J_e0, J_phi0) [J, rad^2/s], the stop-at-every-way-point values (3.26).
         samples_per_segment: odd number of grid nodes per segment (ends included).
         windows_per_segment: constraint windows per segment (min over each window's nodes).
+        crossing: index of the point where the prototype crosses its Type-2 singularity (q2 = 0
+            there, :mod:`planners.crossing`), or None. The motion is then evaluated with derivatives
+            0..6 (:data:`fpr.inverse_dynamics.MOTION_ORDER`) and the assembly-mode bounds become the
+            crossing's side constraints.
+        min_thrust: a lower bound f_min [N] on every drone's thrust (``thrust_low``), or None.
     """
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,
-                 samples_per_segment: int = 17, windows_per_segment: int = 4):
+                 samples_per_segment: int = 17, windows_per_segment: int = 4, crossing: int | None = None,
+                 min_thrust: float | None = None):
         self.robot = robot
         self.points = np.array(points, dtype=float)
         self.durations = np.asarray(durations, dtype=float)
@@ -227,10 +255,19 @@ class MotionProblem:
         self.weights = np.concatenate([simpson_weights(k, d) for d in self.durations])
         # Hermite weights, evaluated segment by segment so every node uses its own segment
         shape = PiecewisePolynomial(np.zeros((m + 1, N_DERIVS, 1)), self.durations)
-        w = np.empty((N_DERIVS, m * k, 2, N_DERIVS))
+        self.order = N_DERIVS - 1 if crossing is None else MOTION_ORDER
+        w = np.empty((self.order + 1, m * k, 2, N_DERIVS))
         for i, seg in enumerate(shape.segments):
-            w[:, i * k:(i + 1) * k] = seg.basis(tau * seg.duration, order=4)
+            w[:, i * k:(i + 1) * k] = seg.basis(tau * seg.duration, order=self.order)
         self.basis = w
+        self.crossing_sign = None
+        self.min_thrust = min_thrust
+        if crossing is not None:
+            if not 0 < int(crossing) < m:
+                raise ValueError(f"crossing={crossing}: must be an interior point index (1..{m - 1})")
+            sign = np.where(self.segment < int(crossing), 1.0, -1.0)
+            sign[int(crossing) * k - 1] = sign[int(crossing) * k] = 0.0  # both sides of the crossing knot
+            self.crossing_sign = sign
         # windows: contiguous node ranges inside each segment
         bounds = np.linspace(0, k - 1, int(windows_per_segment) + 1).round().astype(int)
         self.windows = [(i * k + a, i * k + b + 1) for i in range(m) for a, b in zip(bounds[:-1], bounds[1:])]
@@ -274,7 +311,11 @@ class MotionProblem:
         """Raw per-drone integrand pieces (N, 2 n_d): [F_i . r_i' ..., phi_i' ...], and the rows."""
         inputs = inverse_dynamics(self.robot, motion)
         power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)
-        rows, names, _ = constraint_rows(self.robot, motion, inputs, scaled=True)
+        sign = None
+        if self.crossing_sign is not None:  # motion may hold several perturbed copies of the nodes
+            sign = np.tile(self.crossing_sign, motion.shape[1] // self.crossing_sign.size)
+        rows, names, _ = constraint_rows(self.robot, motion, inputs, scaled=True, crossing_sign=sign,
+                                         min_thrust=self.min_thrust)
         self._rows_names = names
         return np.concatenate([power, inputs.roll_rate], axis=-1), rows
 
