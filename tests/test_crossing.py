@@ -1,0 +1,306 @@
+"""Crossing the prototype's Type-2 singularity (seed ch. 4): inverse dynamics through q2 = 0, the
+crossing criterion, the crossing NLP, the seed's approaches, the mission, and the closed loop."""
+
+import numpy as np
+import pytest
+
+import fpr
+import fpr.inverse_dynamics as idyn
+from fpr import jets
+from fpr.errors import MissionError
+from fpr.jets import Jet
+from fpr.kinematics import prototype_workspace_margins
+from planners import crossing
+from planners.mission import load_mission, mission_from_dict, mission_from_toml
+from planners.polynomial import PiecewisePolynomial
+
+
+@pytest.fixture(scope="module")
+def proto():
+    return fpr.load("prototype")
+
+
+def _crossing_motion(robot, q1=0.2, velocity=(-1.0, -2.5), times=(1.0, 1.2), mu=-3.0, satisfied=True):
+    """A start -> crossing -> end motion whose crossing acceleration does (or not) meet the criterion."""
+    v = np.array(velocity)
+    point = np.zeros((5, 2))
+    point[0] = [q1, 0.0]
+    point[1] = v
+    point[2] = crossing.criterion_acceleration(robot, q1, v, mu)
+    if not satisfied:
+        point[2] += 2.0 * crossing.NULL_VECTOR  # criterion residual 2 n^T M n
+    point[3] = [1.0, -2.0]
+    point[4] = [3.0, 5.0]
+    return crossing.crossing_motion(crossing.SEED_START, crossing.SEED_END, point, times)
+
+
+# ------------------------------------------------------------------------ inverse dynamics at q2 = 0
+def test_prototype_thrust_equals_the_plain_solve_away_from_the_singularity(proto):
+    rng = np.random.default_rng(3)
+    m = rng.normal(size=(7, 40, 2))
+    m[0, :, 1] = rng.uniform(0.3, 2.8, 40) * rng.choice([-1, 1], 40)
+    s = Jet(m)
+    point = proto.planar("point")
+    generalized = point.inverse_dynamics_jet(s)
+    plain = jets.solve(point.hinge_jacobian_jet(s.truncate(generalized.order)).mT, generalized)
+    ours = idyn.thrust_vectors(proto, s)
+    np.testing.assert_allclose(ours.d[:, :, 0], plain.d, rtol=1e-9, atol=1e-9 * np.abs(plain.d).max())
+
+
+def test_thrust_is_continuous_through_a_crossing_that_meets_the_criterion(proto):
+    motion = _crossing_motion(proto)
+    ts = motion.knots[1]
+    offsets = np.array([-1e-3, -1e-6, -1e-9, 0.0, 1e-9, 1e-6, 1e-3])
+    inputs = idyn.inverse_dynamics(proto, motion.evaluate(ts + offsets, order=6))
+    force, rate = inputs.thrust_vector[:, 0], inputs.thrust_vector_rate[:, 0]
+    assert np.all(np.isfinite(force)) and np.all(np.isfinite(inputs.roll_acceleration))
+    scale = np.abs(force).max()
+    # F and F' are continuous (within what 1e-6 s of motion changes them)
+    np.testing.assert_allclose(force[1:6], np.broadcast_to(force[3], (5, 2)), atol=1e-4 * scale)
+    np.testing.assert_allclose(rate[1:6], np.broadcast_to(rate[3], (5, 2)), atol=1e-3 * np.abs(rate).max())
+
+
+def test_deflated_tension_agrees_with_the_plain_quotient_at_the_band_edge(proto):
+    """Inside the band the limit formula is used; just inside its edge the plain quotient is still
+    accurate, so the two formulations must agree there."""
+    motion = _crossing_motion(proto)
+    ts = motion.knots[1]
+    t = ts + np.array([-1.9e-3, -1.5e-3, 1.5e-3, 1.9e-3])  # |sin q2| ~ 4e-3 < SINGULAR_BAND
+    m = motion.evaluate(t, order=6)
+    assert np.all(np.abs(np.sin(m[0, :, 1])) < idyn.SINGULAR_BAND)
+    banded = idyn.inverse_dynamics(proto, m)
+    old = idyn.SINGULAR_BAND
+    try:
+        idyn.SINGULAR_BAND = 0.0
+        plain = idyn.inverse_dynamics(proto, m)
+    finally:
+        idyn.SINGULAR_BAND = old
+    np.testing.assert_allclose(banded.thrust_vector, plain.thrust_vector, atol=1e-5)
+    np.testing.assert_allclose(banded.thrust_vector_rate, plain.thrust_vector_rate, atol=1e-3)
+    np.testing.assert_allclose(banded.roll_acceleration, plain.roll_acceleration, atol=5e-2)
+
+
+def test_near_the_singularity_the_sixth_derivative_is_required(proto):
+    motion = _crossing_motion(proto)
+    m = motion.evaluate(np.array([motion.knots[1]]), order=4)
+    with pytest.raises(ValueError, match="order=6"):
+        idyn.inverse_dynamics(proto, m)
+
+
+def test_force_diverges_like_one_over_time_when_the_criterion_fails(proto):
+    """Without the criterion the tension is g / (L sin q2) with g(t_s) != 0: 10x closer, ~10x the force
+    (outside the band; inside it the singular part is left out and reported as the criterion's residual)."""
+    motion = _crossing_motion(proto, satisfied=False)
+    good = _crossing_motion(proto)
+    ts = motion.knots[1]
+    t = ts - np.array([2e-2, 2.2e-3])  # |sin q2| = 0.05, 0.0055: both outside the band
+    bad = idyn.inverse_dynamics(proto, motion.evaluate(t, order=6)).thrust_vector[:, 0]
+    ok = idyn.inverse_dynamics(proto, good.evaluate(t, order=6)).thrust_vector[:, 0]
+    excess = np.linalg.norm(bad - ok, axis=-1)  # the two motions differ by O(dt^2) elsewhere
+    assert excess[1] / excess[0] == pytest.approx(9.1, rel=0.25)
+
+
+# ------------------------------------------------------------------------ the criterion
+def test_criterion_acceleration_meets_the_criterion(proto):
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        q1, v, mu = rng.uniform(-1.2, 1.2), rng.normal(size=2) * 2, rng.normal() * 5
+        a = crossing.criterion_acceleration(proto, q1, v, mu)
+        b = proto.planar("point").inverse_dynamics(np.array([q1, 0.0]), v, a)
+        assert abs(crossing.NULL_VECTOR @ b) < 1e-10
+        assert abs(crossing.criterion(proto, [q1, 0.0], v, a)) < 1e-10
+
+
+def test_null_vector_is_the_jacobians_at_the_singularity(proto):
+    for q1 in (-1.0, 0.0, 0.7):
+        jac = proto.planar("point").hinge_jacobian(np.array([q1, 0.0]))
+        np.testing.assert_allclose(jac @ crossing.NULL_VECTOR, 0.0, atol=1e-14)
+
+
+def test_moving_onto_the_criterion_keeps_the_drones_acceleration(proto):
+    q1, v, a = 0.4, np.array([0.8, -2.0]), np.array([1.0, -3.0])
+    moved, _ = crossing.nearest_criterion_acceleration(proto, q1, v, a)
+    assert abs(crossing.criterion(proto, [q1, 0.0], v, moved)) < 1e-10
+    jac = proto.planar("point").hinge_jacobian(np.array([q1, 0.0]))
+    np.testing.assert_allclose(jac @ moved, jac @ a, atol=1e-12)
+
+
+def test_across_the_straight_chain_only_gravity_acts(proto):
+    """n^T c at q2 = 0 does not depend on the velocity; it is minus the derivative of the potential
+    energy along n (a finite difference of the model's energy, an independent formulation)."""
+    point = proto.planar("point")
+    n = crossing.NULL_VECTOR
+    rng = np.random.default_rng(1)
+    for q1 in (-0.9, 0.0, 1.1):
+        xi = np.array([q1, 0.0])
+        still = n @ point.bias(xi, np.zeros(2))
+        for _ in range(3):
+            assert abs(n @ point.bias(xi, rng.normal(size=2) * 3) - still) < 1e-12
+        h = 1e-6
+        dv = (point.energy(xi + h * n, np.zeros(2)) - point.energy(xi - h * n, np.zeros(2))) / (2 * h)
+        assert still == pytest.approx(dv, rel=1e-7)
+
+
+def test_chain_force_acceleration_meets_the_criterion_and_gives_the_force_across_the_link(proto):
+    xi, v, f_p = np.array([1e-4, 0.0]), np.array([-3.0, 3.0]), np.array([0.0, 5.0])
+    a = crossing.acceleration_from_chain_force(proto, xi, v, f_p)
+    assert abs(crossing.criterion(proto, xi, v, a)) < 1e-9
+    thrust = crossing.thrust_at(proto, xi, v, a, f_p)
+    # J^T F = M_pt a + c_pt: the component of F across the link is what the point model needs
+    point = proto.planar("point")
+    b = point.inverse_dynamics(xi, v, a)
+    across = np.array([-np.sin(xi.sum()), np.cos(xi.sum())])
+    assert thrust @ across == pytest.approx(b[1] / proto.link_length, rel=1e-9)
+
+
+# ------------------------------------------------------------------------ the NLP's derivatives
+def test_crossing_problem_derivatives_match_central_differences(proto):
+    guess = crossing.first_guess(proto, crossing.SEED_START, crossing.SEED_END, 8.0, (1, 1))
+    problem = crossing.CrossingProblem(proto, guess.points, crossing.travel_times(guess, (1, 1)), (1, 1),
+                                       crossing.GROUPS, 0.5, (30.0, 0.05), samples_per_segment=9,
+                                       windows_per_segment=2)
+    x = problem.x0()
+    ev = problem.evaluate(x, True)
+    kinds = [v[0] for v in problem.variables]
+    columns = [kinds.index("entry"), kinds.index("mu"), kinds.index("time"), len(kinds) - 1, 12]
+    for col in columns:
+        h = 1e-6 * max(1.0, abs(x[col]))
+        xp, xm = x.copy(), x.copy()
+        xp[col] += h
+        xm[col] -= h
+        plus, minus = problem.evaluate(xp), problem.evaluate(xm)
+        assert ev.gradient[col] == pytest.approx((plus.J - minus.J) / (2 * h), rel=1e-4, abs=1e-7)
+        fd = (plus.constraints - minus.constraints) / (2 * h)
+        # windowed minima switch node between x +- h for a few rows: compare where the active node is stable
+        close = np.abs(ev.jacobian[:, col] - fd) <= 1e-4 * (1 + np.abs(fd))
+        assert close.mean() > 0.95, (col, np.flatnonzero(~close)[:5])
+
+
+# ------------------------------------------------------------------------ planning the crossing
+@pytest.fixture(scope="module")
+def crossing_plan():
+    from planners.optimize import plan
+
+    return plan(load_mission("cross-singularity"), "two-step")
+
+
+def test_the_planned_crossing_holds_every_limit_on_a_dense_grid(crossing_plan, proto):
+    res = crossing_plan
+    assert res.method == "crossing" and res.feasible, res.report.violations
+    outcome = res.crossing
+    assert outcome.crossings == 1
+    assert abs(outcome.criterion_residual(proto)) < 1e-9
+    # an independent resampling at 2 kHz, every knot included
+    trajectory = res.trajectory
+    t = np.unique(np.concatenate([trajectory.sample_times(2000.0), trajectory.knots]))
+    m = trajectory.evaluate(t, order=6)
+    inputs = idyn.inverse_dynamics(proto, m)
+    limit = proto.rotor_constants.max_speed - proto.margins.rotor_speed
+    assert inputs.rotor_speed.min() >= 0.0 and inputs.rotor_speed.max() <= limit + 1e-3
+    assert np.abs(inputs.roll).max() <= np.pi / 2 - proto.margins.angle
+    assert inputs.thrust.min() >= crossing.min_thrust(proto) - 1e-6
+    margins = prototype_workspace_margins(m[0], proto.link_length, proto.margins)
+    for name in ("ground_2", "ground_3", "fixed_point_2", "fixed_point_3", "q1_low", "q1_high"):
+        assert margins[name].min() >= -1e-9, name
+    q2 = m[0][:, 1]
+    ts = outcome.crossing_time
+    assert np.all(q2[t < ts - 1e-9] > 0) and np.all(q2[t > ts + 1e-9] < 0)
+    assert abs(m[1][np.searchsorted(t, ts), 1]) >= 0.2  # a simple crossing
+
+
+def test_the_planned_crossing_is_c4_at_every_knot(crossing_plan):
+    trajectory = crossing_plan.trajectory
+    scale = np.abs(trajectory.evaluate(trajectory.sample_times(200.0), order=4)).max(axis=(1, 2))
+    for knot in trajectory.knots[1:-1]:
+        left = trajectory.evaluate(np.array([knot - 1e-9]), order=4)[:, 0]
+        right = trajectory.evaluate(np.array([knot + 1e-9]), order=4)[:, 0]
+        for r in range(5):
+            np.testing.assert_allclose(left[r], right[r], atol=1e-6 * scale[r])
+
+
+def test_the_crossing_does_better_than_its_first_guess_and_starts_and_ends_at_rest(crossing_plan):
+    res = crossing_plan
+    assert res.J < 1.0  # J = 1 at the first guess (the normalisation)
+    points = res.trajectory.points
+    np.testing.assert_allclose(points[0, 0], crossing.SEED_START)
+    np.testing.assert_allclose(points[-1, 0], crossing.SEED_END)
+    assert np.all(points[[0, -1], 1:] == 0.0)
+
+
+# ------------------------------------------------------------------------ the seed's approaches
+@pytest.mark.parametrize("approach", [1, 2])
+def test_the_seeds_approaches_fail_as_in_the_seed(proto, approach):
+    """With the seed's fixed crossing states and travel times, both approaches end far outside the
+    drone's limits (the seed's conclusion), and their crossing velocity (q2' > 0) heads back into
+    the start's assembly mode, so q2 changes sign more than once."""
+    out = crossing.seed_approach(proto, approach, max_iterations=20)
+    assert not out.feasible
+    assert abs(out.criterion_residual(proto)) < 1e-9  # finite force at the crossing, as designed
+    limit = proto.rotor_constants.max_speed - proto.margins.rotor_speed
+    assert out.report.peaks(proto)["peak_rotor_speed_rad_s"] > 2 * limit
+    assert out.crossing_point[1, 1] > 0 and out.crossings >= 2
+
+
+# ------------------------------------------------------------------------ missions
+def _crossing_mission(**changes):
+    data = {"robot": "prototype", "space": "joint", "arm": "down", "way_points": [[-0.947, 1.894], [0.947, -1.894]],
+            "times": [4.0, 4.0], "via_points": 2, "cross_singularity": True}
+    data.update(changes)
+    return mission_from_dict(data)
+
+
+def test_crossing_mission_validation():
+    mission = _crossing_mission()
+    assert mission.cross_singularity and list(mission.times) == [4.0, 4.0]
+    assert mission_from_toml(mission.to_toml()) == mission.replace(name="unnamed")
+    with pytest.raises(MissionError, match="prototype and exactly 2 way points"):
+        _crossing_mission(way_points=[[-0.947, 1.894], [0.5, 1.5], [0.947, -1.894]], times=[1.0, 1.0, 1.0])
+    with pytest.raises(MissionError, match=r"times.*2 travel"):
+        _crossing_mission(times=[4.0])
+    with pytest.raises(MissionError, match=r"way_points\[1\].*other"):
+        _crossing_mission(way_points=[[-0.947, 1.894], [0.947, 1.894]])
+    with pytest.raises(MissionError, match="true or false"):
+        _crossing_mission(cross_singularity="yes")
+
+
+def test_crossing_mission_in_task_space_uses_both_assembly_modes(proto):
+    mission = _crossing_mission(space="task", way_points=[[0.876, 0.0], [0.876, 0.0]])
+    xi = mission.positions(proto)
+    assert xi[0, 1] > 0 > xi[1, 1]
+    np.testing.assert_allclose(xi[0], -xi[1], atol=1e-12)
+
+
+# ------------------------------------------------------------------------ control and closed loop
+def test_controller_force_through_the_singularity_is_the_planned_one(crossing_plan, proto):
+    from controllers.ctc import CascadedController, Reference
+
+    res = crossing_plan
+    ts = res.crossing.crossing_time
+    controller = CascadedController(proto)
+    for t in (ts - 0.3, ts, ts + 1e-4):
+        m = res.trajectory.evaluate(np.array([t]), order=6)
+        inputs = idyn.inverse_dynamics(proto, m)
+        q, v = np.zeros(proto.nq), np.zeros(proto.nq)
+        q[controller.chain], v[controller.chain] = m[0, 0], m[1, 0]
+        ref = Reference(m[:5, 0], inputs.roll_rate[0], inputs.roll_acceleration[0], inputs.thrust_vector[0])
+        force = controller.outer(q, v, ref)[0]
+        np.testing.assert_allclose(force, inputs.thrust_vector[0, 0], atol=1e-6 * np.abs(force).max() + 1e-9)
+
+
+@pytest.fixture(scope="module")
+def crossing_simulation(crossing_plan):
+    from fpr.simulate import simulate
+
+    return simulate(crossing_plan)
+
+
+def test_the_simulated_crossing_ends_in_the_other_assembly_mode(crossing_simulation, crossing_plan, proto):
+    log = crossing_simulation
+    q2 = log.column("q2")
+    assert q2[0] > 0 and q2[-1] < 0
+    assert np.count_nonzero(np.diff(np.sign(q2))) == 1  # crosses once
+    error = log.tracking_error
+    assert np.abs(error).max() < 0.1  # rad, during the whole motion
+    assert np.abs(error[-1]).max() < 0.01  # rad, at the end
+    assert log.speed.min() >= 0.0 and log.speed.max() <= proto.rotor_constants.max_speed
+    assert not log.saturated.any()
