@@ -1,12 +1,21 @@
-"""Figures of the thesis' motion-planning chapter (seed 3.2.5-3.3.2), written as PNG files.
+"""Figures of the thesis' planning and simulation chapters (seed 3.2.5-3.3.2), written as PNG files.
 
-Three entry points:
+Entry points:
 
-* :func:`plan_figures` draws one planned motion (and optionally the stop-at-every-way-point
-  reference it is compared with) in the figures of seed 3.11-3.18 (FPR) or 3.36-3.41 (prototype),
-  plus the rotor speeds against the limits of eq. 3.48.
+* :func:`figure_set` writes every figure that applies to a planned motion (a
+  :class:`planners.optimize.PlanResult` or a sampled plan), optionally against the
+  stop-at-every-way-point reference and with a closed-loop :class:`fpr.simulate.SimulationLog`,
+  for the FPR (Fig. 3.11-3.32) or the prototype (Fig. 3.36-3.51). It calls the next two.
+* :func:`plan_figures` draws one planned motion (and optionally the reference it is compared
+  with) in the figures of seed 3.11-3.18 (FPR) or 3.36-3.41 (prototype), plus the rotor speeds
+  and rotor forces against the limits of eq. 3.48 (:data:`PLAN_FIGURES`).
+* :func:`simulation_figures` draws a simulation log against its plan (seed 3.19-3.32, 3.42-3.51;
+  :data:`SIMULATION_FIGURES`).
 * :func:`via_point_study_figure` and :func:`alpha_study_figure` draw the parameter studies of
   seed 3.2.5 (Fig. 3.7-3.10).
+
+Every ``_<name>_figure`` / ``_sim_<name>`` builder returns a :class:`matplotlib.figure.Figure`
+without writing it, so that tests (and users) can inspect the axes.
 
 A *sampled plan* is any object with the attributes
 
@@ -23,7 +32,8 @@ A *sampled plan* is any object with the attributes
 
 One style everywhere (:data:`STYLE`): the plan is drawn solid in one colour, the reference dashed
 grey, limits as red dotted lines labelled "limit", way points as filled markers and via points as
-open ones. Every axis label carries its unit.
+open ones. In the simulation figures the simulated motion is solid and the plan dashed grey.
+Every axis label carries its unit.
 
 matplotlib is imported lazily, inside the functions, and only through
 :class:`matplotlib.figure.Figure` with an Agg canvas: pyplot is never imported, so the caller's
@@ -81,7 +91,8 @@ STYLE = MappingProxyType({
 LIMIT_LABEL = "limit"
 
 #: File names written by :func:`plan_figures`, in order (without the ".png" suffix).
-PLAN_FIGURES = ("path", "coordinates", "energy", "perturbation", "thrust", "roll", "rotor_speeds")
+PLAN_FIGURES = ("path", "coordinates", "energy", "perturbation", "thrust", "roll", "rotor_speeds",
+                "rotor_forces")
 
 _TITLES = {
     "fpr": {
@@ -92,6 +103,7 @@ _TITLES = {
         "thrust": "Fig. 3.15-3.16 — thrust of each drone",
         "roll": "Fig. 3.17-3.18 — roll angle of each drone",
         "rotor_speeds": "Eq. 3.48 — rotor speeds of each drone",
+        "rotor_forces": r"Eq. 3.48 — rotor forces $c_T \omega^2$ of each drone",
     },
     "prototype": {
         "path": "Fig. 3.36 — path of the drone of the prototype",
@@ -101,6 +113,7 @@ _TITLES = {
         "thrust": "Fig. 3.40 — thrust of the drone of the prototype",
         "roll": "Fig. 3.41 — roll angle of the drone of the prototype",
         "rotor_speeds": "Eq. 3.47-3.48 — rotor speeds of the drone of the prototype",
+        "rotor_forces": r"Eq. 3.47-3.48 — rotor forces $c_T \omega^2$ of the drone of the prototype",
     },
 }
 
@@ -122,9 +135,9 @@ class SampledPlan(Protocol):
 
 # ------------------------------------------------------------------------------------------ numbers
 def cumulative_integral(t, values) -> np.ndarray:
-    """Cumulative trapezoidal integral of samples along the first axis, starting from 0.
+    r"""Cumulative trapezoidal integral of samples along the first axis, starting from 0.
 
-    .. math:: I_0 = 0, \\quad I_k = I_{k-1} + \\tfrac{1}{2} (t_k - t_{k-1}) (v_k + v_{k-1})
+    .. math:: I_0 = 0, \quad I_k = I_{k-1} + \tfrac{1}{2} (t_k - t_{k-1}) (v_k + v_{k-1})
 
     Its last entry is ``np.trapezoid(values, t, axis=0)``.
 
@@ -210,6 +223,8 @@ def _field(owner: str, obj, attribute: str, shape: tuple, what: str) -> np.ndarr
     if not hasattr(obj, attribute):
         if owner.endswith(".inputs"):
             hint = "pass the MotionInputs of fpr.inverse_dynamics.inverse_dynamics(robot, motion)"
+        elif owner == "log":
+            hint = "pass the SimulationLog of fpr.simulate.simulate"
         else:
             hint = "a sampled plan needs label, t, motion, inputs (MotionInputs), knots, is_way and points"
         raise ValueError(f"{owner} has no attribute {attribute!r}: {hint}")
@@ -366,18 +381,46 @@ def _point_markers(ax: Axes, x: np.ndarray, y: np.ndarray, is_way: np.ndarray, l
 
 
 # ------------------------------------------------------------------------------------------ figures
+def _path_axes(robot) -> tuple[Figure, Axes]:
+    """A task-space (y, z) figure with the ground z = -L and its margin z = -L + m_gd (3.27, 3.44).
+
+    For the prototype also the fixed point and the margin y = m_gd (3.44). Call inside ``_styled()``.
+    """
+    length, margins = robot.link_length, robot.margins
+    fig, (ax,) = _new_figure(1, height=6.0, sharex=False)
+    ax.axhline(-length, color=STYLE["ground_color"], linewidth=STYLE["line_width"],
+               label="ground z = -L", gid="ground", zorder=1)
+    _limit(ax, -length + margins.ground)
+    if robot.name == "prototype":
+        ax.plot([0.0], [0.0], linestyle="none", marker="^", color="black", markersize=8,
+                label="fixed point", gid="fixed point", zorder=5)
+        _limit(ax, margins.ground, vertical=True)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("y [m]")
+    ax.set_ylabel("z [m]")
+    return fig, ax
+
+
+def _task_space_joints(robot, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(main point, other joints) in the task space along s, shape (N, 2) and (N, k, 2) [m].
+
+    FPR: the end-effector p and the drone joints r1, r2 (2.1); prototype: the drone joint (joint 3)
+    and the elbow (joint 2) (3.35).
+    """
+    from fpr.kinematics import fpr_drone_joints, prototype_joints
+
+    if robot.name == "fpr":
+        return s[:, :2], fpr_drone_joints(s, robot.link_length)
+    joints = prototype_joints(s, robot.link_length)
+    return joints[:, 1], joints[:, :1]
+
+
 def _path_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:
     """Fig. 3.11 (FPR: end-effector and drone joint paths) or 3.36 (prototype: drone and elbow paths)."""
-    from fpr.kinematics import prototype_joints
-
     traces = _traces(robot, plan, reference)
-    length, margins = robot.link_length, robot.margins
+    thin = STYLE["thin_width"]
     with _styled():
-        fig, (ax,) = _new_figure(1, height=6.0, sharex=False)
-        ax.axhline(-length, color=STYLE["ground_color"], linewidth=STYLE["line_width"],
-                   label="ground z = -L", gid="ground", zorder=1)
-        _limit(ax, -length + margins.ground)
-        thin = STYLE["thin_width"]
+        fig, ax = _path_axes(robot)
         for tr in traces:
             if robot.name == "fpr":
                 ax.plot(tr.s[:, 0], tr.s[:, 1], label=f"{tr.label}: end-effector", gid="main", **tr.line)
@@ -388,25 +431,17 @@ def _path_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None)
                     label = (f"{tr.label}: drone joints" if tr.is_reference
                              else f"r{i + 1} (drone {i + 1} joint)")
                     ax.plot(tr.joints[:, i, 0], tr.joints[:, i, 1], label=label, gid=f"r{i + 1}", **kw)
-                markers = tr.point_positions[:, :2]
             else:
-                elbow = prototype_joints(tr.s, length)[:, 0]
+                elbow = _task_space_joints(robot, tr.s)[1][:, 0]
                 ax.plot(tr.joints[:, 0, 0], tr.joints[:, 0, 1], label=f"{tr.label}: drone joint",
                         gid="main", **tr.line)
                 kw = dict(tr.line, linewidth=thin)
                 if not tr.is_reference:
                     kw["color"] = STYLE["drone_colors"][0]
                 ax.plot(elbow[:, 0], elbow[:, 1], label=f"{tr.label}: elbow joint", gid="elbow", **kw)
-                markers = prototype_joints(tr.point_positions, length)[:, 1]
             if not tr.is_reference:
+                markers = _task_space_joints(robot, tr.point_positions)[0]
                 _point_markers(ax, markers[:, 0], markers[:, 1], tr.is_way)
-        if robot.name == "prototype":
-            ax.plot([0.0], [0.0], linestyle="none", marker="^", color="black", markersize=8,
-                    label="fixed point", gid="fixed point", zorder=5)
-            _limit(ax, margins.ground, vertical=True)
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.set_xlabel("y [m]")
-        ax.set_ylabel("z [m]")
         return _finish(fig, _TITLES[robot.name]["path"], [ax], legend_below=True)
 
 
@@ -519,6 +554,19 @@ def _rotor_speeds_figure(robot, plan: SampledPlan, reference: SampledPlan | None
                              (0.0, upper))
 
 
+def _rotor_forces_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:
+    """Rotor forces f_ij = c_T w_ij^2 of each drone [N], 0 <= f_ij <= c_T (w_max - m_gr)^2 (3.48 as forces).
+
+    A negative force is a negative w^2 (R_f^-1 asks for an impossible rotor speed, 3.31).
+    """
+    c_t = robot.rotor_constants.thrust_coefficient
+    upper = c_t * (robot.rotor_constants.max_speed - robot.margins.rotor_speed) ** 2
+    return _per_drone_figure(robot, _traces(robot, plan, reference), "rotor_forces",
+                             lambda i: rf"$c_T \omega_{{{i + 1},j}}^2$ [N]",
+                             lambda tr, i: c_t * tr.rotor_speed[:, i] * np.abs(tr.rotor_speed[:, i]),
+                             (0.0, upper))
+
+
 _BUILDERS: dict[str, Callable[..., Figure]] = {
     "path": _path_figure,
     "coordinates": _coordinates_figure,
@@ -527,6 +575,7 @@ _BUILDERS: dict[str, Callable[..., Figure]] = {
     "thrust": _thrust_figure,
     "roll": _roll_figure,
     "rotor_speeds": _rotor_speeds_figure,
+    "rotor_forces": _rotor_forces_figure,
 }
 
 
@@ -535,15 +584,16 @@ def plan_figures(out_dir: str | Path, robot, plan: SampledPlan,
     """Write the figures of one planned motion (seed Fig. 3.11-3.18 for the FPR, 3.36-3.41 for the prototype).
 
     Files, in ``out_dir`` (created if needed), in this order: ``path.png``, ``coordinates.png``,
-    ``energy.png``, ``perturbation.png``, ``thrust.png``, ``roll.png``, ``rotor_speeds.png``
-    (:data:`PLAN_FIGURES`). The plan is drawn solid, the reference (typically the trajectory that
-    stops at every way point) dashed grey; the planning bounds are red dotted lines:
+    ``energy.png``, ``perturbation.png``, ``thrust.png``, ``roll.png``, ``rotor_speeds.png``,
+    ``rotor_forces.png`` (:data:`PLAN_FIGURES`). The plan is drawn solid, the reference (typically the
+    trajectory that stops at every way point) dashed grey; the planning bounds are red dotted lines:
 
     * path: ground z = -L and the margin z = -L + m_gd (3.27; 3.44), for the prototype also the
       fixed point and y = m_gd (3.44);
     * coordinates: pi + m_ga <= phi <= 2 pi - m_ga, m_ga <= q21 <= pi - m_ga (3.28-3.29), or
       |q1| <= pi/2 - m_ga, m_ga <= q2 <= pi - m_ga (3.44, 3.46);
-    * roll: |phi_i| <= pi/2 - m_ga (3.33, 3.45); rotor speeds: 0 <= w_ij <= w_max - m_gr (3.48).
+    * roll: |phi_i| <= pi/2 - m_ga (3.33, 3.45); rotor speeds: 0 <= w_ij <= w_max - m_gr (3.48);
+      rotor forces: 0 <= c_T w_ij^2 <= c_T (w_max - m_gr)^2.
 
     Args:
         out_dir: output folder.
@@ -672,93 +722,443 @@ def alpha_study_figure(path: str | Path, alphas, energy_ratio, perturbation_rati
 
 
 # ------------------------------------------------------------------------------------ simulation
-SIMULATION_FIGURES = ("sim_coordinates", "sim_out_of_plane", "sim_roll", "sim_heights", "sim_rotor_speeds")
+#: File names written by :func:`simulation_figures`, in order (without the ".png" suffix).
+SIMULATION_FIGURES = ("sim_path", "sim_coordinates", "sim_out_of_plane", "sim_roll", "sim_heights",
+                      "sim_rotor_speeds", "sim_rotor_forces", "sim_energy")
+
+#: File names written by :func:`figure_set` with a simulation log, in order.
+FIGURE_SET = PLAN_FIGURES + SIMULATION_FIGURES
+
+_SIM_TITLES = {
+    "fpr": {
+        "sim_path": "Fig. 3.19 — end-effector and drone joints, planned and simulated",
+        "sim_coordinates": r"Fig. 3.21-3.22, 3.25-3.26 — tracking of y, z, $\varphi$, $q_{21}$",
+        "sim_out_of_plane": r"Fig. 3.20, 3.23-3.24 — motion out of the plane: x, pitch $\theta$, yaw $\psi$",
+        "sim_roll": "Fig. 3.27-3.28 — roll angle of each drone in simulation",
+        "sim_heights": "Fig. 3.29-3.30 — height of each drone in simulation",
+        "sim_rotor_speeds": "Eq. 3.48 — rotor speeds of each drone in simulation",
+        "sim_rotor_forces": r"Fig. 3.31-3.32 — rotor forces $c_T \omega^2$ of each drone in simulation",
+        "sim_energy": r"Energy $J_e$ and perturbation $J_\varphi$ in planning and simulation",
+    },
+    "prototype": {
+        "sim_path": "Fig. 3.42 — drone trajectory in planning and simulation",
+        "sim_coordinates": r"Fig. 3.43-3.45 — joint angles $q_1$, $q_2$ and their errors in simulation",
+        "sim_out_of_plane": r"Motion out of the plane of the prototype: pitch $\theta$, yaw $\psi$",
+        "sim_roll": "Fig. 3.48 — roll angle of the drone in simulation",
+        "sim_heights": "Fig. 3.46-3.47 — height of joint 2 and of the drone joint 3 in simulation",
+        "sim_rotor_speeds": "Eq. 3.47-3.48 — rotor speeds of the drone in simulation",
+        "sim_rotor_forces": r"Fig. 3.49 — rotor forces $c_T \omega^2$ of the drone in simulation",
+        "sim_energy": r"Fig. 3.50-3.51 — energy $J_e$ and perturbation $J_\varphi$, planned and simulated",
+    },
+}
+
+# thesis order of the out-of-plane coordinates (Fig. 3.20, 3.23, 3.24) and their axis labels
+_OUT_OF_PLANE = (("x", "x [m]"), ("theta", r"$\theta$ [rad]"), ("psi", r"$\psi$ [rad]"))
 
 
-def _sim_coordinates(log) -> Figure:
-    """Planned vs simulated planning coordinates, and the tracking error (Fig 3.19, 3.21-3.22, 3.25-3.26, 3.43)."""
-    units = {"y": "m", "z": "m", "phi": "rad", "q21": "rad", "q1": "rad", "q2": "rad"}
-    fig, axes = _new_figure(2 * len(log.chain))
-    err = log.tracking_error
-    for i, name in enumerate(log.chain):
-        ax, ax_err = axes[2 * i], axes[2 * i + 1]
-        ax.plot(log.t, log.reference[0][:, i], color=STYLE["reference_color"], linestyle="--", label="planned")
-        ax.plot(log.t, log.column(name), color=STYLE["plan_color"], label="simulated")
-        ax.set_ylabel(f"{name} [{units[name]}]")
-        ax_err.plot(log.t, err[:, i], color=STYLE["plan_color"], label="error")
-        ax_err.set_ylabel(f"{name} error [{units[name]}]")
-    axes[-1].set_xlabel("t [s]")
-    return _finish(fig, "Fig. 3.19-3.26 / 3.43 — tracking of the planned motion", axes)
+@dataclass(frozen=True)
+class _Simulated:
+    """A validated simulation log, in the arrays the figures draw (N inner-loop ticks)."""
+
+    t: np.ndarray  # (N,) [s]
+    planned: np.ndarray  # (N, n_s) planned planning coordinates
+    simulated: np.ndarray  # (N, n_s) measured planning coordinates
+    simulated_rate: np.ndarray  # (N, n_s) their rates
+    planned_roll: np.ndarray  # (N, n_d) [rad]
+    desired_roll: np.ndarray  # (N, n_d) [rad], outer loop
+    roll: np.ndarray  # (N, n_d) [rad], plant
+    roll_rate: np.ndarray  # (N, n_d) [rad/s], plant
+    thrust: np.ndarray  # (N, n_d) [N], allocated
+    speed: np.ndarray  # (N, n_d, 4) [rad/s], plant rotors
+    drone_height: np.ndarray  # (N, n_d) [m], drone centres of mass
+    out_of_plane: dict  # name -> (N,) [m or rad]
+    max_speed: float  # w_max [rad/s]
 
 
-def _sim_out_of_plane(log) -> Figure:
-    """x, psi, theta of the simulated robot (Fig 3.20, 3.23-3.24), which the plan keeps at zero."""
-    names = [c for c in ("x", "psi", "theta") if c in log.coordinates]
-    fig, axes = _new_figure(len(names))
-    for ax, name in zip(axes, names):
-        ax.plot(log.t, log.column(name), color=STYLE["plan_color"], label="simulated")
-        ax.set_ylabel(f"{name} [{'m' if name == 'x' else 'rad'}]")
-    axes[-1].set_xlabel("t [s]")
-    return _finish(fig, "Fig. 3.20, 3.23-3.24 — motion out of the plane", axes)
+def _simulated(robot, log) -> _Simulated:
+    """Check ``log`` (a :class:`fpr.simulate.SimulationLog`) against ``robot`` and pick its arrays."""
+    n_s, n_d = _robot_sizes(robot)
+    name = getattr(log, "robot_name", None)
+    if name is None or not hasattr(log, "coordinates"):
+        raise ValueError("log has no attribute 'robot_name' or 'coordinates': pass the SimulationLog of "
+                         "fpr.simulate.simulate")
+    if name != robot.name:
+        raise ValueError(f"log.robot_name={name!r} but robot.name={robot.name!r}: draw a log with the robot "
+                         "it simulated")
+    coordinates = tuple(log.coordinates)
+    missing = [c for c in (*robot.layout.chain, *robot.layout.rolls) if c not in coordinates]
+    if missing:
+        raise ValueError(f"log.coordinates={coordinates!r} lacks {missing!r}: pass a log of this robot")
+    t = _field("log", log, "t", (None,), "tick times [s]")
+    n = t.shape[0]
+    if n < 2:
+        raise ValueError(f"log.t has {n} sample(s): the figures need at least 2")
+    q = _field("log", log, "q", (n, len(coordinates)), "plant state in thesis coordinates")
+    v = _field("log", log, "v", (n, len(coordinates)), "plant velocities in thesis coordinates")
+    chain = [coordinates.index(c) for c in robot.layout.chain]
+    rolls = [coordinates.index(c) for c in robot.layout.rolls]
+    return _Simulated(
+        t=t,
+        planned=_field("log", log, "reference", (None, n, n_s), "planned s, s', s''")[0],
+        simulated=q[:, chain],
+        simulated_rate=v[:, chain],
+        planned_roll=_field("log", log, "planned_roll", (n, n_d), "planned rolls [rad]"),
+        desired_roll=_field("log", log, "roll_desired", (n, n_d), "desired rolls [rad]"),
+        roll=q[:, rolls],
+        roll_rate=v[:, rolls],
+        thrust=_field("log", log, "thrust", (n, n_d), "allocated thrusts [N]"),
+        speed=_field("log", log, "speed", (n, n_d, 4), "plant rotor speeds [rad/s]"),
+        drone_height=_field("log", log, "drone_height", (n, n_d), "drone heights [m]"),
+        out_of_plane={c: q[:, coordinates.index(c)] for c, _ in _OUT_OF_PLANE if c in coordinates},
+        max_speed=float(log.max_speed),
+    )
 
 
-def _sim_roll(log, robot) -> Figure:
-    """Drone rolls: planned, desired by the outer loop, simulated (Fig 3.27-3.28)."""
-    n_d = log.planned_roll.shape[1]
-    fig, axes = _new_figure(n_d)
+def _planned_line(width: float | None = None) -> dict[str, Any]:
+    """Keyword arguments of ``Axes.plot`` for the plan in a simulation figure (dashed grey)."""
+    return {"color": STYLE["reference_color"], "linestyle": STYLE["reference_style"],
+            "linewidth": width or STYLE["line_width"], "zorder": 2}
+
+
+def _simulated_line(width: float | None = None) -> dict[str, Any]:
+    """Keyword arguments of ``Axes.plot`` for the simulated motion (solid, the plan colour)."""
+    return {"color": STYLE["plan_color"], "linestyle": "-", "linewidth": width or STYLE["line_width"],
+            "zorder": 3}
+
+
+def _sim_path(robot, log, plan: SampledPlan | None = None) -> Figure:
+    """Fig. 3.19 / 3.42: the task-space path, planned and simulated, with the way / via points of ``plan``."""
+    sim = _simulated(robot, log)
+    thin = STYLE["thin_width"]
+    what, other = ("end-effector", "drone joints") if robot.name == "fpr" else ("drone joint", "elbow joint")
+    with _styled():
+        fig, ax = _path_axes(robot)
+        planned_main, planned_joints = _task_space_joints(robot, sim.planned)
+        main, joints = _task_space_joints(robot, sim.simulated)
+        ax.plot(*planned_main.T, label=f"planned: {what}", gid="planned", **_planned_line())
+        ax.plot(*main.T, label=f"simulated: {what}", gid="simulated", **_simulated_line())
+        for k in range(joints.shape[1]):
+            ax.plot(*planned_joints[:, k].T, label=f"planned: {other}", gid=f"planned joint {k + 1}",
+                    **_planned_line(thin))
+            label = (f"simulated: r{k + 1} (drone {k + 1} joint)" if robot.name == "fpr"
+                     else f"simulated: {other}")
+            ax.plot(*joints[:, k].T, label=label, gid=f"simulated joint {k + 1}",
+                    **dict(_simulated_line(thin), color=STYLE["drone_colors"][k]))
+        if plan is not None:
+            tr = _trace(robot, plan, "plan", False)
+            markers = _task_space_joints(robot, tr.point_positions)[0]
+            _point_markers(ax, markers[:, 0], markers[:, 1], tr.is_way)
+        return _finish(fig, _SIM_TITLES[robot.name]["sim_path"], [ax], legend_below=True)
+
+
+def _sim_coordinates(robot, log, plan: SampledPlan | None = None) -> Figure:
+    """Planned vs simulated planning coordinates with their bounds (left) and the error (right).
+
+    Fig. 3.21-3.22, 3.25-3.26 (FPR y, z, phi, q21), 3.43-3.45 (prototype q1, q2 and their errors).
+    """
+    sim = _simulated(robot, log)
+    specs = _coordinate_axes(robot)
+    with _styled():
+        fig, axes = _new_figure(len(specs), 2, width=STYLE["width"] * 1.5)
+        for j, (ylabel, bounds) in enumerate(specs):
+            ax, ax_err = axes[2 * j], axes[2 * j + 1]
+            ax.plot(sim.t, sim.planned[:, j], label="planned" if j == 0 else None, gid="planned",
+                    **_planned_line())
+            ax.plot(sim.t, sim.simulated[:, j], label="simulated" if j == 0 else None, gid="simulated",
+                    **_simulated_line())
+            for b in bounds or ():
+                _limit(ax, b)
+            ax.set_ylabel(ylabel)
+            symbol, unit = ylabel.rsplit(" [", 1)
+            ax_err.plot(sim.t, sim.simulated[:, j] - sim.planned[:, j], gid="error", **_simulated_line())
+            ax_err.set_ylabel(f"{symbol} error [{unit}")
+        for ax in axes[-2:]:
+            ax.set_xlabel("t [s]")
+        return _finish(fig, _SIM_TITLES[robot.name]["sim_coordinates"], axes)
+
+
+def _sim_out_of_plane(robot, log, plan: SampledPlan | None = None) -> Figure:
+    """Out of the plane: x (FPR), pitch theta, yaw psi of the simulated robot (Fig. 3.20, 3.23-3.24).
+
+    The plan keeps them at 0.
+    """
+    sim = _simulated(robot, log)
+    specs = [(c, label) for c, label in _OUT_OF_PLANE if c in sim.out_of_plane]
+    with _styled():
+        fig, axes = _new_figure(len(specs))
+        for ax, (name, ylabel) in zip(axes, specs, strict=True):
+            ax.axhline(0.0, label="planned", gid="planned", **_planned_line())
+            ax.plot(sim.t, sim.out_of_plane[name], label="simulated", gid="simulated", **_simulated_line())
+            ax.set_ylabel(ylabel)
+        axes[-1].set_xlabel("t [s]")
+        return _finish(fig, _SIM_TITLES[robot.name]["sim_out_of_plane"], axes)
+
+
+def _sim_roll(robot, log, plan: SampledPlan | None = None) -> Figure:
+    """Drone rolls planned, desired by the outer loop and simulated (Fig. 3.27-3.28, 3.48).
+
+    Limits: |phi_i| <= pi/2 - m_ga (3.33, 3.45).
+    """
+    sim = _simulated(robot, log)
     bound = np.pi / 2 - robot.margins.angle
-    for i, ax in enumerate(axes):
-        ax.plot(log.t, log.planned_roll[:, i], color=STYLE["reference_color"], linestyle="--", label="planned")
-        ax.plot(log.t, log.roll_desired[:, i], color="tab:orange", linewidth=0.8, label="desired (outer loop)")
-        ax.plot(log.t, log.column(f"phi{i + 1}"), color=STYLE["plan_color"], label="simulated")
-        ax.set_ylabel(f"phi{i + 1} [rad]")
-        _limit(ax, bound)
-        _limit(ax, -bound)
-    axes[-1].set_xlabel("t [s]")
-    return _finish(fig, "Fig. 3.27-3.28 — roll angle of each drone", axes)
+    n_d = sim.roll.shape[1]
+    with _styled():
+        fig, axes = _new_figure(n_d)
+        for i, ax in enumerate(axes):
+            ax.plot(sim.t, sim.planned_roll[:, i], label="planned", gid="planned", **_planned_line())
+            ax.plot(sim.t, sim.desired_roll[:, i], color="tab:orange", linewidth=STYLE["thin_width"],
+                    label="desired (outer loop)", gid="desired", zorder=2)
+            ax.plot(sim.t, sim.roll[:, i], label="simulated", gid="simulated", **_simulated_line())
+            _limit(ax, -bound)
+            _limit(ax, bound)
+            ax.set_ylabel(rf"$\varphi_{i + 1}$ [rad]")
+            if n_d > 1:
+                ax.set_title(f"drone {i + 1}")
+        axes[-1].set_xlabel("t [s]")
+        return _finish(fig, _SIM_TITLES[robot.name]["sim_roll"], axes)
 
 
-def _sim_heights(log, robot) -> Figure:
-    """Height of each drone's centre of mass in the plant, with the ground margin (Fig 3.29-3.30)."""
-    n_d = log.drone_height.shape[1]
-    fig, axes = _new_figure(n_d)
-    for i, ax in enumerate(axes):
-        ax.plot(log.t, log.drone_height[:, i], color=STYLE["plan_color"], label="simulated")
-        ax.set_ylabel(f"z of drone {i + 1} [m]")
-        _limit(ax, -robot.link_length + robot.margins.ground)
-    axes[-1].set_xlabel("t [s]")
-    return _finish(fig, "Fig. 3.29-3.30 — height of each drone", axes)
+def _sim_heights(robot, log, plan: SampledPlan | None = None) -> Figure:
+    """Heights planned and simulated, with z >= -L + m_gd (3.27, 3.44).
+
+    FPR (Fig. 3.29-3.30): the drone joints r_i and the drones' centres of mass. Prototype
+    (Fig. 3.46-3.47): joint 2 (elbow) and joint 3 (drone joint), and the drone's centre of mass.
+    """
+    sim = _simulated(robot, log)
+    planned_main, planned_joints = _task_space_joints(robot, sim.planned)
+    main, joints = _task_space_joints(robot, sim.simulated)
+    if robot.name == "fpr":
+        panels = [(rf"$z_{i + 1}$ [m]", f"drone {i + 1} joint", planned_joints[:, i, 1], joints[:, i, 1], i)
+                  for i in range(joints.shape[1])]
+    else:
+        panels = [(r"$z_{j2}$ [m]", "joint 2", planned_joints[:, 0, 1], joints[:, 0, 1], None),
+                  (r"$z_{j3}$ [m]", "joint 3 (drone joint)", planned_main[:, 1], main[:, 1], 0)]
+    ground = -robot.link_length + robot.margins.ground
+    with _styled():
+        fig, axes = _new_figure(len(panels))
+        for ax, (ylabel, what, planned, simulated, drone) in zip(axes, panels, strict=True):
+            ax.plot(sim.t, planned, label=f"planned: {what}", gid="planned", **_planned_line())
+            ax.plot(sim.t, simulated, label=f"simulated: {what}", gid="simulated", **_simulated_line())
+            if drone is not None:
+                ax.plot(sim.t, sim.drone_height[:, drone], label="simulated: drone centre of mass", gid="com",
+                        **dict(_simulated_line(STYLE["thin_width"]), color=STYLE["drone_colors"][drone]))
+            _limit(ax, ground)
+            ax.set_ylabel(ylabel)
+        axes[-1].set_xlabel("t [s]")
+        return _finish(fig, _SIM_TITLES[robot.name]["sim_heights"], axes)
 
 
-def _sim_rotor_speeds(log) -> Figure:
-    """Rotor speeds in the plant against w_max and the planning limit (Fig 3.31-3.32, 3.48-3.49)."""
-    n_d = log.speed.shape[1]
-    fig, axes = _new_figure(n_d)
-    for i, ax in enumerate(axes):
-        for m in range(4):
-            ax.plot(log.t, log.speed[:, i, m], linewidth=1.0, label=f"rotor {m + 1}")
-        ax.set_ylabel(f"drone {i + 1} rotor speed [rad/s]")
-        _limit(ax, log.max_speed)
-        _limit(ax, 0.0)
-        ax.axhline(log.speed_limit, color="grey", linestyle=":", linewidth=0.8, label="planning limit")
-    axes[-1].set_xlabel("t [s]")
-    return _finish(fig, "Fig. 3.31-3.32 — rotor speeds in the simulation", axes)
+def _sim_rotors(robot, log, plan: SampledPlan | None, which: str) -> Figure:
+    """Rotor speeds [rad/s] or forces c_T w^2 [N] in the plant, one colour per rotor, the plan's dashed grey.
+
+    Limits (3.48): 0 and w_max - m_gr (speeds) or c_T (w_max - m_gr)^2 (forces), red dotted; the
+    rotors' saturation w_max (or c_T w_max^2) is a thin grey line.
+    """
+    sim = _simulated(robot, log)
+    c_t = robot.rotor_constants.thrust_coefficient
+    upper = robot.rotor_constants.max_speed - robot.margins.rotor_speed
+    if which == "sim_rotor_forces":
+        def value(w):
+            return c_t * w * np.abs(w)
+
+        def ylabel(i):
+            return rf"$c_T \omega_{{{i + 1},j}}^2$ [N]"
+        saturation_label = r"saturation $c_T \omega_{max}^2$"
+    else:
+        def value(w):
+            return w
+
+        def ylabel(i):
+            return rf"$\omega_{{{i + 1},j}}$ [rad/s]"
+        saturation_label = r"saturation $\omega_{max}$"
+    trace = None if plan is None else _trace(robot, plan, "plan", True)
+    n_d = sim.speed.shape[1]
+    with _styled():
+        fig, axes = _new_figure(n_d)
+        for i, ax in enumerate(axes):
+            if trace is not None:
+                for k in range(4):
+                    ax.plot(trace.t, value(trace.rotor_speed[:, i, k]), label="planned", gid="planned",
+                            **_planned_line(STYLE["thin_width"]))
+            for k in range(4):
+                ax.plot(sim.t, value(sim.speed[:, i, k]), label=f"rotor {k + 1}", gid="simulated",
+                        color=STYLE["rotor_colors"][k], linewidth=STYLE["thin_width"] * 1.25, zorder=3)
+            _limit(ax, 0.0)
+            _limit(ax, float(value(upper)))
+            ax.axhline(float(value(sim.max_speed)), color=STYLE["reference_color"], linestyle="-",
+                       linewidth=STYLE["thin_width"], label=saturation_label, gid="saturation", zorder=1)
+            ax.set_ylabel(ylabel(i))
+            if n_d > 1:
+                ax.set_title(f"drone {i + 1}")
+        axes[-1].set_xlabel("t [s]")
+        return _finish(fig, _SIM_TITLES[robot.name][which], axes)
 
 
-def simulation_figures(out_dir: str | Path, robot, log) -> list[Path]:
+def _sim_rotor_speeds(robot, log, plan: SampledPlan | None = None) -> Figure:
+    """Rotor speeds in the plant with 0 <= w <= w_max - m_gr (3.48) and the saturation w_max."""
+    return _sim_rotors(robot, log, plan, "sim_rotor_speeds")
+
+
+def _sim_rotor_forces(robot, log, plan: SampledPlan | None = None) -> Figure:
+    """Rotor forces c_T w^2 in the plant [N] (Fig. 3.31-3.32, 3.49), with 0 and c_T (w_max - m_gr)^2.
+
+    c_T is the robot's nominal constant (a simulation with ``rotor_constant_scale`` != 1 has rotors
+    that really produce that factor times these forces).
+    """
+    return _sim_rotors(robot, log, plan, "sim_rotor_forces")
+
+
+def simulated_indices(robot, log) -> tuple[np.ndarray, np.ndarray]:
+    r"""J_e(t) and J_phi(t) of a simulation (seed 3.24-3.25, Fig. 3.50-3.51), shape (N,) each [J, rad^2/s].
+
+    .. math:: J_e(t) = \int_0^t \sum_i |F_i \cdot \dot r_i| \, dt, \quad
+              J_\varphi(t) = \int_0^t \sum_i \dot\varphi_i^2 \, dt
+
+    with the allocated thrust along the plant drone's thrust axis, F_i = f_i (-sin phi_i, cos phi_i),
+    the drone joint velocities r_i' of the measured chain motion and the plant's roll rates.
+
+    Args:
+        robot: the robot the log simulated.
+        log: a :class:`fpr.simulate.SimulationLog`.
+    """
+    from fpr.kinematics import fpr_drone_joint_velocities, prototype_jacobian
+
+    sim = _simulated(robot, log)
+    if robot.name == "fpr":
+        velocity = fpr_drone_joint_velocities(sim.simulated, sim.simulated_rate, robot.link_length)
+    else:
+        jac = prototype_jacobian(sim.simulated, robot.link_length)
+        velocity = np.einsum("nij,nj->ni", jac, sim.simulated_rate)[:, None]
+    force = sim.thrust[..., None] * np.stack([-np.sin(sim.roll), np.cos(sim.roll)], axis=-1)
+    power = np.abs(np.sum(force * velocity, axis=-1)).sum(axis=1)
+    return cumulative_integral(sim.t, power), cumulative_integral(sim.t, np.sum(sim.roll_rate**2, axis=1))
+
+
+def _sim_energy(robot, log, plan: SampledPlan | None = None) -> Figure:
+    """J_e(t), J_phi(t) simulated (:func:`simulated_indices`) and, with ``plan``, planned (Fig. 3.50-3.51)."""
+    sim = _simulated(robot, log)
+    energy, perturbation = simulated_indices(robot, log)
+    trace = None if plan is None else _trace(robot, plan, "plan", True)
+    specs = (("$J_e$ [J]", "$J_e$", "J", energy, "energy"),
+             (r"$J_\varphi$ [rad$^2$/s]", r"$J_\varphi$", r"rad$^2$/s", perturbation, "perturbation"))
+    with _styled():
+        fig, axes = _new_figure(2)
+        for ax, (ylabel, symbol, unit, simulated, which) in zip(axes, specs, strict=True):
+            if trace is not None:
+                planned = getattr(trace, which)
+                ax.plot(trace.t, planned, label=f"planned ({symbol} = {planned[-1]:.4g} {unit})",
+                        gid="planned", **_planned_line())
+            ax.plot(sim.t, simulated, label=f"simulated ({symbol} = {simulated[-1]:.4g} {unit})",
+                    gid="simulated", **_simulated_line())
+            ax.set_ylabel(ylabel)
+        axes[-1].set_xlabel("t [s]")
+        return _finish(fig, _SIM_TITLES[robot.name]["sim_energy"], axes)
+
+
+_SIM_BUILDERS: dict[str, Callable[..., Figure]] = {
+    "sim_path": _sim_path,
+    "sim_coordinates": _sim_coordinates,
+    "sim_out_of_plane": _sim_out_of_plane,
+    "sim_roll": _sim_roll,
+    "sim_heights": _sim_heights,
+    "sim_rotor_speeds": _sim_rotor_speeds,
+    "sim_rotor_forces": _sim_rotor_forces,
+    "sim_energy": _sim_energy,
+}
+
+
+def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None = None) -> list[Path]:
     """Write the thesis' simulation figures of a :class:`fpr.simulate.SimulationLog` as PNG files.
 
+    Files, in ``out_dir`` (created if needed), in the order of :data:`SIMULATION_FIGURES`:
+
+    * ``sim_path.png``: task-space path, planned and simulated (Fig. 3.19 / 3.42);
+    * ``sim_coordinates.png``: planning coordinates with their bounds, and the tracking errors
+      (Fig. 3.21-3.22, 3.25-3.26 / 3.43-3.45);
+    * ``sim_out_of_plane.png``: x (FPR), pitch, yaw (Fig. 3.20, 3.23-3.24);
+    * ``sim_roll.png``: rolls planned, desired, simulated, |phi_i| <= pi/2 - m_ga (Fig. 3.27-3.28 / 3.48);
+    * ``sim_heights.png``: drone joint / joint 2 and 3 heights and the drones' centres of mass, with
+      z >= -L + m_gd (Fig. 3.29-3.30 / 3.46-3.47);
+    * ``sim_rotor_speeds.png`` and ``sim_rotor_forces.png``: the plant's rotors against 0 and
+      w_max - m_gr, resp. c_T (w_max - m_gr)^2, and the saturation (eq. 3.48, Fig. 3.31-3.32 / 3.49);
+    * ``sim_energy.png``: J_e(t), J_phi(t) simulated (Fig. 3.50-3.51).
+
+    Args:
+        out_dir: output folder.
+        robot: the :class:`~fpr.robots.Robot` that was simulated.
+        log: the :class:`fpr.simulate.SimulationLog`.
+        plan: the sampled plan that was tracked (optional): adds its rotor speeds, rotor forces,
+            J_e(t), J_phi(t) and way/via points to the figures.
+
     Returns:
-        the paths of ``sim_coordinates.png``, ``sim_out_of_plane.png`` (FPR and prototype: psi,
-        theta; FPR also x), ``sim_roll.png``, ``sim_heights.png``, ``sim_rotor_speeds.png``.
+        The paths of the written PNG files.
+
+    Raises:
+        ValueError: the log is of another robot or has arrays of the wrong shape, or the plan is
+            not a sampled plan of the robot (nothing is written then).
     """
+    _simulated(robot, log)  # fail before writing anything
+    if plan is not None:
+        _trace(robot, plan, "plan", False)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    builders = {"sim_coordinates": lambda: _sim_coordinates(log), "sim_out_of_plane": lambda: _sim_out_of_plane(log),
-                "sim_roll": lambda: _sim_roll(log, robot), "sim_heights": lambda: _sim_heights(log, robot),
-                "sim_rotor_speeds": lambda: _sim_rotor_speeds(log)}
-    paths = []
-    with _styled():
-        for name in SIMULATION_FIGURES:
-            paths.append(_save(builders[name](), out / f"{name}.png"))
+    return [_save(_SIM_BUILDERS[name](robot, log, plan), out / f"{name}.png") for name in SIMULATION_FIGURES]
+
+
+# ------------------------------------------------------------------------------------ the whole set
+def _as_sampled(what: str, plan, robot, rate: float) -> SampledPlan:
+    """A :class:`planners.optimize.PlanResult` sampled at ``rate``, or a sampled plan as it is."""
+    if hasattr(plan, "trajectory") and callable(getattr(plan, "sampled", None)):
+        return plan.sampled(rate, robot=robot)
+    if hasattr(plan, "motion"):
+        return plan
+    raise ValueError(f"{what} is a {type(plan).__name__}: pass a planners.optimize.PlanResult or a sampled "
+                     "plan (PlanResult.sampled(rate))")
+
+
+def figure_set(out_dir: str | Path, plan, log=None, reference=None, *, robot=None,
+               rate: float = 200.0) -> dict[str, Path]:
+    """Write every figure of the thesis that applies to a planned (and possibly simulated) motion.
+
+    FPR: Fig. 3.11-3.18 and the rotor limits of eq. 3.48 (:data:`PLAN_FIGURES`), and with ``log``
+    Fig. 3.19-3.32 (:data:`SIMULATION_FIGURES`). Prototype: Fig. 3.36-3.41, and with ``log``
+    Fig. 3.42-3.51. Calls :func:`plan_figures`, then :func:`simulation_figures` with the plan.
+
+    Example::
+
+        result = plan(load_mission("square"), "two-step")
+        paths = figure_set("out", result, simulate(result), reference=plan(load_mission("square"), "none"))
+        paths["sim_rotor_forces"]  # Path("out/sim_rotor_forces.png")
+
+    Args:
+        out_dir: output folder (created if needed).
+        plan: a :class:`planners.optimize.PlanResult` (sampled at ``rate``) or a sampled plan.
+        log: a :class:`fpr.simulate.SimulationLog` of ``plan``, or None for the planning figures only.
+        reference: the motion to compare with, typically ``plan(mission, "none")`` (stop at every
+            way point): a PlanResult or a sampled plan, or None.
+        robot: the robot; default ``plan.robot`` (required for a sampled plan).
+        rate: sampling rate of PlanResults [Hz].
+
+    Returns:
+        name -> path of every written PNG file, in the order of :data:`FIGURE_SET` (the ``sim_``
+        ones only with a log).
+
+    Raises:
+        ValueError: no robot, a rate that is not positive, or inputs that do not fit the robot
+            (nothing is written then).
+    """
+    robot = robot if robot is not None else getattr(plan, "robot", None)
+    if robot is None:
+        raise ValueError("no robot: pass robot=fpr.load(...) with a sampled plan (a PlanResult carries "
+                         "its own)")
+    if not (np.isfinite(rate) and rate > 0):
+        raise ValueError(f"rate={rate!r}: give a positive sampling rate [Hz]")
+    sampled = _as_sampled("plan", plan, robot, rate)
+    sampled_reference = None if reference is None else _as_sampled("reference", reference, robot, rate)
+    _traces(robot, sampled, sampled_reference)  # check everything before writing anything
+    if log is not None:
+        _simulated(robot, log)
+    paths = dict(zip(PLAN_FIGURES, plan_figures(out_dir, robot, sampled, sampled_reference), strict=True))
+    if log is not None:
+        paths.update(zip(SIMULATION_FIGURES, simulation_figures(out_dir, robot, log, sampled), strict=True))
     return paths

@@ -344,3 +344,230 @@ def test_matplotlib_is_lazy_and_pyplot_untouched(tmp_path):
                             timeout=120)
     assert result.returncode == 0, result.stderr
     _assert_png(tmp_path / "v.png")
+
+
+# ------------------------------------------------------------------------------------------ rotor forces
+@pytest.mark.parametrize("case", ["fpr_case", "prototype_case"])
+def test_rotor_forces_figure_draws_c_t_w_squared_against_the_limits(case, request):
+    robot, plan, reference = request.getfixturevalue(case)
+    fig = figures._rotor_forces_figure(robot, plan, reference)
+    c_t = robot.rotor_constants.thrust_coefficient
+    upper = c_t * (robot.rotor_constants.max_speed - robot.margins.rotor_speed) ** 2
+    assert upper == pytest.approx(6.25, rel=1e-3)  # 750 rad/s (the seed's 9 N are at 900 rad/s)
+    assert len(fig.axes) == robot.n_drones
+    for i, ax in enumerate(fig.axes):
+        assert ax.get_ylabel() == rf"$c_T \omega_{{{i + 1},j}}^2$ [N]" and ax.get_xlabel() in ("", "t [s]")
+        np.testing.assert_allclose(_limit_values(ax), [0.0, upper])
+        rotor_2 = next(line for line in ax.get_lines() if line.get_label() == "rotor 2")
+        expected = c_t * plan.inputs.rotor_speed_squared[:, i, 1]
+        np.testing.assert_allclose(rotor_2.get_ydata(), expected, rtol=1e-12)
+    assert fig.axes[-1].get_xlabel() == "t [s]"
+
+
+# ------------------------------------------------------------------------------------- simulation figures
+def _log(robot, sampled, offset: float = 0.0):
+    """A SimulationLog that tracks ``sampled``, with ``offset`` sin(t) on the first planning coordinate.
+
+    The out-of-plane coordinates get the same offset. Stands in for fpr.simulate.simulate (seconds).
+    """
+    from fpr.simulate import SimulationLog
+
+    inputs = sampled.inputs
+    q, v, _ = inputs.full_state(robot)
+    t = sampled.t
+    wobble = offset * np.sin(t)
+    first = robot.index[robot.layout.chain[0]]
+    q[:, first] += wobble
+    v[:, first] += offset * np.cos(t)
+    for name in ("x", "psi", "theta"):
+        if name in robot.index:
+            q[:, robot.index[name]] = wobble
+    n = t.size
+    limit = robot.rotor_constants.max_speed - robot.margins.rotor_speed
+    return SimulationLog(robot.name, tuple(robot.layout.coordinates), tuple(robot.layout.chain), t, q, v,
+                         sampled.motion[:3], inputs.roll, inputs.roll + 0.01, inputs.rotor_speed,
+                         inputs.rotor_speed,
+                         inputs.thrust, inputs.torque, np.zeros((n, robot.n_drones, 4), dtype=bool),
+                         inputs.joint_position[..., 1] + robot.hinge_offset, np.zeros(n),
+                         robot.rotor_constants.max_speed, limit, 1.0)
+
+
+@pytest.fixture(scope="module")
+def fpr_log(fpr_case):
+    robot, plan, _ = fpr_case
+    return _log(robot, plan, offset=0.01)
+
+
+@pytest.fixture(scope="module")
+def prototype_log(prototype_case):
+    robot, plan, _ = prototype_case
+    return _log(robot, plan, offset=0.01)
+
+
+def _line(ax, gid: str):
+    return next(line for line in ax.get_lines() if line.get_gid() == gid)
+
+
+@pytest.mark.parametrize("case, log", [("fpr_case", "fpr_log"), ("prototype_case", "prototype_log")])
+def test_simulation_figures_write_valid_pngs(case, log, request, tmp_path):
+    robot, plan, _ = request.getfixturevalue(case)
+    paths = figures.simulation_figures(tmp_path / "sim", robot, request.getfixturevalue(log), plan)
+    assert [p.name for p in paths] == [f"{n}.png" for n in figures.SIMULATION_FIGURES]
+    for path in paths:
+        _assert_png(path)
+
+
+def test_sim_path_overlays_plan_and_simulation(fpr_case, fpr_log, prototype_case, prototype_log):
+    robot, plan, _ = fpr_case
+    (ax,) = figures._sim_path(robot, fpr_log, plan).axes
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("y [m]", "z [m]")
+    assert _limit_values(ax) == pytest.approx([-robot.link_length + robot.margins.ground])
+    np.testing.assert_allclose(_line(ax, "planned").get_xydata(), plan.motion[0, :, :2])
+    simulated = plan.motion[0, :, :2] + np.stack([0.01 * np.sin(plan.t), 0 * plan.t], axis=1)
+    np.testing.assert_allclose(_line(ax, "simulated").get_xydata(), simulated, atol=1e-12)
+    assert len(_line(ax, "way").get_xdata()) == 5 and len(_line(ax, "via").get_xdata()) == 4
+    robot, plan, _ = prototype_case
+    (ax,) = figures._sim_path(robot, prototype_log, plan).axes
+    drone_joint = plan.inputs.joint_position[:, 0]
+    np.testing.assert_allclose(_line(ax, "planned").get_xydata(), drone_joint, atol=1e-12)
+    assert _limit_values(ax) == pytest.approx(sorted([-robot.link_length + robot.margins.ground,
+                                                      robot.margins.ground]))
+
+
+@pytest.mark.parametrize("case, log", [("fpr_case", "fpr_log"), ("prototype_case", "prototype_log")])
+def test_sim_coordinates_have_bounds_and_errors(case, log, request):
+    robot, plan, _ = request.getfixturevalue(case)
+    fig = figures._sim_coordinates(robot, request.getfixturevalue(log))
+    specs = figures._coordinate_axes(robot)
+    assert len(fig.axes) == 2 * len(specs)
+    for j, (label, bounds) in enumerate(specs):
+        ax, ax_err = fig.axes[2 * j], fig.axes[2 * j + 1]
+        assert ax.get_ylabel() == label and ax_err.get_ylabel().endswith(label[label.index("["):])
+        assert "error" in ax_err.get_ylabel()
+        np.testing.assert_allclose(_limit_values(ax), sorted(bounds) if bounds else [])
+        np.testing.assert_array_equal(_line(ax, "planned").get_ydata(), plan.motion[0, :, j])
+        expected = 0.01 * np.sin(plan.t) if j == 0 else np.zeros_like(plan.t)
+        np.testing.assert_allclose(_line(ax_err, "error").get_ydata(), expected, atol=1e-12)
+    assert [ax.get_xlabel() for ax in fig.axes[-2:]] == ["t [s]", "t [s]"]
+
+
+def test_sim_out_of_plane_roll_and_heights(fpr_case, fpr_log, prototype_case, prototype_log):
+    robot, plan, _ = fpr_case
+    fig = figures._sim_out_of_plane(robot, fpr_log)
+    assert [ax.get_ylabel() for ax in fig.axes] == ["x [m]", r"$\theta$ [rad]", r"$\psi$ [rad]"]
+    np.testing.assert_allclose(_line(fig.axes[0], "simulated").get_ydata(), 0.01 * np.sin(plan.t))
+    assert _line(fig.axes[0], "planned").get_ydata()[0] == 0.0
+    proto_robot, proto_plan, _ = prototype_case
+    fig = figures._sim_out_of_plane(proto_robot, prototype_log)
+    assert [ax.get_ylabel() for ax in fig.axes] == [r"$\theta$ [rad]", r"$\psi$ [rad]"]  # no x: pinned
+
+    bound = np.pi / 2 - robot.margins.angle
+    roll = figures._sim_roll(robot, fpr_log)
+    for i, ax in enumerate(roll.axes):
+        assert ax.get_ylabel() == rf"$\varphi_{i + 1}$ [rad]"
+        np.testing.assert_allclose(_limit_values(ax), [-bound, bound])
+        np.testing.assert_allclose(_line(ax, "simulated").get_ydata(), plan.inputs.roll[:, i])
+        np.testing.assert_allclose(_line(ax, "desired").get_ydata(), plan.inputs.roll[:, i] + 0.01)
+
+    ground = -robot.link_length + robot.margins.ground
+    heights = figures._sim_heights(robot, fpr_log)
+    assert [ax.get_ylabel() for ax in heights.axes] == ["$z_1$ [m]", "$z_2$ [m]"]
+    for i, ax in enumerate(heights.axes):
+        assert _limit_values(ax) == pytest.approx([ground])
+        np.testing.assert_allclose(_line(ax, "planned").get_ydata(), plan.inputs.joint_position[:, i, 1])
+        np.testing.assert_allclose(_line(ax, "com").get_ydata(), fpr_log.drone_height[:, i])
+    heights = figures._sim_heights(proto_robot, prototype_log)
+    assert [ax.get_ylabel() for ax in heights.axes] == ["$z_{j2}$ [m]", "$z_{j3}$ [m]"]  # Fig. 3.46-3.47
+    elbow = prototype_joints(proto_plan.motion[0], proto_robot.link_length)[:, 0, 1]
+    np.testing.assert_allclose(_line(heights.axes[0], "planned").get_ydata(), elbow, atol=1e-12)
+    assert all(_limit_values(ax) == pytest.approx([-proto_robot.link_length + proto_robot.margins.ground])
+               for ax in heights.axes)
+
+
+@pytest.mark.parametrize("case, log", [("fpr_case", "fpr_log"), ("prototype_case", "prototype_log")])
+def test_sim_rotor_figures_limits_and_saturation(case, log, request):
+    robot, plan, _ = request.getfixturevalue(case)
+    log = request.getfixturevalue(log)
+    c_t, w_max = robot.rotor_constants.thrust_coefficient, robot.rotor_constants.max_speed
+    upper = w_max - robot.margins.rotor_speed
+    speeds = figures._sim_rotor_speeds(robot, log, plan)
+    forces = figures._sim_rotor_forces(robot, log, plan)
+    for i, (ax_w, ax_f) in enumerate(zip(speeds.axes, forces.axes, strict=True)):
+        assert ax_w.get_ylabel().endswith("[rad/s]") and ax_f.get_ylabel().endswith("[N]")
+        np.testing.assert_allclose(_limit_values(ax_w), [0.0, upper])
+        np.testing.assert_allclose(_limit_values(ax_f), [0.0, c_t * upper**2])
+        assert _line(ax_w, "saturation").get_ydata()[0] == w_max
+        assert _line(ax_f, "saturation").get_ydata()[0] == pytest.approx(c_t * w_max**2)
+        simulated = [line for line in ax_f.get_lines() if line.get_gid() == "simulated"]
+        planned = [line for line in ax_f.get_lines() if line.get_gid() == "planned"]
+        assert len(simulated) == len(planned) == 4
+        np.testing.assert_allclose(simulated[2].get_ydata(), c_t * log.speed[:, i, 2] ** 2, rtol=1e-12)
+        assert {"rotor 1", "planned", "limit"} <= set(_legend_texts(ax_f))
+    without_plan = figures._sim_rotor_speeds(robot, log)
+    assert len(without_plan.axes[0].get_lines()) == 4 + 3  # no planned lines
+
+
+@pytest.mark.parametrize("case", ["fpr_case", "prototype_case"])
+def test_simulated_indices_of_a_perfect_tracking_equal_the_planned_ones(case, request):
+    robot, plan, _ = request.getfixturevalue(case)
+    perfect = _log(robot, plan)
+    energy, perturbation = figures.simulated_indices(robot, perfect)
+    assert energy[-1] == pytest.approx(np.trapezoid(plan.inputs.power.sum(axis=1), plan.t), rel=1e-9)
+    squared_rates = (plan.inputs.roll_rate**2).sum(axis=1)
+    assert perturbation[-1] == pytest.approx(np.trapezoid(squared_rates, plan.t), rel=1e-9)
+    fig = figures._sim_energy(robot, perfect, plan)
+    assert [ax.get_ylabel() for ax in fig.axes] == ["$J_e$ [J]", r"$J_\varphi$ [rad$^2$/s]"]
+    for ax, curve in zip(fig.axes, (energy, perturbation), strict=True):
+        np.testing.assert_allclose(_line(ax, "simulated").get_ydata(), curve)
+        np.testing.assert_allclose(_line(ax, "planned").get_ydata(), curve, rtol=1e-9, atol=1e-12)
+
+
+def test_simulation_figures_reject_a_log_of_the_other_robot(fpr_case, prototype_log, tmp_path):
+    robot, plan, _ = fpr_case
+    with pytest.raises(ValueError, match="robot_name='prototype'"):
+        figures.simulation_figures(tmp_path / "out", robot, prototype_log)
+    with pytest.raises(ValueError, match="SimulationLog"):
+        figures.simulation_figures(tmp_path / "out", robot, SimpleNamespace(t=plan.t))
+    assert not (tmp_path / "out").exists()
+
+
+# -------------------------------------------------------------------------------------------- figure_set
+@pytest.fixture(scope="module")
+def square_stop():
+    """The stop-at-way-points PlanResult of the square mission (planning it takes ~0.1 s)."""
+    from planners.mission import load_mission
+    from planners.optimize import plan
+
+    return plan(load_mission("square"), "none")
+
+
+def test_figure_set_writes_every_figure(square_stop, tmp_path, monkeypatch):
+    def save(fig, path):  # the figures are built as usual; rendering PNGs is tested above (and slow)
+        assert fig.axes and fig.get_suptitle().startswith(("Fig.", "Eq.", "Energy"))
+        path.write_bytes(PNG_MAGIC)
+        return path
+
+    monkeypatch.setattr(figures, "_save", save)
+    robot = square_stop.robot
+    sampled = square_stop.sampled(RATE)
+    log = _log(robot, sampled, offset=0.01)
+    paths = figures.figure_set(tmp_path / "all", square_stop, log, reference=square_stop, rate=RATE)
+    assert tuple(paths) == figures.FIGURE_SET
+    assert paths["sim_rotor_forces"] == tmp_path / "all" / "sim_rotor_forces.png"
+    written = sorted(p.name for p in (tmp_path / "all").iterdir())
+    assert written == sorted(f"{n}.png" for n in figures.FIGURE_SET)
+    only_plan = figures.figure_set(tmp_path / "plan", sampled, robot=robot)
+    assert tuple(only_plan) == figures.PLAN_FIGURES
+    assert all(path.is_file() for path in only_plan.values())
+
+
+def test_figure_set_checks_before_writing(square_stop, prototype_log, tmp_path):
+    with pytest.raises(ValueError, match="robot_name='prototype'"):
+        figures.figure_set(tmp_path / "out", square_stop, prototype_log)
+    with pytest.raises(ValueError, match="no robot"):
+        figures.figure_set(tmp_path / "out", square_stop.sampled(RATE))
+    with pytest.raises(ValueError, match="PlanResult or a sampled plan"):
+        figures.figure_set(tmp_path / "out", square_stop, reference="none")
+    with pytest.raises(ValueError, match="rate"):
+        figures.figure_set(tmp_path / "out", square_stop, rate=0.0)
+    assert not (tmp_path / "out").exists()
