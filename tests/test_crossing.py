@@ -228,12 +228,17 @@ def test_the_crossing_does_better_than_its_first_guess_and_starts_and_ends_at_re
 
 
 # ------------------------------------------------------------------------ the seed's approaches
+@pytest.fixture(scope="module")
+def seed_outcomes(proto):
+    return {a: crossing.seed_approach(proto, a, max_iterations=20) for a in (1, 2)}
+
+
 @pytest.mark.parametrize("approach", [1, 2])
-def test_the_seeds_approaches_fail_as_in_the_seed(proto, approach):
+def test_the_seeds_approaches_fail_as_in_the_seed(proto, seed_outcomes, approach):
     """With the seed's fixed crossing states and travel times, both approaches end far outside the
     drone's limits (the seed's conclusion), and their crossing velocity (q2' > 0) heads back into
     the start's assembly mode, so q2 changes sign more than once."""
-    out = crossing.seed_approach(proto, approach, max_iterations=20)
+    out = seed_outcomes[approach]
     assert not out.feasible
     assert abs(out.criterion_residual(proto)) < 1e-9  # finite force at the crossing, as designed
     limit = proto.rotor_constants.max_speed - proto.margins.rotor_speed
@@ -304,3 +309,23 @@ def test_the_simulated_crossing_ends_in_the_other_assembly_mode(crossing_simulat
     assert np.abs(error[-1]).max() < 0.01  # rad, at the end
     assert log.speed.min() >= 0.0 and log.speed.max() <= proto.rotor_constants.max_speed
     assert not log.saturated.any()
+
+
+def test_crossing_comparison_figure(proto, seed_outcomes, crossing_plan, tmp_path):
+    from fpr.figures import _crossing_comparison, crossing_comparison_figure
+
+    outcomes = [seed_outcomes[1], seed_outcomes[2], crossing_plan.crossing]
+    fig = _crossing_comparison(proto, outcomes, 200.0)
+    axes = fig.axes
+    assert [ax.get_ylabel() for ax in axes] == ["$q_2$ [rad]", "thrust $|F|$ [N]",
+                                                "rotor speeds, max / min [rad/s]"]
+    assert all(ax.get_xlabel() == "time from the crossing [s]" for ax in axes)
+    limits = [line.get_ydata()[0] for line in axes[2].lines if line.get_gid() == "limit"]
+    assert sorted(limits) == [0.0, pytest.approx(750.0)]
+    thrust_limit = [line.get_ydata()[0] for line in axes[1].lines if line.get_gid() == "limit"]
+    assert thrust_limit == [pytest.approx(4 * proto.rotor_constants.thrust_coefficient * 750.0**2)]
+    labels = [line.get_label() for line in axes[0].lines if not line.get_label().startswith("_")]
+    assert labels == ["seed approach 1 (limits violated)", "seed approach 2 (limits violated)",
+                      "optimised crossing"]
+    path = crossing_comparison_figure(tmp_path / "crossing.png", proto, outcomes)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
