@@ -106,6 +106,20 @@ class PlanningError(FprError, RuntimeError):
         super().__init__(message)
 
 
+class SceneError(FprError, ValueError):
+    """A wrong argument of a meshcat scene (:mod:`fpr.scene`).
+
+    Attributes:
+        argument: the offending argument (``plan``, ``log``, ``configuration``...).
+        reason: what is wrong with it and what to give instead.
+    """
+
+    def __init__(self, argument: str, reason: str):
+        self.argument = argument
+        self.reason = reason
+        super().__init__(f"{argument}: {reason}")
+
+
 def check_shape(argument: str, x, expected: tuple[int | None, ...]) -> np.ndarray:
     """Return ``x`` as a float array after checking its shape.
 
