@@ -1,0 +1,122 @@
+"""The numbered notebooks: committed without outputs, and executed end to end.
+
+Each ``notebooks/NN_*.ipynb`` runs in a fresh ``python3`` kernel (the interpreter of the tests: checked),
+in a temporary folder, with ``FPR_NOTEBOOK_QUICK=1`` (the notebooks' coarser settings). A failing cell
+fails the test. Then checks run in the notebook's own kernel, on its variables (the planned square is
+feasible and better than stopping, the tracking errors are small, ...), and the outputs must hold the
+figures and 3D views the notebook promises. Together about a minute on a 2-core machine.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import nbformat
+import pytest
+from nbclient import NotebookClient
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+KERNEL_TIMEOUT = 600  # per cell [s]
+
+
+@dataclass(frozen=True)
+class Expected:
+    """What a notebook's outputs must contain, and code run in its kernel after its last cell."""
+
+    images: int  # PNG figures displayed, at least
+    html: int  # rich HTML outputs (meshcat views), at least
+    checks: str  # Python, asserting on the notebook's variables
+
+
+EXPECTED = {
+    "01_model": Expected(images=0, html=2, checks="""
+assert np.allclose(M, M.T) and np.linalg.eigvalsh(M).min() > 0
+assert np.abs(ac - expected).max() < 1e-9 * (1 + np.abs(expected).max())  # closed chain = minimal model
+assert abs(hover.thrust_vector[0, :, 1].sum() - robot.total_mass * 9.81) < 1e-9
+assert np.allclose(prototype_inverse_kinematics(drone_joint, L, "up"), [0.9470, -1.8940], atol=1e-4)
+"""),
+    "02_square_mission": Expected(images=15, html=1, checks="""
+from fpr.figures import FIGURE_SET
+assert result.feasible and reference.feasible and result.J < 0.9 and reference.J == 1.0
+assert max(summary["tracking_max"].values()) < 0.01 and summary["saturated_ticks"] == 0
+assert tuple(paths) == FIGURE_SET and all(p.is_file() and p.stat().st_size > 0 for p in paths.values())
+"""),
+    "03_parameter_study": Expected(images=4, html=0, checks="""
+assert all(via.feasible) and all(alpha.feasible) and all(c.feasible for c in comparison.cases)
+assert via.J_phi[-1] < via.J_phi[0] and via.counts == COUNTS and alpha.alphas == WEIGHTS
+assert comparison.case("two-step").J < 1.0 and comparison.case("one-step").J < 1.0
+assert len(COUNTS) < 5 and len(written) >= 2 + 2 * 8  # quick mode; both study figures and two plan sets
+"""),
+    "04_prototype": Expected(images=14, html=1, checks="""
+assert robot.name == "prototype" and result.feasible and result.J < 1.0
+assert max(summary["tracking_max"].values()) < 0.01
+assert summary["peak_rotor_speed_rad_s"] <= summary["planning_speed_limit_rad_s"]
+"""),
+    "05_singularity_crossing": Expected(images=8, html=1, checks="""
+assert result.feasible and ours.crossings == 1 and abs(ours.criterion_residual(robot)) < 1e-9
+assert not seed[1].feasible and not seed[2].feasible
+assert q2[0] > 0 > q2[-1] and np.count_nonzero(np.diff(np.sign(q2))) == 1 and summary["saturated_ticks"] == 0
+"""),
+}
+
+
+def _ids(paths):
+    return [p.stem for p in paths]
+
+
+def test_the_numbered_notebooks_are_there():
+    names = [p.name for p in NOTEBOOKS]
+    assert all(re.fullmatch(r"\d\d_[a-z0-9_]+\.ipynb", n) for n in names), names
+    assert {f"{stem}.ipynb" for stem in EXPECTED} <= set(names)
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=_ids(NOTEBOOKS))
+def test_notebook_is_committed_without_outputs(path):
+    nb = nbformat.read(path, as_version=4)
+    nbformat.validate(nb)
+    assert nb.metadata["kernelspec"]["name"] == "python3"
+    assert nb.cells[0].cell_type == "markdown" and nb.cells[0].source.startswith("# ")
+    for k, cell in enumerate(nb.cells):
+        where = f"{path.name}, cell {k}"
+        assert set(cell.metadata) <= {"tags"}, f"{where}: metadata {dict(cell.metadata)} (strip it)"
+        if cell.cell_type == "code":
+            assert cell.outputs == [], f"{where} has outputs: clear them before committing"
+            assert cell.execution_count is None, f"{where}: execution_count {cell.execution_count}, not null"
+    first_code = next(c for c in nb.cells if c.cell_type == "code")
+    assert "FPR_NOTEBOOK_QUICK" in first_code.source, "read FPR_NOTEBOOK_QUICK in the first code cell"
+
+
+def _outputs(nb, kind: str) -> list[dict]:
+    return [o for c in nb.cells if c.cell_type == "code" for o in c.outputs
+            if o.output_type in ("display_data", "execute_result") and kind in o.get("data", {})]
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=_ids(NOTEBOOKS))
+def test_notebook_runs(path, tmp_path, monkeypatch):
+    monkeypatch.setenv("FPR_NOTEBOOK_QUICK", "1")
+    python_path = [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(python_path))  # the repository, even without pip -e
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    nb = nbformat.read(path, as_version=4)
+    n_cells = len(nb.cells)
+    expected = EXPECTED.get(path.stem)
+    extra = ["import os, sys\nprint(sys.executable)\nprint(sys.prefix)\nprint(os.getcwd())"]
+    if expected is not None:
+        extra.append(expected.checks.strip())
+    nb.cells += [nbformat.v4.new_code_cell(source) for source in extra]
+    client = NotebookClient(nb, timeout=KERNEL_TIMEOUT, kernel_name="python3",
+                            resources={"metadata": {"path": str(tmp_path)}})
+    client.execute()  # raises CellExecutionError, with the cell and the traceback, when a cell fails
+
+    executable, prefix, cwd = nb.cells[n_cells].outputs[0]["text"].split("\n")[:3]
+    # the same interpreter in the same environment (a venv's python is a symlink: compare unresolved paths)
+    assert (executable, prefix) == (sys.executable, sys.prefix), "the kernel runs another interpreter"
+    assert Path(cwd).resolve() == tmp_path.resolve()
+    if expected is not None:
+        assert len(_outputs(nb, "image/png")) >= expected.images
+        assert len(_outputs(nb, "text/html")) >= expected.html
