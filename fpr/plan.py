@@ -14,7 +14,10 @@ solve time, then the worst value of every constraint. Into ``--out`` (default
 * PNG figures of the thesis' planning chapter (``fpr.figures``);
 * with ``--simulate``: ``simulation.npz`` (the :class:`fpr.simulate.SimulationLog`), ``sim_*``
   columns in ``trajectory.csv`` and the simulation figures; the summary adds tracking errors,
-  out-of-plane motion, rotor speeds in the plant, allocation saturations and the real-time factor.
+  out-of-plane motion, rotor speeds in the plant, allocation saturations and the real-time factor;
+* with ``--meshcat``: ``scene.html``, the 3D scene of :mod:`fpr.scene` (the robot following the plan;
+  with ``--simulate``, the simulated robot and the plan as a ghost), a standalone page; ``--serve``
+  also sends it to a live meshcat server, prints its URL and waits for Ctrl-C.
 
 Exit codes: 0 every constraint holds; 1 the planned motion violates a constraint (the files
 are still written and the violated constraints are named); 2 bad input (mission file or
@@ -26,6 +29,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import signal
 import sys
 import time
 from pathlib import Path
@@ -100,6 +104,13 @@ def parser() -> argparse.ArgumentParser:
     sim.add_argument("--noise", type=lambda t: _floats(t, "--noise"), default=None, metavar="SQ,SV",
                      help="standard deviations of the measurement noise on q and v")
     sim.add_argument("--hold", type=float, default=1.0, help="time simulated after the plan's end [s]")
+    scene = p.add_argument_group("3D scene (meshcat)")
+    scene.add_argument("--meshcat", action="store_true",
+                       help="write scene.html: the robot following the plan (with --simulate: the simulated "
+                            "robot and the plan as a ghost), thrust arrows, paths, way and via points")
+    scene.add_argument("--serve", action="store_true",
+                       help="also show the scene on a live meshcat server, print its URL and wait for Ctrl-C "
+                            "(implies --meshcat)")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     return p
 
@@ -303,6 +314,35 @@ def _simulation_table(log) -> str:
     return "\n".join(lines)
 
 
+def _scene(args, robot, final, log, out, written):
+    """Write scene.html (and with --serve start the server); returns the live Visualizer or None."""
+    try:
+        from fpr.scene import view
+
+        scene = view(robot, final, log)
+        scene.write(out / "scene.html")
+        written.append("scene.html")
+        return scene.serve() if args.serve else None
+    except (ImportError, FprError, OSError) as error:  # the plan's files are written: keep them, say why
+        print(f"warning: meshcat scene not {'served' if args.serve else 'written'}: {error}", file=sys.stderr)
+        return None
+
+
+def _wait_for_interrupt() -> None:
+    """Sleep until Ctrl-C (or SIGTERM): then return, and meshcat stops its server at exit."""
+    def stop(*_):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv=None) -> int:
     """Command line entry point; returns the exit code."""
     args = parser().parse_args(argv)
@@ -353,6 +393,7 @@ def main(argv=None) -> int:
     log = None
     if args.simulate:
         log = _simulate(args, robot, final, out, sampled, written, say)
+    visualizer = _scene(args, robot, final, log, out, written) if args.meshcat or args.serve else None
     say(_table(reference, result))
     say("constraints of the " + ("optimised" if result is not None else "stop-at-way-points") + " motion "
         "(dense grid, margin >= 0 holds):")
@@ -363,13 +404,17 @@ def main(argv=None) -> int:
     if log is not None:
         say(_simulation_table(log))
     say(f"wrote {', '.join(written)} into {out} ({time.perf_counter() - start:.1f} s)")
+    code = 0
     if not final.feasible:
         names = ", ".join(f"{c.name} (margin {c.margin:.4g} {c.unit} at t = {c.time:.3f} s)"
                           for c in final.report.violations)
         print(f"error: the planned motion violates {names}; give more time (--times), more via points "
               "(--via-points) or move the way points", file=sys.stderr)
-        return 1
-    return 0
+        code = 1
+    if visualizer is not None:
+        print(f"meshcat: open {visualizer.url()} (Ctrl-C to stop the server)", flush=True)
+        _wait_for_interrupt()
+    return code
 
 
 if __name__ == "__main__":
