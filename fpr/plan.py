@@ -214,21 +214,35 @@ def plan_document(mission, robot, result: PlanResult, reference: PlanResult) -> 
     }
 
 
-def _table(reference: PlanResult, result: PlanResult | None) -> str:
-    rows = [("J (3.26)", "J", "", "{:.4f}"), ("J_e (energy index)", "J_e", "J", "{:.3f}"),
-            ("J_phi (perturbation index)", "J_phi", "rad^2/s", "{:.4f}"),
-            ("peak thrust", "peak_thrust_N", "N", "{:.3f}"),
-            ("peak rotor force", "peak_rotor_force_N", "N", "{:.3f}"),
-            ("peak rotor speed", "peak_rotor_speed_rad_s", "rad/s", "{:.1f}"),
-            ("least rotor speed", "least_rotor_speed_rad_s", "rad/s", "{:.1f}"),
-            ("peak |roll|", "peak_roll_rad", "rad", "{:.4f}"),
-            ("least ground clearance", "least_ground_clearance_m", "m", "{:.4f}"),
-            ("least singularity margin", "least_singularity_margin_rad", "rad", "{:.4f}"),
-            ("solve time", "wall_time_s", "s", "{:.3f}"),
-            ("every constraint holds", "feasible", "", "{}")]
+_TABLE_ROWS = [("J (3.26)", "J", "", "{:.4f}"), ("J_e (energy index)", "J_e", "J", "{:.3f}"),
+               ("J_phi (perturbation index)", "J_phi", "rad^2/s", "{:.4f}"),
+               ("peak thrust", "peak_thrust_N", "N", "{:.3f}"),
+               ("peak rotor force", "peak_rotor_force_N", "N", "{:.3f}"),
+               ("peak rotor speed", "peak_rotor_speed_rad_s", "rad/s", "{:.1f}"),
+               ("least rotor speed", "least_rotor_speed_rad_s", "rad/s", "{:.1f}"),
+               ("peak |roll|", "peak_roll_rad", "rad", "{:.4f}"),
+               ("least ground clearance", "least_ground_clearance_m", "m", "{:.4f}"),
+               ("least singularity margin", "least_singularity_margin_rad", "rad", "{:.4f}"),
+               ("solve time", "wall_time_s", "s", "{:.3f}"),
+               ("every constraint holds", "feasible", "", "{}")]
+# a singularity crossing: no singularity margin (it is 0 by design), the crossing instead
+_CROSSING_ROWS = [("q2 sign changes", "crossings", "", "{}"),
+                  ("criterion residual (4.7)", "criterion_residual_Nm", "N m", "{:.2e}"),
+                  ("crossing time", "crossing_time_s", "s", "{:.3f}")]
+
+
+def comparison_table(reference: PlanResult, result: PlanResult | None = None) -> str:
+    """The table ``python -m fpr.plan`` prints: the reference motion (stop at way points; for a
+    singularity crossing, its first guess) beside the optimised one, one row per quantity."""
     results = [reference] + ([result] if result is not None else [])
     summaries = [r.summary() for r in results]
-    names = ["stop at way points"] + ([f"optimised ({result.method})"] if result is not None else [])
+    rows = list(_TABLE_ROWS)
+    if all(r.crossing is not None for r in results):
+        rows = [row for row in rows if row[1] != "least_singularity_margin_rad"]
+        rows[-2:-2] = _CROSSING_ROWS
+        for s in summaries:
+            s.update({key: s["crossing"][key] for _, key, _, _ in _CROSSING_ROWS})
+    names = [r.label for r in results]
     lines = [f"  {'':28s} {'unit':8s}" + "".join(f"{n:>24s}" for n in names)]
     for label, key, unit, fmt in rows:
         lines.append(f"  {label:28s} {unit:8s}" + "".join(f"{fmt.format(s[key]):>24s}" for s in summaries))
@@ -289,7 +303,7 @@ def _simulate(args, robot, final, out, sampled, written, say):
         try:
             from fpr.figures import simulation_figures
 
-            written += [f.name for f in simulation_figures(out, robot, log)]
+            written += [f.name for f in simulation_figures(out, robot, log, sampled)]
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the results
             print(f"warning: simulation figures not written: {error}", file=sys.stderr)
     return log
@@ -394,7 +408,7 @@ def main(argv=None) -> int:
     if args.simulate:
         log = _simulate(args, robot, final, out, sampled, written, say)
     visualizer = _scene(args, robot, final, log, out, written) if args.meshcat or args.serve else None
-    say(_table(reference, result))
+    say(comparison_table(reference, result))
     say("constraints of the " + ("optimised" if result is not None else "stop-at-way-points") + " motion "
         "(dense grid, margin >= 0 holds):")
     for report in final.report.constraints.values():

@@ -238,6 +238,11 @@ class PlanResult:
             + (1 - self.alpha) * self.report.J_phi / self.reference.J_phi
 
     @property
+    def label(self) -> str:
+        """How tables and figures name this motion ("stop at way points", "optimised (two-step)"...)."""
+        return _label(self.method)
+
+    @property
     def solver_success(self) -> bool:
         """Every NLP solve ended with the solver reporting success."""
         return all(s.success for s in self.stages)
