@@ -28,14 +28,18 @@ may hold via points. :class:`CrossingProblem` makes any of these groups of unkno
 
 and solves min J = alpha J_e/J_e0 + (1 - alpha) J_phi/J_phi0 under the chapter's constraints
 (ground, fixed point, |q1|, roll, rotor speeds; seed 4.2.1, with the rotor bound w_max - m_gr of
-3.48), a least thrust (:data:`MIN_THRUST_FRACTION` of the drone's weight), plus ``crossing_side``: q2 > 0 before the crossing and < 0 after it (one crossing), with the
-crossing velocity bounded away from 0 (a simple crossing).
+3.48), a least thrust (:data:`MIN_THRUST_FRACTION` of the drone's weight), plus ``crossing_side``:
+q2 > 0 before the crossing and < 0 after it (one crossing), with the crossing velocity bounded away
+from 0 (a simple crossing), and (``smooth_crossing``) the 5th derivative continuous at the crossing:
+there F is one derivative less smooth than the motion, and a C4 knot would step the roll acceleration.
 
-* :func:`thesis_approach` reproduces the seed's two approaches (4.2.1, 4.2.2) with this package's
-  model and parameters: their fixed crossing state and travel times, their two steps.
-* :func:`plan_crossing` frees everything: the crossing state, the travel times and the via points
-  together (after a first solve without via points), which is what finds a motion within the
-  limits.
+* :func:`seed_approach` reproduces the seed's two approaches (4.2.1, 4.2.2) with this package's
+  model and parameters: their fixed crossing state and travel times, their two steps, their
+  constraints (C4 only at the crossing).
+* :func:`optimise_crossing` frees everything together: the crossing state, the travel times and
+  the via points, from a first guess in the drone's polar coordinates (:func:`first_guess`), which
+  is what finds a motion within the limits. :func:`planners.optimize.plan` runs it for a mission
+  with ``cross_singularity = true``.
 
 Derivatives: the motion entries by complex step (:class:`planners.problem.MotionProblem`), the
 crossing acceleration's dependence on (q1_s, xi_s', mu) by complex step too, the travel times by
@@ -64,12 +68,18 @@ NULL_VECTOR = np.array([-1.0, 2.0])
 #: at 0.8 the closed loop tracks through it (tests/test_crossing.py).
 MIN_THRUST_FRACTION = 0.8
 
-#: Drone polar angles [rad] at the crossing of the successive first guesses of
-#: :func:`optimise_crossing`: the chain nearly upright, where gravity acts least across it.
-CROSSING_ANGLES = (1.2, 1.3, 1.1)
+#: The successive first guesses of :func:`optimise_crossing`: (drone polar angle at the crossing
+#: [rad], fraction of the mission's total time). The chain nearly upright, where gravity acts least
+#: across it; the travel times are optimised anyway, the fraction only changes where they start.
+CROSSING_STARTS = ((1.2, 1.0), (1.3, 1.0), (1.1, 1.0), (1.2, 0.75), (1.3, 0.75))
 
 #: Violations are compared between starts relative to these sizes (per unit of the report).
 FEASIBILITY_SCALE = {"m": 0.1, "rad": 0.1, "rad/s": 100.0, "N": 1.0}
+
+#: Half-width of the band the 5th derivative's jump at the crossing is kept in, in Taylor units of the
+#: local time scale (s^(5) T^5 / 5!), the optimiser's back-off (1e-3) included: the polynomials are
+#: C4 at knots, and at the crossing a jump of the 5th derivative steps the roll acceleration.
+JUMP_TOLERANCE = 2e-3
 
 #: Groups of unknowns :class:`CrossingProblem` can free.
 GROUPS = ("state", "high", "vias", "times")
@@ -197,6 +207,28 @@ def add_via_points(trajectory: PiecewisePolynomial, n_via) -> PiecewisePolynomia
     return PiecewisePolynomial(np.array(points), segment_durations(times, n_via))
 
 
+def jump_weights(durations, index: int) -> np.ndarray:
+    """Weights W (3, 5) with s^(5)(t-) - s^(5)(t+) = sum_jk W[j, k] points[index - 1 + j, k] (each
+    coordinate) at knot ``index``: the jump of the 5th derivative there, linear in the 3 points around it
+    (the segments are C4 at their knots, not C5) [1/s^(5-k)]."""
+    from planners.polynomial import Segment
+
+    def basis(duration, t):
+        blank = np.zeros((N_DERIVS, 1))
+        return Segment(blank, blank, float(duration)).basis(t, order=5)[5, 0]  # (2 sides, 5)
+
+    w = np.zeros((3, N_DERIVS))
+    w[0:2] += basis(durations[index - 1], float(durations[index - 1]))
+    w[1:3] -= basis(durations[index], 0.0)
+    return w
+
+
+def fifth_derivative_jump(trajectory: PiecewisePolynomial, index: int) -> np.ndarray:
+    """s^(5)(t-) - s^(5)(t+) at knot ``index`` [unit/s^5], one value per coordinate."""
+    w = jump_weights(trajectory.durations, index)
+    return np.einsum("jk,jkn->n", w, np.asarray(trajectory.points)[index - 1:index + 2])
+
+
 def travel_times(trajectory: PiecewisePolynomial, n_via) -> np.ndarray:
     """The two travel times of a crossing motion laid out by :func:`crossing_layout`."""
     _, travel = crossing_layout(n_via)
@@ -218,11 +250,13 @@ class CrossingProblem:
         samples_per_segment, windows_per_segment: the grid.
         min_crossing_speed: |q2'| at the crossing is kept above this [rad/s] (a simple crossing).
         time_bounds: (least, largest) travel time [s].
+        smooth_crossing: also keep the 5th derivative continuous at the crossing (rows
+            ``crossing_c5``), so that the roll acceleration and the rotor speeds do not step there.
     """
 
     def __init__(self, robot, points, times, n_via, free, alpha: float, normalisation, *,
                  samples_per_segment: int = 17, windows_per_segment: int = 4, min_crossing_speed: float = 0.2,
-                 time_bounds: tuple[float, float] = (0.3, 8.0)):
+                 time_bounds: tuple[float, float] = (0.3, 8.0), smooth_crossing: bool = True):
         unknown = set(free) - set(GROUPS)
         if unknown:
             raise ValueError(f"free={sorted(free)}: unknown group(s) {sorted(unknown)}; use some of {GROUPS}")
@@ -239,6 +273,7 @@ class CrossingProblem:
         self.samples, self.windows = int(samples_per_segment), int(windows_per_segment)
         self.min_crossing_speed = float(min_crossing_speed)
         self.time_bounds = tuple(float(t) for t in time_bounds)
+        self.smooth_crossing = bool(smooth_crossing)
         self.before = 1.0 if self.points[0, 0, 1] > 0 else -1.0  # sign of q2 before the crossing
         c = self.index
         # the template's crossing point must be on q2 = 0 and (if its state is free) on the criterion
@@ -280,6 +315,8 @@ class CrossingProblem:
         if "state" in self.free_groups:
             mask[c, 2] = True
         self.mask = mask
+        # the 5th-derivative jump at the crossing in Taylor units of the local time scale, T^5 / 5!
+        self._jump_scale = t_point[c] ** 5 / 120.0
         self._cache: tuple[bytes, bool, Evaluation] | None = None
 
     # ------------------------------------------------------------------ x <-> motion
@@ -321,11 +358,19 @@ class CrossingProblem:
                              min_thrust=min_thrust(self.robot))
 
     def _extra_rows(self, points, times) -> tuple[np.ndarray, list[str]]:
-        """Rows beside the motion's: travel-time bounds and the crossing speed (scaled, >= 0)."""
+        """Rows beside the motion's (scaled, >= 0): travel-time bounds, the crossing speed, and the
+        5th derivative continuous at the crossing (within +-:data:`JUMP_TOLERANCE` Taylor units)."""
         lo, hi = self.time_bounds
+        c = self.index
+        jump = self._jump_scale * np.einsum("jk,jkn->n", jump_weights(segment_durations(times, self.n_via), c),
+                                            np.real(points[c - 1:c + 2]))
         rows = [times[0] - lo, times[1] - lo, hi - times[0], hi - times[1],
-                (-self.before * np.real(points[self.index, 1, 1]) - self.min_crossing_speed)]
-        return np.array(rows) - CONSTRAINT_BACKOFF, ["travel_time"] * 4 + ["crossing_speed"]
+                (-self.before * np.real(points[c, 1, 1]) - self.min_crossing_speed)]
+        names = ["travel_time"] * 4 + ["crossing_speed"]
+        if self.smooth_crossing:
+            rows += [*(JUMP_TOLERANCE + jump), *(JUMP_TOLERANCE - jump)]
+            names += ["crossing_c5"] * 4
+        return np.array(rows) - CONSTRAINT_BACKOFF, names
 
     @property
     def constraint_names(self) -> list[str]:
@@ -371,23 +416,30 @@ class CrossingProblem:
         grad = jp.T @ (ev.gradient * inv)
         jac = (ev.jacobian * inv[None, :]) @ jp
         hess = jp.T @ (ev.hessian * np.outer(inv, inv)) @ jp
-        jac_extra = np.zeros((extra.size, self.n_x))
+        # extra rows: the speed row and the jump rows are linear in the point entries
+        c = self.index
+        d_points = np.zeros((extra.size,) + shape)
+        d_points[4, c, 1, 1] = -self.before
+        if self.smooth_crossing:
+            w = self._jump_scale * jump_weights(segment_durations(times, self.n_via), c)  # (3, 5)
+            for j in range(2):
+                d_points[5 + j, c - 1:c + 2, :, j] = w
+                d_points[7 + j, c - 1:c + 2, :, j] = -w
+        jac_extra = d_points.reshape(extra.size, -1)[:, flat] @ jp
         for col, (kind, target, scale) in enumerate(self.variables):
-            if kind == "time":
-                i = target[0]
-                jac_extra[i, col], jac_extra[2 + i, col] = scale, -scale
-                step = 1e-5
-                values = []
-                for sign in (1.0, -1.0):
-                    t = times.copy()
-                    t[i] += sign * step
-                    other = self._inner(points, t)
-                    values.append(other.evaluate(other.x_of(points)))
-                grad[col] = (values[0].J - values[1].J) / (2 * step) * scale
-                jac[:, col] = (values[0].constraints - values[1].constraints) / (2 * step) * scale
-                hess[col, col] += 1e-3 * max(1.0, np.abs(np.diag(hess)).max())
-            elif kind == "entry" and target == (self.index, 1, 1):
-                jac_extra[4, col] = -self.before * scale
+            if kind != "time":
+                continue
+            step = 1e-5  # central differences: each side needs a new grid
+            values = []
+            for sign in (1.0, -1.0):
+                t = times.copy()
+                t[target[0]] += sign * step
+                other = self._inner(points, t)
+                values.append((other.evaluate(other.x_of(points)), self._extra_rows(points, t)[0]))
+            grad[col] = (values[0][0].J - values[1][0].J) / (2 * step) * scale
+            jac[:, col] = (values[0][0].constraints - values[1][0].constraints) / (2 * step) * scale
+            jac_extra[:, col] = (values[0][1] - values[1][1]) / (2 * step) * scale
+            hess[col, col] += 1e-3 * max(1.0, np.abs(np.diag(hess)).max())
         result = Evaluation(ev.J, ev.terms, constraints, grad, np.vstack([jac, jac_extra]), hess)
         self._cache = (key, True, result)
         return result
@@ -548,11 +600,12 @@ def _normalisation(robot, trajectory, n_via, samples, windows) -> tuple[float, f
 
 
 def _stage(robot, trajectory, n_via, free, alpha, normalisation, name, progress, samples, windows,
-           max_iterations):
+           max_iterations, smooth_crossing=True):
     from planners.optimize import _solve
 
     problem = CrossingProblem(robot, trajectory.points, travel_times(trajectory, n_via), n_via, free, alpha,
-                              normalisation, samples_per_segment=samples, windows_per_segment=windows)
+                              normalisation, samples_per_segment=samples, windows_per_segment=windows,
+                              smooth_crossing=smooth_crossing)
     x, stage = _solve(problem, problem.x0(), name, progress, max_iterations, 1e-4)
     return problem.trajectory(x), stage
 
@@ -591,7 +644,8 @@ def seed_approach(robot, approach: int, *, alpha: float = 0.5, progress=None, sa
     point[0] = [q1, 0.0]
     point[1], point[2] = velocity, acceleration
     guess = crossing_motion(start, end, point, spec["times"])
-    args = dict(samples=samples_per_segment, windows=windows_per_segment, max_iterations=max_iterations)
+    args = dict(samples=samples_per_segment, windows=windows_per_segment, max_iterations=max_iterations,
+                smooth_crossing=False)  # the seed's constraints: C4 only
     normalisation = _normalisation(robot, guess, (0, 0), samples_per_segment, windows_per_segment)
     step1, stage1 = _stage(robot, guess, (0, 0), ("high",), alpha, normalisation, f"seed approach {approach}, step 1",
                            progress, **args)
@@ -604,26 +658,27 @@ def seed_approach(robot, approach: int, *, alpha: float = 0.5, progress=None, sa
 
 
 def optimise_crossing(robot, start, end, duration: float, n_via=(2, 2), *, alpha: float = 0.5,
-                      crossing_angles=CROSSING_ANGLES, progress=None, samples_per_segment: int = 17,
+                      starts=CROSSING_STARTS, progress=None, samples_per_segment: int = 17,
                       windows_per_segment: int = 4, max_iterations: int = 100, dense_rate: float = 500.0,
                       max_refinements: int = 2) -> CrossingOutcome:
     """Our method: everything the seed held fixed is free.
 
-    From :func:`first_guess` (total ``duration`` [s], crossing with the drone at polar angle
-    ``crossing_angles[0]``), one NLP frees the crossing state (q1_s, xi_s', xi_s'' on the criterion's
+    From :func:`first_guess` (total ``duration`` [s] times ``starts[0][1]``, crossing with the drone at
+    polar angle ``starts[0][0]``), one NLP frees the crossing state (q1_s, xi_s', xi_s'' on the criterion's
     line, xi_s''', xi_s''''), the via points and both travel times. As in
     :func:`planners.optimize.plan`, a result that holds on the optimisation grid but not on the
     dense grid is solved again on a grid twice as fine (at most ``max_refinements`` times). A start
-    that ends infeasible is followed by the next crossing angle; the first feasible result is
+    that ends infeasible is followed by the next of ``starts``; the first feasible result is
     returned, else the one with the least (relative) violation. Every solve is in ``stages``.
     """
     start_time = time.perf_counter()
     n_via = tuple(int(n) for n in n_via)
     best, best_worst, all_stages = None, -np.inf, []
-    for attempt, angle in enumerate(crossing_angles):
-        guess = first_guess(robot, start, end, duration, n_via, angle)
+    for attempt, (angle, fraction) in enumerate(starts):
+        guess = first_guess(robot, start, end, fraction * duration, n_via, angle)
         normalisation = _normalisation(robot, guess, n_via, samples_per_segment, windows_per_segment)
-        label = "crossing" if attempt == 0 else f"crossing, start {attempt + 1} (crossing angle {angle:g} rad)"
+        label = "crossing" if attempt == 0 else \
+            f"crossing, start {attempt + 1} (crossing angle {angle:g} rad, {fraction * duration:g} s)"
         samples, windows = samples_per_segment, windows_per_segment
         trajectory = guess
         for refinement in range(max_refinements + 1):

@@ -329,3 +329,20 @@ def test_crossing_comparison_figure(proto, seed_outcomes, crossing_plan, tmp_pat
                       "optimised crossing"]
     path = crossing_comparison_figure(tmp_path / "crossing.png", proto, outcomes)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_planned_crossing_is_c5_there_so_the_rotor_speeds_do_not_step(crossing_plan, proto):
+    """9th-degree segments are C4 at knots; at the crossing the plan also keeps the 5th derivative
+    continuous (a jump there steps the roll acceleration: F is only C1 where it is 0/0)."""
+    res = crossing_plan
+    i, ts = res.crossing.index, res.crossing.crossing_time
+    segments = res.trajectory.segments
+    left = segments[i - 1].evaluate(segments[i - 1].duration, order=5)[5, 0]
+    right = segments[i].evaluate(0.0, order=5)[5, 0]
+    np.testing.assert_allclose(crossing.fifth_derivative_jump(res.trajectory, i), left - right, rtol=1e-9,
+                               atol=1e-9)
+    dt = res.trajectory.durations[i]
+    assert np.abs(left - right).max() * dt**5 / 120 <= crossing.JUMP_TOLERANCE  # in Taylor units
+    inputs = idyn.inverse_dynamics(proto, res.trajectory.evaluate(np.array([ts - 1e-9, ts + 1e-9]), order=6))
+    assert abs(inputs.roll_acceleration[0, 0] - inputs.roll_acceleration[1, 0]) < 0.5  # rad/s^2
+    assert np.abs(inputs.rotor_speed[0] - inputs.rotor_speed[1]).max() < 5.0  # rad/s
