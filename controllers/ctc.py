@@ -21,9 +21,10 @@ with F = f_r e + f_p e_perp (e along the second link), b2 = L f_p gives the forc
 everywhere, but the tension f_r only through L sin(q2) f_r = b1 - b2 (1 + cos q2) = g. The outer
 loop then solves this row in the least-squares sense, regularised towards the planned tension
 f_r,d (the plan satisfies the crossing criterion, so f_r,d is finite):
-f_r = (L sin q2 g + eps^2 f_r,d) / ((L sin q2)^2 + eps^2), eps = L sin(``singular_band``). Away from
-the singularity this is the CTC law (within (eps / L sin q2)^2); near it the elbow's motion across
-the straight chain, which no drone force can act on, follows the plan open loop.
+f_r = (L sin q2 g + e^2 f_r,d) / ((L sin q2)^2 + e^2), e^2 = eps^2 max(0, 1 - (L sin q2 / 10 eps)^2),
+eps = L sin(``singular_band``). Where |sin q2| >= 10 sin(band) this is the CTC law exactly (and within
+(eps / L sin q2)^2 closer in); near q2 = 0 the elbow's motion across the straight chain, which no
+drone force can act on, follows the plan open loop.
 
 **Out of the plane** (FPR): the pitch theta tilts every thrust out of the plane, so the lateral
 position x is held by a desired pitch theta_d = (-k_px x - k_dx x') / (d x'' / d theta), the
@@ -209,6 +210,8 @@ class CascadedController:
         f_p = b[1] / length
         lever = length * np.sin(xi[1])
         eps2 = (length * np.sin(self.settings.singular_band)) ** 2
+        # tapered off for |L sin q2| >= 10 eps: the plain CTC law there (within ~1 % before)
+        eps2 *= max(0.0, 1.0 - lever**2 / (100.0 * eps2))
         f_r = (lever * (b[0] - b[1] * (1.0 + np.cos(xi[1]))) + eps2 * (planned @ along)) / (lever**2 + eps2)
         return f_r * along + f_p * across
 

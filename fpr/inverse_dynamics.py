@@ -125,9 +125,19 @@ def thrust_vectors(robot, motion: Jet, order: int | None = None) -> Jet:
 #: prototype's crossing of its Type-2 singularity needs the 5th and 6th; elsewhere 0..4 suffice).
 MOTION_ORDER = 6
 
-#: |sin q2| below which the prototype's link tension is computed by deflation (about 5 ms from
-#: the crossing at 1 rad/s). Above it the plain quotient loses at most ~1e-9 relative in F''.
-SINGULAR_BAND = 5e-3
+#: |sin q2| below which a sample is examined for a nearby crossing of q2 = 0 (and the motion's 5th
+#: and 6th derivatives are used, when given).
+SINGULAR_SCREEN = 5e-2
+
+#: Largest time [s] between a sample and the crossing (the root of sin q2's Taylor polynomial) at
+#: which the link tension's limit is computed by deflation. Beyond it the plain quotient is accurate
+#: (its error in F'' grows like eps / (q2' dt^3): ~1e-6 of the value at 3 ms and q2' = 0.2 rad/s).
+SINGULAR_TIME = 3e-3
+
+#: Largest criterion residual g(t*) [N m], relative to 1 + the size of g's Taylor coefficients,
+#: for which the crossing is taken as meeting the criterion (finite force). A larger one is a real
+#: singularity: the plain quotient is kept, and the force there is as large as it really is.
+CRITERION_TOLERANCE = 1e-6
 
 
 def prototype_thrust_vectors(motion: Jet, generalized: Jet, link_length: float, order: int) -> Jet:
@@ -140,20 +150,21 @@ def prototype_thrust_vectors(motion: Jet, generalized: Jet, link_length: float, 
 
     The component across the link, f_p, is regular everywhere. The tension f_r = g / (L sin q2),
     g = b1 - b2 (1 + cos q2), is a 0/0 limit at the singularity when the motion satisfies the
-    crossing criterion (seed 4.7: at q2 = 0, g = -[-1 2] b = 0). Close to q2 = 0 (|sin q2| <
-    :data:`SINGULAR_BAND`) the quotient's jet is computed without cancellation: both Taylor
-    polynomials are deflated by their common root t* (where sin q2 = 0) and f_r = g~ / s~. The
-    remainder g(t*), i.e. the criterion's residual, is the singular part of the force; it is
-    left out here and reported by :func:`crossing_residual`.
+    crossing criterion (seed 4.7: at q2 = 0, g = -[-1 2] b = 0), and there the plain quotient
+    loses every digit. So at a sample where q2 crosses 0 nearby (cos q2 > 0, a simple real root t*
+    of sin q2's Taylor polynomial within :data:`SINGULAR_TIME`) *and* g(t*) vanishes there (within
+    :data:`CRITERION_TOLERANCE`), both Taylor polynomials are deflated by (t - t*) and
+    f_r = g~ / s~, without cancellation. Everywhere else, a grazing q2 = 0 and a crossing that
+    misses the criterion included, the plain quotient is used: the force there is really large.
 
     Args:
         motion: xi = [q1, q2] as a Jet of order K, shape (N, 2).
         generalized: b = M xi'' + c (point-mass drone), Jet of order >= ``order``, shape (N, 2).
         link_length: L [m].
-        order: derivative order of F wanted; samples in the band need K >= order + 4 (F, F', F''
-            need xi up to its 6th derivative there: with one order less, the truncated Taylor
-            polynomials leave errors of ~1e-3 N in F and ~10 rad/s^2 in the roll acceleration at
-            the band's edge; with these, ~1e-7 N and ~3e-3 rad/s^2, tested).
+        order: derivative order of F wanted. Deflation needs K >= order + 4 (F, F', F'' need xi up
+            to its 6th derivative: with one order less the truncated Taylor polynomials leave, at
+            3 ms from a crossing at 2.5 rad/s, ~1e-3 N in F and ~10 rad/s^2 in the roll
+            acceleration; tested); with less, the plain quotient is used.
 
     Returns:
         F, Jet of the given order, shape (N, 2) [N].
@@ -167,31 +178,33 @@ def prototype_thrust_vectors(motion: Jet, generalized: Jet, link_length: float, 
     f_p = b2.truncate(order) / link_length
     with np.errstate(divide="ignore", invalid="ignore"):
         plain = g.truncate(order) / sin2.truncate(order)
-    near = np.abs(np.real(sin2.value)) < SINGULAR_BAND
     d = np.array(plain.d)
-    if np.any(near):
-        if g.order < order + 2:
-            raise ValueError(
-                f"the motion passes within |sin q2| < {SINGULAR_BAND} of the Type-2 singularity at "
-                f"{int(near.sum())} sample(s): give xi with derivatives 0..{order + 4} (e.g. "
-                f"PiecewisePolynomial.evaluate(t, order={order + 4})) so that the link tension's limit "
-                "there is accurate")
+    near = (np.abs(np.real(sin2.value)) < SINGULAR_SCREEN) & (np.cos(np.real(xi.value[..., 1])) > 0)
+    if np.any(near) and g.order >= order + 2:
         k = min(g.order, sin2.order) + 1  # every Taylor coefficient available (more = more accurate)
-        d[:, near] = _deflated_quotient(g.d[:k, near], sin2.d[:k, near], order)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            quotient, root, remainder, size = _deflated_quotient(g.d[:k, near], sin2.d[:k, near], order)
+        use = (np.isfinite(np.real(root)) & (np.abs(np.real(root)) <= SINGULAR_TIME)
+               & (np.abs(np.real(remainder)) <= CRITERION_TOLERANCE * (1.0 + size)))
+        index = np.flatnonzero(near)[use]
+        d[:, index] = quotient[:, use]
     f_r = Jet(d) / link_length
     fy = f_r * c_e - f_p * s_e
     fz = f_r * s_e + f_p * c_e
     return jets.stack([fy, fz], axis=-1)
 
 
-def _deflated_quotient(num: np.ndarray, den: np.ndarray, order: int) -> np.ndarray:
-    """Derivatives 0..order of num/den at samples where both share a simple root t* near 0.
+def _deflated_quotient(num: np.ndarray, den: np.ndarray, order: int):
+    """Derivatives 0..order of num/den at samples where den has a simple root t* near 0.
 
     ``num``, ``den``: derivatives 0..k-1 (leading axis, k >= order + 2) of each function at the samples.
     Both Taylor polynomials are divided by (eps - eps*), eps* the root of den's polynomial found
-    by Newton's method, and the quotient's Taylor coefficients follow from the deflated ones. The
-    numerator's remainder num(t*) is dropped (the crossing criterion's residual). Analytic in the
-    inputs (complex-step safe).
+    by Newton's method from -den/den', and the quotient's Taylor coefficients follow from the
+    deflated ones. Analytic in the inputs (complex-step safe).
+
+    Returns:
+        (derivatives (order+1, N), eps* (N,) [s], the dropped remainder num(t*) (N,), the size of num's
+        Taylor coefficients (N,)), for the caller to accept the deflation or not.
     """
     k = num.shape[0]
     fact = np.cumprod(np.r_[1.0, np.arange(1, k)])[:, None]
@@ -208,14 +221,15 @@ def _deflated_quotient(num: np.ndarray, den: np.ndarray, order: int) -> np.ndarr
         q[k - 2] = p[k - 1]
         for j in range(k - 3, -1, -1):
             q[j] = p[j + 1] + root * q[j + 1]
-        return q
+        return q, p[0] + root * q[0]
 
-    at, ct = deflate(a), deflate(c)
+    (at, remainder), (ct, _) = deflate(a), deflate(c)
     f = []
     for j in range(order + 1):
         acc = at[j] - sum(f[i] * ct[j - i] for i in range(j))
         f.append(acc / ct[0])
-    return np.stack(f) * fact[:order + 1]
+    size = np.max(np.abs(np.real(a)), axis=0)
+    return np.stack(f) * fact[:order + 1], root, remainder, size
 
 
 def roll_torques(robot, q, v, thrust, roll_acceleration) -> np.ndarray:
@@ -258,13 +272,13 @@ def inverse_dynamics(robot, motion) -> MotionInputs:
         motion: s and its time derivatives 0..4, shape (5, N, n_s) (or (5, n_s) for one sample),
             e.g. from :meth:`planners.polynomial.PiecewisePolynomial.evaluate`. Rows 5 and 6 (the
             5th and 6th derivatives) are used, and needed, where the prototype comes within
-            :data:`SINGULAR_BAND` of its Type-2 singularity (the link tension's limit there).
+            :data:`SINGULAR_SCREEN` of its Type-2 singularity (the link tension's limit there).
 
     Returns:
         the :class:`MotionInputs` at the N samples.
     """
     m = _motion_array(robot, motion)
-    near = robot.name == "prototype" and np.any(np.abs(np.sin(np.real(m[0, :, 1]))) < SINGULAR_BAND)
+    near = robot.name == "prototype" and np.any(np.abs(np.sin(np.real(m[0, :, 1]))) < SINGULAR_SCREEN)
     s = Jet(m if near else m[:5])  # higher derivatives only where the tension's limit needs them
     force = thrust_vectors(robot, s, order=2)
     fy, fz = force[..., 0], force[..., 1]

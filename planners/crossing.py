@@ -249,14 +249,14 @@ class CrossingProblem:
         alpha, normalisation: the objective (3.26), as in :class:`planners.problem.MotionProblem`.
         samples_per_segment, windows_per_segment: the grid.
         min_crossing_speed: |q2'| at the crossing is kept above this [rad/s] (a simple crossing).
-        time_bounds: (least, largest) travel time [s].
+        time_bounds: (least, largest) travel time [s]; default (0.3 s, the two given times together).
         smooth_crossing: also keep the 5th derivative continuous at the crossing (rows
             ``crossing_c5``), so that the roll acceleration and the rotor speeds do not step there.
     """
 
     def __init__(self, robot, points, times, n_via, free, alpha: float, normalisation, *,
                  samples_per_segment: int = 17, windows_per_segment: int = 4, min_crossing_speed: float = 0.2,
-                 time_bounds: tuple[float, float] = (0.3, 8.0), smooth_crossing: bool = True):
+                 time_bounds: tuple[float, float] | None = None, smooth_crossing: bool = True):
         unknown = set(free) - set(GROUPS)
         if unknown:
             raise ValueError(f"free={sorted(free)}: unknown group(s) {sorted(unknown)}; use some of {GROUPS}")
@@ -272,6 +272,8 @@ class CrossingProblem:
         self.alpha, self.normalisation = float(alpha), tuple(normalisation)
         self.samples, self.windows = int(samples_per_segment), int(windows_per_segment)
         self.min_crossing_speed = float(min_crossing_speed)
+        if time_bounds is None:
+            time_bounds = (0.3, float(np.sum(self.times)))
         self.time_bounds = tuple(float(t) for t in time_bounds)
         self.smooth_crossing = bool(smooth_crossing)
         self.before = 1.0 if self.points[0, 0, 1] > 0 else -1.0  # sign of q2 before the crossing
