@@ -249,7 +249,7 @@ class CrossingProblem:
         alpha, normalisation: the objective (3.26), as in :class:`planners.problem.MotionProblem`.
         samples_per_segment, windows_per_segment: the grid.
         min_crossing_speed: |q2'| at the crossing is kept above this [rad/s] (a simple crossing).
-        time_bounds: (least, largest) travel time [s]; default (0.3 s, the two given times together).
+        time_bounds: (least, largest) travel time [s]; default (0.3 s, twice the two given times together).
         smooth_crossing: also keep the 5th derivative continuous at the crossing (rows
             ``crossing_c5``), so that the roll acceleration and the rotor speeds do not step there.
     """
@@ -273,7 +273,7 @@ class CrossingProblem:
         self.samples, self.windows = int(samples_per_segment), int(windows_per_segment)
         self.min_crossing_speed = float(min_crossing_speed)
         if time_bounds is None:
-            time_bounds = (0.3, float(np.sum(self.times)))
+            time_bounds = (0.3, 2.0 * float(np.sum(self.times)))
         self.time_bounds = tuple(float(t) for t in time_bounds)
         self.smooth_crossing = bool(smooth_crossing)
         self.before = 1.0 if self.points[0, 0, 1] > 0 else -1.0  # sign of q2 before the crossing
