@@ -407,7 +407,7 @@ class CrossingProblem:
         if "state" in self.free_groups:
             c = self.index
             rows = [position[int(np.ravel_multi_index((c, 2, j), shape))] for j in range(2)]
-            for col, (kind, target, scale) in enumerate(self.variables):
+            for col, (kind, target, _) in enumerate(self.variables):
                 if kind == "mu" or (kind == "entry" and target[0] == c and target[1] in (0, 1)):
                     h = 1e-30
                     xc = x.astype(complex)
