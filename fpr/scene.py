@@ -384,9 +384,7 @@ def _planned_motion(robot, plan, times: np.ndarray) -> _Motion:
     """The plan at ``times``, at rest on its last point after its end: full q and thrusts."""
     from fpr.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 
-    total = plan.trajectory.total_duration
-    motion = plan.trajectory.evaluate(np.minimum(times, total), order=MOTION_ORDER)  # 6: singularity crossing
-    motion[1:, times > total] = 0.0
+    motion = plan.trajectory.evaluate_held(times, order=MOTION_ORDER)  # 6: singularity crossing
     inputs = inverse_dynamics(robot, motion)
     return _Motion(inputs.full_state(robot)[0], inputs.thrust)
 

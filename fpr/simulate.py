@@ -194,8 +194,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
     trajectory = result.trajectory
     total = trajectory.total_duration + st.hold
     ticks = np.arange(int(np.floor(total / tick + 1e-9)) + 1) * tick
-    motion = trajectory.evaluate(np.minimum(ticks, trajectory.total_duration), order=MOTION_ORDER)
-    motion[1:, ticks > trajectory.total_duration] = 0.0  # at rest after the end
+    motion = trajectory.evaluate_held(ticks, order=MOTION_ORDER)  # at rest after the end
     planned = inverse_dynamics(robot, motion)
     q_plan = planned.full_state(robot)[0]
 

@@ -55,7 +55,7 @@ import numpy as np
 
 from fpr.jets import Jet
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
-from planners.problem import CONSTRAINT_BACKOFF, Evaluation, MotionProblem
+from planners.problem import CONSTRAINT_BACKOFF, Evaluation, MotionProblem, entry_scales, point_time_scales
 
 #: Null vector of J_pr at q2 = 0 (any q1): J_pr n = 0 (seed 4.3; DESIGN.md).
 NULL_VECTOR = np.array([-1.0, 2.0])
@@ -194,17 +194,10 @@ def crossing_motion(start, end, crossing_point, times) -> PiecewisePolynomial:
 
 def add_via_points(trajectory: PiecewisePolynomial, n_via) -> PiecewisePolynomial:
     """The same motion (two travels) with n_via evenly spaced via points inserted in each travel."""
-    times = trajectory.durations
-    points = [trajectory.points[0]]
-    start = 0.0
-    for travel in range(2):
-        count = int(n_via[travel])
-        t = start + times[travel] * np.arange(1, count + 1) / (count + 1)
-        if count:
-            points += list(np.moveaxis(trajectory.evaluate(t, order=4), 1, 0))
-        points.append(trajectory.points[travel + 1])
-        start += times[travel]
-    return PiecewisePolynomial(np.array(points), segment_durations(times, n_via))
+    from planners.optimize import _with_via_points
+
+    points, durations, _ = _with_via_points(trajectory, trajectory.durations, n_via)
+    return PiecewisePolynomial(points, durations)
 
 
 def jump_weights(durations, index: int) -> np.ndarray:
@@ -287,11 +280,7 @@ class CrossingProblem:
             self.points[c, 2] = acc
         # decision variables: (kind, target, scale)
         durations = segment_durations(self.times, self.n_via)
-        t_point = np.empty(len(self.points))
-        t_point[0], t_point[-1] = durations[0], durations[-1]
-        t_point[1:-1] = 0.5 * (durations[:-1] + durations[1:])
-        factorial = np.cumprod(np.maximum(np.arange(N_DERIVS), 1))
-        entry_scale = factorial[None, :] * t_point[:, None] ** -np.arange(N_DERIVS)[None, :]
+        entry_scale = entry_scales(durations)
         var: list[tuple[str, tuple, float]] = []
         if "state" in self.free_groups:
             var.append(("entry", (c, 0, 0), 1.0))
@@ -318,7 +307,7 @@ class CrossingProblem:
             mask[c, 2] = True
         self.mask = mask
         # the 5th-derivative jump at the crossing in Taylor units of the local time scale, T^5 / 5!
-        self._jump_scale = t_point[c] ** 5 / 120.0
+        self._jump_scale = point_time_scales(durations)[c] ** 5 / 120.0
         self._cache: tuple[bytes, bool, Evaluation] | None = None
 
     # ------------------------------------------------------------------ x <-> motion

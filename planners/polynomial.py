@@ -289,6 +289,14 @@ class PiecewisePolynomial:
         """
         return _evaluate(self.knots, self.durations, self._coef, t, order)
 
+    def evaluate_held(self, t, order: int = 4) -> np.ndarray:
+        """:meth:`evaluate`, extended past the end: the motion rests at its last point there (its
+        derivatives 1..order are 0). For tracking and animation beyond the plan; shape (order+1, N, n)."""
+        t = np.asarray(t, dtype=float)
+        values = self.evaluate(np.minimum(t, self.total_duration), order)
+        values[1:, t > self.total_duration] = 0.0
+        return values
+
     def basis(self, t, order: int = 4) -> tuple[np.ndarray, np.ndarray]:
         """Exact point weights: (w (order+1, len(t), 2, 5), segment (len(t),) int).
 

@@ -149,7 +149,7 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
             details += [f"rotor {m + 1}"] * 2
         if min_thrust is not None:
             margin = inputs.thrust[:, i] - min_thrust
-            cols.append(margin / (robot.drone_mass * 9.81) if scaled else margin)
+            cols.append(margin / (robot.drone_mass * robot.planar("point").gravity) if scaled else margin)
             names.append(f"thrust_low_{i + 1}")
             details.append("")
     return np.stack(cols, axis=-1), names, details
@@ -171,6 +171,23 @@ def objective_rates(inputs: MotionInputs, smoothing: float = 0.0) -> np.ndarray:
     """
     power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)  # (N, n_d)
     return _integrands(power, inputs.roll_rate, smoothing)
+
+
+def point_time_scales(durations) -> np.ndarray:
+    """T_p of every point (m+1,): the mean duration of the segments that meet at it [s]."""
+    d = np.asarray(durations, dtype=float)
+    t_point = np.empty(d.size + 1)
+    t_point[0], t_point[-1] = d[0], d[-1]
+    t_point[1:-1] = 0.5 * (d[:-1] + d[1:])
+    return t_point
+
+
+def entry_scales(durations) -> np.ndarray:
+    """k! / T_p^k for derivative order k of point p, shape (m+1, 5): one unit of a decision variable
+    is one Taylor coefficient of s in units of the local time scale T_p (:func:`point_time_scales`)."""
+    orders = np.arange(N_DERIVS)
+    factorial = np.cumprod(np.maximum(orders, 1))  # k!
+    return factorial * point_time_scales(durations)[:, None] ** -orders
 
 
 def simpson_weights(count: int, duration: float) -> np.ndarray:
@@ -272,12 +289,7 @@ class MotionProblem:
         bounds = np.linspace(0, k - 1, int(windows_per_segment) + 1).round().astype(int)
         self.windows = [(i * k + a, i * k + b + 1) for i in range(m) for a, b in zip(bounds[:-1], bounds[1:])]
         # variable scaling by the local time scale
-        t_point = np.empty(m + 1)
-        t_point[0], t_point[-1] = self.durations[0], self.durations[-1]
-        t_point[1:-1] = 0.5 * (self.durations[:-1] + self.durations[1:])
-        orders = np.arange(N_DERIVS)
-        factorial = np.cumprod(np.maximum(orders, 1))  # k!
-        scale = (factorial * t_point[:, None] ** -orders)[:, :, None] * np.ones((1, 1, n))
+        scale = entry_scales(self.durations)[:, :, None] * np.ones((1, 1, n))
         self.scale = scale[self.free]
         self.n_x = int(self.free.sum())
         self._cache: tuple[bytes, bool, Evaluation] | None = None
