@@ -63,9 +63,10 @@ NULL_VECTOR = np.array([-1.0, 2.0])
 #: Least thrust of a crossing, as a fraction of the drone's weight. The controller steers the thrust's
 #: direction (the roll); at a small thrust a small force error turns it far, and with the drone's
 #: joint d below its centre of mass the roll error feeds back into the chain. Measured with the
-#: built-in mission (fpr.simulate, default controller): a plan whose thrust dropped to 1.9 N, and
-#: one with this bound at 0.5 (thrust >= 4.9 N), both lost the drone shortly before the crossing;
-#: at 0.8 the closed loop tracks through it (tests/test_crossing.py).
+#: built-in mission (fpr.simulate, default controller): planned C4 only at the crossing, with this
+#: bound at 0 (least thrust 1.9 N) or 0.5 (4.9 N), the closed loop lost the drone shortly before
+#: the crossing; planned C5 there (the default), it tracks at 0 and 0.5 but the allocation saturates
+#: (34 and 242 ticks); at 0.8 it saturates on none (tests/test_crossing.py).
 MIN_THRUST_FRACTION = 0.8
 
 #: The successive first guesses of :func:`optimise_crossing`: (drone polar angle at the crossing
