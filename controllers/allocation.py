@@ -85,7 +85,7 @@ def allocation_qp(attitude, s_f, s_tau, thrust_desired, attitude_desired, attitu
     """H and g of the allocation QP (module docstring) for one state.
 
     Args:
-        attitude: the :class:`fpr.robots.AttitudeModel` at the measured state.
+        attitude: the :class:`fpr.model.robot.AttitudeModel` at the measured state.
         s_f, s_tau: :func:`selectors`.
         thrust_desired: f_d, shape (n_d,) [N].
         attitude_desired: u_a, shape (n_a,) [rad/s^2].

@@ -174,7 +174,7 @@ class CascadedController:
 
     def _lateral_sensitivity(self) -> float:
         """d x'' / d theta at the hover pose s0 with hover thrusts (FPR)."""
-        from fpr.inverse_dynamics import inverse_dynamics
+        from fpr.model.inverse_dynamics import inverse_dynamics
 
         r = self.robot
         s0 = np.array([0.0, 0.0, 5 * np.pi / 4, np.pi / 2])

@@ -18,13 +18,13 @@ import os as _os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     _os.environ.setdefault(_var, "1")
 
-from fpr.errors import FprError, ShapeError, SingularityError, UnknownRobotError, WorkspaceError  # noqa: E402
+from fpr.model.errors import FprError, ShapeError, SingularityError, UnknownRobotError, WorkspaceError  # noqa: E402
 
 
 def __getattr__(name):
-    # Pinocchio is imported on first use, so that ``python -m fpr.description`` stays light.
+    # Pinocchio is imported on first use, so that ``python -m fpr.model.description`` stays light.
     if name in ("ROBOTS", "Robot", "load"):
-        from fpr import robots
+        from fpr.model import robot as robots
 
         return getattr(robots, name)
     raise AttributeError(f"module 'fpr' has no attribute {name!r}")

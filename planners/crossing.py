@@ -9,7 +9,7 @@ No drone force acts along it, so a motion can only pass q2 = 0 with a finite for
 
 the *crossing criterion*. It is one linear equation in xi_s''. The force is then finite: across
 the second link it is regular everywhere, along it (the link's tension) it is the 0/0 limit that
-:func:`fpr.inverse_dynamics.prototype_thrust_vectors` computes exactly.
+:func:`fpr.model.inverse_dynamics.prototype_thrust_vectors` computes exactly.
 
 Motions here are two travels of 9th-degree segments, start -> crossing -> end, meeting at the
 crossing point Xi_s = [xi_s, xi_s', xi_s'', xi_s''', xi_s''''] with xi_s = [q1_s, 0]; each travel
@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fpr.jets import Jet
+from fpr.model.jets import Jet
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
 from planners.problem import CONSTRAINT_BACKOFF, Evaluation, MotionProblem, entry_scales, point_time_scales
 
@@ -63,7 +63,7 @@ NULL_VECTOR = np.array([-1.0, 2.0])
 #: Least thrust of a crossing, as a fraction of the drone's weight. The controller steers the thrust's
 #: direction (the roll); at a small thrust a small force error turns it far, and with the drone's
 #: joint d below its centre of mass the roll error feeds back into the chain. Measured with the
-#: built-in mission (fpr.simulate, default controller): planned C4 only at the crossing, with this
+#: built-in mission (fpr.sim.closed_loop, default controller): planned C4 only at the crossing, with this
 #: bound at 0 (least thrust 1.9 N) or 0.5 (4.9 N), the closed loop lost the drone shortly before
 #: the crossing; planned C5 there (the default), it tracks at 0 and 0.5 but the allocation saturates
 #: (34 and 242 ticks); at 0.8 it saturates on none (tests/test_crossing.py).
@@ -457,7 +457,7 @@ def designed_motion(start, end, duration: float, crossing_angle: float, t) -> np
     Returns:
         shape (7, N, 2): xi and its derivatives 1..6.
     """
-    from fpr import jets
+    from fpr.model import jets
 
     start, end = np.asarray(start, float), np.asarray(end, float)
     x = Jet.variable(np.atleast_1d(np.asarray(t, float)), 6) / duration

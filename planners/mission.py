@@ -3,10 +3,10 @@
 A :class:`Mission` says *where* the robot must pass (way points, seed 3.2.1), *when* (the travel
 time of each way-to-way travel), how many free via points the optimiser may place inside each
 travel (n_vp, seed 3.2.4) and how it weighs energy against drone perturbation (alpha, seed 3.25).
-It is validated when it is built: every error is a :class:`fpr.errors.MissionError` naming the
+It is validated when it is built: every error is a :class:`fpr.model.errors.MissionError` naming the
 offending field as it is written in the file (``times[2]``, ``way_points[1]``...). Whether the way
 points are reachable is a property of the robot as well; :meth:`Mission.positions` checks it and
-raises :class:`fpr.errors.WorkspaceError` / :class:`fpr.errors.SingularityError`.
+raises :class:`fpr.model.errors.WorkspaceError` / :class:`fpr.model.errors.SingularityError`.
 
 Missions are written in TOML files; the built-in ones (:data:`BUILTIN_MISSIONS`) live in
 ``planners/missions/`` and are meant to be copied and edited. Load one with :func:`load_mission`
@@ -102,9 +102,9 @@ from typing import Any
 
 import numpy as np
 
-from fpr import description
-from fpr.errors import MissionError, SingularityError, WorkspaceError
-from fpr.kinematics import (
+from fpr.model import description
+from fpr.model.errors import MissionError, SingularityError, WorkspaceError
+from fpr.model.kinematics import (
     check_margins,
     fpr_workspace_margins,
     prototype_inverse_kinematics,
@@ -119,7 +119,7 @@ else:  # Python 3.10: tomllib joined the standard library in 3.11; "tomli" is th
 
 logger = logging.getLogger(__name__)
 
-ROBOTS = description.ROBOTS  # the same tuple as fpr.robots.ROBOTS, without importing Pinocchio
+ROBOTS = description.ROBOTS  # the same tuple as fpr.model.robot.ROBOTS, without importing Pinocchio
 SPACES = ("task", "joint")
 ARMS = ("down", "up")
 BUILTIN_MISSIONS = ("square", "study", "prototype-tour", "cross-singularity")
@@ -399,13 +399,13 @@ class Mission:
         return float(np.sum(self.times))
 
     def load_robot(self):
-        """The robot to plan for: ``fpr.load(robot, **robot_parameters)`` (a :class:`fpr.robots.Robot`).
+        """The robot to plan for: ``fpr.load(robot, **robot_parameters)`` (a :class:`fpr.model.robot.Robot`).
 
         Raises:
             MissionError: a robot parameter that the description does not accept
                 (field ``robot_parameters.<key>``).
         """
-        from fpr import robots  # Pinocchio is imported on first use only
+        from fpr.model import robot as robots  # Pinocchio is imported on first use only
 
         try:
             return robots.load(self.robot, **self.robot_parameters)
@@ -420,7 +420,7 @@ class Mission:
         """The way points in planning coordinates, each checked against the workspace margins.
 
         Args:
-            robot: the :class:`fpr.robots.Robot` to plan for (only ``name``, ``link_length`` and
+            robot: the :class:`fpr.model.robot.Robot` to plan for (only ``name``, ``link_length`` and
                 ``margins`` are used); default :meth:`load_robot`.
 
         Returns:

@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize
 
-from fpr.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
-from fpr.kinematics import singularity_margin
+from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
+from fpr.model.kinematics import singularity_margin
 from planners.polynomial import PiecewisePolynomial, stop_points
 from planners.sqp import SqpOptions, solve_sqp
 from planners.problem import (
@@ -80,7 +80,7 @@ class MotionReport:
     Attributes:
         t: sample times (N,) [s].
         motion: s and derivatives 0..4, (5, N, n_s).
-        inputs: thrusts, rolls, torques, rotor speeds (:class:`fpr.inverse_dynamics.MotionInputs`).
+        inputs: thrusts, rolls, torques, rotor speeds (:class:`fpr.model.inverse_dynamics.MotionInputs`).
         J_e: energy index (3.24, exact |.|) [J].
         J_phi: perturbation index (3.25) [rad^2/s].
         constraints: name -> :class:`ConstraintReport`.
@@ -183,7 +183,7 @@ class StageReport:
 
 @dataclass(frozen=True)
 class SampledPlan:
-    """A motion sampled for plots and files (the attributes :mod:`fpr.figures` reads)."""
+    """A motion sampled for plots and files (the attributes :mod:`fpr.views.figures` reads)."""
 
     label: str
     t: np.ndarray

@@ -11,7 +11,7 @@ everything the planner looks at is a function of the motion at that instant only
   singularity bounds (3.27-3.29; prototype 3.40-3.46), drone roll |phi_i| <= pi/2 - m_ga (3.33,
   3.45) and rotor speeds 0 <= w <= w_max - m_gr (3.48, applied to the FPR too).
 
-The per-sample quantities come from :func:`fpr.inverse_dynamics.inverse_dynamics` (planning model:
+The per-sample quantities come from :func:`fpr.model.inverse_dynamics.inverse_dynamics` (planning model:
 point-mass drones for the thrusts and rolls, the exact rigid drones for the torques). Their
 partial derivatives with respect to the 5 n entries of the local motion jet are computed by
 *complex-step differentiation*: every function on that path is analytic and written to carry a
@@ -37,8 +37,8 @@ from itertools import product
 
 import numpy as np
 
-from fpr.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
-from fpr.kinematics import fpr_workspace_margins, prototype_workspace_margins
+from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
+from fpr.model.kinematics import fpr_workspace_margins, prototype_workspace_margins
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
 
 COMPLEX_STEP = 1e-30
@@ -115,7 +115,7 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
     Args:
         robot: the robot.
         motion: s and its derivatives, shape (5, N, n_s) (complex allowed).
-        inputs: :func:`~fpr.inverse_dynamics.inverse_dynamics` of ``motion``.
+        inputs: :func:`~fpr.model.inverse_dynamics.inverse_dynamics` of ``motion``.
         scaled: False gives natural units (m, rad, rad/s; rotor margins on the signed speed).
             True gives the smooth, O(1) rows the optimiser uses: rotor margins on w^2 / w_lim^2
             and 1 - w^2 / w_lim^2 (w^2 is smooth where the signed speed is not).
@@ -244,7 +244,7 @@ class MotionProblem:
         windows_per_segment: constraint windows per segment (min over each window's nodes).
         crossing: index of the point where the prototype crosses its Type-2 singularity (q2 = 0
             there, :mod:`planners.crossing`), or None. The motion is then evaluated with derivatives
-            0..6 (:data:`fpr.inverse_dynamics.MOTION_ORDER`) and the assembly-mode bounds become the
+            0..6 (:data:`fpr.model.inverse_dynamics.MOTION_ORDER`) and the assembly-mode bounds become the
             crossing's side constraints.
         min_thrust: a lower bound f_min [N] on every drone's thrust (``thrust_low``), or None.
     """

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import fpr
-from fpr.plan import csv_columns, main
+from fpr.cli.plan import csv_columns, main
 from planners.mission import builtin_mission_text
 
 ROOT = Path(__file__).resolve().parents[1]

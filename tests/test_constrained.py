@@ -6,7 +6,7 @@ import pytest
 
 import fpr
 from helpers import random_state
-from fpr.constrained import build_closed_chain
+from fpr.model.constrained import build_closed_chain
 
 SEED = 11
 

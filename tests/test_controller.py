@@ -8,7 +8,7 @@ import pytest
 import fpr
 from controllers.allocation import Allocator, allocation_qp, pseudo_inverse_law, selectors
 from controllers.ctc import CascadedController, Reference
-from fpr.inverse_dynamics import inverse_dynamics
+from fpr.model.inverse_dynamics import inverse_dynamics
 
 POSES = {"fpr": np.array([0.0, 0.0, 5 * np.pi / 4, np.pi / 2]), "prototype": np.array([-0.84, 1.68])}
 

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 import fpr
-import fpr.inverse_dynamics as idyn
-from fpr import jets
-from fpr.errors import MissionError
-from fpr.jets import Jet
-from fpr.kinematics import prototype_workspace_margins
+import fpr.model.inverse_dynamics as idyn
+from fpr.model import jets
+from fpr.model.errors import MissionError
+from fpr.model.jets import Jet
+from fpr.model.kinematics import prototype_workspace_margins
 from planners import crossing
 from planners.mission import load_mission, mission_from_dict, mission_from_toml
 from planners.polynomial import PiecewisePolynomial
@@ -340,7 +340,7 @@ def test_controller_force_near_the_singularity(crossing_plan, proto):
 
 @pytest.fixture(scope="module")
 def crossing_simulation(crossing_plan):
-    from fpr.simulate import simulate
+    from fpr.sim.closed_loop import simulate
 
     return simulate(crossing_plan)
 
@@ -358,7 +358,7 @@ def test_the_simulated_crossing_ends_in_the_other_assembly_mode(crossing_simulat
 
 
 def test_crossing_comparison_figure(proto, seed_outcomes, crossing_plan, tmp_path):
-    from fpr.figures import _crossing_comparison, crossing_comparison_figure
+    from fpr.views.figures import _crossing_comparison, crossing_comparison_figure
 
     outcomes = [seed_outcomes[1], seed_outcomes[2], crossing_plan.crossing]
     fig = _crossing_comparison(proto, outcomes, 200.0)

@@ -1,4 +1,4 @@
-"""Tests of the robot descriptions (urdf/*.xacro, the generated urdf/*.urdf, fpr.description)."""
+"""Tests of the robot descriptions (urdf/*.xacro, the generated urdf/*.urdf, fpr.model.description)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 import yaml
 import yourdfpy
 
-from fpr import description
+from fpr.model import description
 
 PARAMS = yaml.safe_load((description.URDF_DIR / "parameters.yaml").read_text(encoding="utf-8"))
 DRONES = {"fpr": ("drone_1", "drone_2"), "prototype": ("drone_1",)}
@@ -44,7 +44,7 @@ for _robot, _joints in JOINTS.items():
 
 
 def _package_handler(fname: str) -> str:
-    """Resolve package:// URIs for yourdfpy with fpr.description.mesh_package_dirs()."""
+    """Resolve package:// URIs for yourdfpy with fpr.model.description.mesh_package_dirs()."""
     prefix = "package://"
     if fname.startswith(prefix):
         for folder in description.mesh_package_dirs():
@@ -84,7 +84,7 @@ def test_committed_urdf_matches_xacro(robot, tmp_path, monkeypatch):
     # from another working directory: relative paths in the xacro files must not depend on it
     monkeypatch.chdir(tmp_path)
     assert description.generate_urdf(robot) == description.urdf_path(robot).read_text(encoding="utf-8"), (
-        f"urdf/{description.urdf_path(robot).name} is stale: run python -m fpr.description"
+        f"urdf/{description.urdf_path(robot).name} is stale: run python -m fpr.model.description"
     )
 
 

@@ -1,4 +1,4 @@
-"""Tests of fpr.figures: the PNG files, what the figures draw, and the input checks."""
+"""Tests of fpr.views.figures: the PNG files, what the figures draw, and the input checks."""
 
 import os
 import subprocess
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import fpr
-from fpr import figures
-from fpr.inverse_dynamics import inverse_dynamics
-from fpr.kinematics import prototype_joints
+from fpr.views import figures
+from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.model.kinematics import prototype_joints
 from planners.optimize import SampledPlan
 from planners.polynomial import PiecewisePolynomial, stop_points
 
@@ -328,8 +328,8 @@ def test_study_figures_want_a_png_name(tmp_path):
 def test_matplotlib_is_lazy_and_pyplot_untouched(tmp_path):
     code = (
         "import sys\n"
-        "import fpr.figures as f\n"
-        "assert 'matplotlib' not in sys.modules, 'matplotlib imported with fpr.figures'\n"
+        "import fpr.views.figures as f\n"
+        "assert 'matplotlib' not in sys.modules, 'matplotlib imported with fpr.views.figures'\n"
         "import matplotlib\n"
         "def rc():  # raw values: reading rcParams['backend'] would resolve (and import) a backend\n"
         "    return dict(dict.items(matplotlib.rcParams))\n"
@@ -368,9 +368,9 @@ def test_rotor_forces_figure_draws_c_t_w_squared_against_the_limits(case, reques
 def _log(robot, sampled, offset: float = 0.0):
     """A SimulationLog that tracks ``sampled``, with ``offset`` sin(t) on the first planning coordinate.
 
-    The out-of-plane coordinates get the same offset. Stands in for fpr.simulate.simulate (seconds).
+    The out-of-plane coordinates get the same offset. Stands in for fpr.sim.closed_loop.simulate (seconds).
     """
-    from fpr.simulate import SimulationLog
+    from fpr.sim.closed_loop import SimulationLog
 
     inputs = sampled.inputs
     q, v, _ = inputs.full_state(robot)

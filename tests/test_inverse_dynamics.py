@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 import fpr
-from fpr.inverse_dynamics import inverse_dynamics, thrust_vectors
-from fpr.jets import Jet
-from fpr.kinematics import prototype_jacobian
-from fpr.parameters import load_parameters
+from fpr.model.inverse_dynamics import inverse_dynamics, thrust_vectors
+from fpr.model.jets import Jet
+from fpr.model.kinematics import prototype_jacobian
+from fpr.model.parameters import load_parameters
 
 SEED = 7
 

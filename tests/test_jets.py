@@ -1,4 +1,4 @@
-"""Tests for fpr.jets.
+"""Tests for fpr.model.jets.
 
 Inputs are random polynomials of time (seeded), whose derivatives are known exactly. Every
 derivative of a composed result is checked against
@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from numpy.polynomial import polynomial as P
 
-from fpr.jets import (Jet, atan2, concatenate, cos, dot, exp, hypot, log, matmul, matvec,
+from fpr.model.jets import (Jet, atan2, concatenate, cos, dot, exp, hypot, log, matmul, matvec,
                       norm, sin, sincos, solve, sqrt, square, stack)
 
 K = 4

@@ -7,8 +7,8 @@ singular set) at 1e-9; central finite differences (h = 1e-6) at 1e-8.
 import numpy as np
 import pytest
 
-from fpr.errors import SingularityError, WorkspaceError
-from fpr.kinematics import (
+from fpr.model.errors import SingularityError, WorkspaceError
+from fpr.model.kinematics import (
     check_margins,
     fpr_chain_jacobian,
     fpr_direct_kinematics,
@@ -21,7 +21,7 @@ from fpr.kinematics import (
     prototype_workspace_margins,
     singularity_margin,
 )
-from fpr.parameters import load_parameters, margins
+from fpr.model.parameters import load_parameters, margins
 
 SEED = 20240611
 L = float(load_parameters()["link_length"])

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import fpr
-from fpr.errors import MissionError, SingularityError, WorkspaceError
-from fpr.kinematics import fpr_workspace_margins, prototype_joints, prototype_workspace_margins
+from fpr.model.errors import MissionError, SingularityError, WorkspaceError
+from fpr.model.kinematics import fpr_workspace_margins, prototype_joints, prototype_workspace_margins
 from planners import mission as mission_module
 from planners.mission import (
     BUILTIN_MISSIONS,

@@ -41,7 +41,7 @@ assert abs(hover.thrust_vector[0, :, 1].sum() - robot.total_mass * 9.81) < 1e-9
 assert np.allclose(prototype_inverse_kinematics(drone_joint, L, "up"), [0.9470, -1.8940], atol=1e-4)
 """),
     "02_square_mission": Expected(images=15, html=1, checks="""
-from fpr.figures import FIGURE_SET
+from fpr.views.figures import FIGURE_SET
 assert result.feasible and reference.feasible and result.J < 0.9 and reference.J == 1.0
 assert max(summary["tracking_max"].values()) < 0.01 and summary["saturated_ticks"] == 0
 assert tuple(paths) == FIGURE_SET and all(p.is_file() and p.stat().st_size > 0 for p in paths.values())

@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fpr.inverse_dynamics import inverse_dynamics
-from fpr.kinematics import fpr_workspace_margins, prototype_workspace_margins
+from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.model.kinematics import fpr_workspace_margins, prototype_workspace_margins
 from planners.mission import load_mission, mission_from_dict
 from planners.optimize import _with_via_points, evaluate_motion, plan
 from planners.polynomial import PiecewisePolynomial, stop_points

@@ -5,7 +5,7 @@ import pytest
 
 import fpr
 from helpers import random_state
-from fpr.plant import (REFERENCE_CHAIN, Plant, PlantDivergedError, hover_configuration, hover_speeds,
+from fpr.sim.plant import (REFERENCE_CHAIN, Plant, PlantDivergedError, hover_configuration, hover_speeds,
                        plant_step_time)
 
 SEED = 23

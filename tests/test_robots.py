@@ -6,7 +6,7 @@ import pytest
 
 import fpr
 from helpers import random_state
-from fpr.errors import ShapeError, UnknownRobotError
+from fpr.model.errors import ShapeError, UnknownRobotError
 
 RNG_SEED = 20261122
 FD_STEP = 1e-6

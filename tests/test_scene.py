@@ -1,4 +1,4 @@
-"""Tests of fpr.scene: what the meshcat scene holds, where it puts the bodies, and how a browser shows it.
+"""Tests of fpr.views.scene: what the meshcat scene holds, where it puts the bodies, and how a browser shows it.
 
 The unit tests read the recorded meshcat commands (SceneView.object / transform / track) and compare
 them with the robot's kinematics (Robot.drone_positions, hinge_positions, frame_placements) and the
@@ -23,12 +23,12 @@ import numpy as np
 import pytest
 
 import fpr
-import fpr.plan
-from fpr import scene as scene_module
-from fpr.errors import FprError, SceneError, ShapeError
-from fpr.inverse_dynamics import MOTION_ORDER, inverse_dynamics
-from fpr.scene import THRUST_SCALE, SceneView, view, write_scene
-from fpr.simulate import SimulationLog
+import fpr.cli.plan
+from fpr.views import scene as scene_module
+from fpr.model.errors import FprError, SceneError, ShapeError
+from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
+from fpr.views.scene import THRUST_SCALE, SceneView, view, write_scene
+from fpr.sim.closed_loop import SimulationLog
 from planners.mission import load_mission
 from planners.optimize import plan
 from planners.polynomial import PiecewisePolynomial
@@ -328,16 +328,16 @@ def test_cli_writes_the_scene_and_serves_it(tmp_path, monkeypatch, capsys):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(SceneView, "serve", fake_serve)
-    monkeypatch.setattr(fpr.plan.time, "sleep", interrupt)
+    monkeypatch.setattr(fpr.cli.plan.time, "sleep", interrupt)
     out = tmp_path / "served"
-    code = fpr.plan.main(["--method", "none", "--rate", "20", "--no-plots", "--quiet",
+    code = fpr.cli.plan.main(["--method", "none", "--rate", "20", "--no-plots", "--quiet",
                           "--serve", "--out", str(out)])
     assert code == 0 and len(served) == 1 and served[0].duration == pytest.approx(12.0)
     assert "meshcat: open http://127.0.0.1:7000/static/" in capsys.readouterr().out
     assert "MeshCat.Viewer" in (out / "scene.html").read_text(encoding="utf-8")
 
     out = tmp_path / "written"
-    code = fpr.plan.main(["--method", "none", "--rate", "20", "--no-plots", "--quiet",
+    code = fpr.cli.plan.main(["--method", "none", "--rate", "20", "--no-plots", "--quiet",
                           "--meshcat", "--out", str(out)])
     assert code == 0 and (out / "scene.html").is_file() and len(served) == 1
 

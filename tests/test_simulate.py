@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fpr.simulate import SimulationLog, SimulationSettings, simulate
+from fpr.sim.closed_loop import SimulationLog, SimulationSettings, simulate
 from planners.mission import load_mission
 from planners.optimize import plan
 

@@ -1,4 +1,4 @@
-"""The thesis' studies (planners.studies): reference ratios, the trends the maths guarantees, tables, files.
+"""The thesis' studies (fpr.cli.studies): reference ratios, the trends the maths guarantees, tables, files.
 
 Small settings (n_vp in {0, 1}, alpha in {0, 1}) on the single-travel ``study`` mission.
 
@@ -23,9 +23,9 @@ import math
 import numpy as np
 import pytest
 
-from planners import studies
+from fpr.cli import studies
 from planners.mission import load_mission
-from planners.studies import (
+from fpr.cli.studies import (
     AlphaStudy,
     Case,
     ViaPointStudy,

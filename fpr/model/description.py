@@ -9,7 +9,7 @@ xacro runs without ROS, through xacrodoc. Mesh URIs stay ``package://example-rob
 the generated text, so that the committed URDFs do not depend on the machine; give
 :func:`mesh_package_dirs` to Pinocchio (``package_dirs``) or yourdfpy to resolve them.
 
-Regenerate the committed files with ``python -m fpr.description`` (``--check`` only compares).
+Regenerate the committed files with ``python -m fpr.model.description`` (``--check`` only compares).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 from xml.dom import minidom
 
-from fpr.errors import UnknownRobotError
+from fpr.model.errors import UnknownRobotError
 
 logger = logging.getLogger(__name__)
 
@@ -37,7 +37,7 @@ _MESH_PACKAGE = "example-robot-data"
 
 def _find_urdf_dir() -> Path:
     """Return the ``urdf/`` folder: beside the ``fpr`` package, else the installed ``urdf`` package."""
-    here = Path(__file__).resolve().parents[1] / "urdf"
+    here = Path(__file__).resolve().parents[2] / "urdf"
     if here.is_dir():
         return here
     try:
@@ -161,7 +161,7 @@ def generate_urdf(robot: str, **xacro_args) -> str:
         resolve_packages=False,  # keep package:// URIs: the committed files are machine independent
     )
 
-    banner = f" Generated from urdf/{path.name} and urdf/parameters.yaml by `python -m fpr.description`"
+    banner = f" Generated from urdf/{path.name} and urdf/parameters.yaml by `python -m fpr.model.description`"
     if subargs:
         banner += " with " + " ".join(f"{k}:={v}" for k, v in sorted(subargs.items()))
     banner += ". Do not edit by hand. "
@@ -247,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
         The exit status: 0, or 1 if ``--check`` found a stale file.
     """
     parser = argparse.ArgumentParser(
-        prog="python -m fpr.description",
+        prog="python -m fpr.model.description",
         description="Regenerate urdf/fpr.urdf and urdf/prototype.urdf from their xacro sources.",
     )
     parser.add_argument(
@@ -266,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
             if current == text:
                 print(f"{path}: up to date")
             else:
-                print(f"{path}: differs from its xacro sources (run python -m fpr.description)")
+                print(f"{path}: differs from its xacro sources (run python -m fpr.model.description)")
                 status = 1
         else:
             path.write_text(text, encoding="utf-8")

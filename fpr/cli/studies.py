@@ -484,16 +484,16 @@ def write_study_figures(out_dir: str | Path, via: ViaPointStudy | None = None,
                         rate: float = 200.0) -> list[Path]:
     """Write the studies' figures into ``out_dir`` (created if needed).
 
-    * ``via_points.png``: Fig. 3.7-3.8 (:func:`fpr.figures.via_point_study_figure`);
-    * ``alpha.png``: Fig. 3.9-3.10 (:func:`fpr.figures.alpha_study_figure`);
+    * ``via_points.png``: Fig. 3.7-3.8 (:func:`fpr.views.figures.via_point_study_figure`);
+    * ``alpha.png``: Fig. 3.9-3.10 (:func:`fpr.views.figures.alpha_study_figure`);
     * ``<mission>-<method>/*.png``: for each optimised method of ``comparison``, the figures of
-      :func:`fpr.figures.plan_figures` (Fig. 3.11-3.18) against the stop-at-way-points motion
+      :func:`fpr.views.figures.plan_figures` (Fig. 3.11-3.18) against the stop-at-way-points motion
       (when ``"none"`` is among its methods).
 
     Returns:
         the paths of the written PNG files.
     """
-    from fpr.figures import alpha_study_figure, plan_figures, via_point_study_figure
+    from fpr.views.figures import alpha_study_figure, plan_figures, via_point_study_figure
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

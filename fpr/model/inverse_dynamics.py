@@ -29,9 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fpr import jets
-from fpr.errors import ShapeError
-from fpr.jets import Jet
+from fpr.model import jets
+from fpr.model.errors import ShapeError
+from fpr.model.jets import Jet
 
 
 @dataclass(frozen=True)
@@ -105,7 +105,7 @@ def thrust_vectors(robot, motion: Jet, order: int | None = None) -> Jet:
     (see :func:`prototype_thrust_vectors`).
 
     Args:
-        robot: the :class:`~fpr.robots.Robot`.
+        robot: the :class:`~fpr.model.robot.Robot`.
         motion: s as a Jet of order K >= 2, shape (N, n_s).
         order: derivative order of the result (default K - 2).
     """
@@ -268,7 +268,7 @@ def inverse_dynamics(robot, motion) -> MotionInputs:
     """Thrusts, rolls, torques and rotor speeds along a motion of the chain.
 
     Args:
-        robot: the :class:`~fpr.robots.Robot` (FPR or prototype).
+        robot: the :class:`~fpr.model.robot.Robot` (FPR or prototype).
         motion: s and its time derivatives 0..4, shape (5, N, n_s) (or (5, n_s) for one sample),
             e.g. from :meth:`planners.polynomial.PiecewisePolynomial.evaluate`. Rows 5 and 6 (the
             5th and 6th derivatives) are used, and needed, where the prototype comes within

@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from fpr.errors import ShapeError, SingularityError, WorkspaceError
-from fpr.jets import inexact
-from fpr.parameters import Margins
-from fpr.parameters import margins as default_margins
+from fpr.model.errors import ShapeError, SingularityError, WorkspaceError
+from fpr.model.jets import inexact
+from fpr.model.parameters import Margins
+from fpr.model.parameters import margins as default_margins
 
 
 def u(a) -> np.ndarray:
@@ -240,7 +240,7 @@ def check_margins(values: dict[str, np.ndarray], pose, what: str = "pose", *,
         pose: the pose(s) they were computed at, shape (..., n): s for the FPR, xi for the prototype.
         what: a name for the pose, used in the message.
         margins: planning margins; the angle margin m_ga is the required singularity margin
-            (default: :func:`fpr.parameters.margins`).
+            (default: :func:`fpr.model.parameters.margins`).
         singular_angle: index in ``pose`` of the angle whose sine vanishes at the Type-2 singularity
             (q21 = s[..., 3] for the FPR, q2 = xi[..., 1] for the prototype: the last entry in both).
 

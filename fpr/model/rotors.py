@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fpr.errors import ShapeError
-from fpr.jets import inexact
-from fpr.parameters import RotorConstants
+from fpr.model.errors import ShapeError
+from fpr.model.jets import inexact
+from fpr.model.parameters import RotorConstants
 
 
 @dataclass(frozen=True)

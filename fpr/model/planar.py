@@ -2,9 +2,9 @@
 
 The planner evaluates the dynamics at thousands of samples per iteration; this module gives the
 in-plane model (x = psi = theta = 0) in closed form with numpy, batched over samples, and along a
-motion with all its time derivatives (:mod:`fpr.jets`). Its numbers are not typed in: bodies,
+motion with all its time derivatives (:mod:`fpr.model.jets`). Its numbers are not typed in: bodies,
 masses, centres of mass, inertias and joint placements are read from the Pinocchio model of the
-URDF (:class:`fpr.robots.Robot`), and the tests check it against Pinocchio's CRBA / RNEA.
+URDF (:class:`fpr.model.robot.Robot`), and the tests check it against Pinocchio's CRBA / RNEA.
 
 Every point of the planar chain is written as
 
@@ -29,8 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fpr import jets
-from fpr.jets import Jet
+from fpr.model import jets
+from fpr.model.jets import Jet
 
 
 def _rotate(c, s, v):
@@ -124,7 +124,7 @@ class PlanarBody:
 
 
 class PlanarModel:
-    """In-plane dynamics of a :class:`~fpr.robots.Robot`, closed form and batched.
+    """In-plane dynamics of a :class:`~fpr.model.robot.Robot`, closed form and batched.
 
     Build it with :meth:`from_robot`. Arrays take a trailing coordinate axis and any batch shape.
 
@@ -156,7 +156,7 @@ class PlanarModel:
         """Read the planar model off a robot's Pinocchio model.
 
         Args:
-            robot: a :class:`~fpr.robots.Robot`.
+            robot: a :class:`~fpr.model.robot.Robot`.
             drones: "rigid" (drones are rigid bodies; their rolls are coordinates), "point"
                 (point masses at their joints: the seed's planning model) or "none" (massless).
         """

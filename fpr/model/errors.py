@@ -107,7 +107,7 @@ class PlanningError(FprError, RuntimeError):
 
 
 class SceneError(FprError, ValueError):
-    """A wrong argument of a meshcat scene (:mod:`fpr.scene`).
+    """A wrong argument of a meshcat scene (:mod:`fpr.views.scene`).
 
     Attributes:
         argument: the offending argument (``plan``, ``log``, ``configuration``...).

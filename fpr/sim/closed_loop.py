@@ -1,6 +1,6 @@
 """Closed-loop simulation of a planned motion: the cascaded CTC on the faithful plant.
 
-Plant: :class:`fpr.plant.Plant`, the drones as free-flying quadrotors closed by the chain
+Plant: :class:`fpr.sim.plant.Plant`, the drones as free-flying quadrotors closed by the chain
 (Pinocchio constraint dynamics, Lie-group RK4 at ``plant_rate``), rotors saturated to
 [0, w_max] with a first-order motor lag. Controller: :class:`controllers.ctc.CascadedController`
 (outer loop at ``outer_rate``, inner loop and allocation at ``inner_rate``), fed with the state
@@ -23,8 +23,8 @@ import numpy as np
 
 import fpr
 from controllers.ctc import CascadedController, ControllerSettings, Reference
-from fpr.inverse_dynamics import MOTION_ORDER, inverse_dynamics
-from fpr.plant import Plant
+from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
+from fpr.sim.plant import Plant
 
 MASS_PARAMETERS = ("drone_mass", "link_mass", "end_effector_mass")
 
@@ -178,7 +178,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
         the :class:`SimulationLog`.
 
     Raises:
-        fpr.plant.PlantDivergedError: the plant's state became non-finite.
+        fpr.sim.plant.PlantDivergedError: the plant's state became non-finite.
         ValueError: rates that are not integer multiples of each other.
     """
     st = settings or SimulationSettings()

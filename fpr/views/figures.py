@@ -4,7 +4,7 @@ Entry points:
 
 * :func:`figure_set` writes every figure that applies to a planned motion (a
   :class:`planners.optimize.PlanResult` or a sampled plan), optionally against the
-  stop-at-every-way-point reference and with a closed-loop :class:`fpr.simulate.SimulationLog`,
+  stop-at-every-way-point reference and with a closed-loop :class:`fpr.sim.closed_loop.SimulationLog`,
   for the FPR (Fig. 3.11-3.32) or the prototype (Fig. 3.36-3.51). It calls the next two.
 * :func:`plan_figures` draws one planned motion (and optionally the reference it is compared
   with) in the figures of seed 3.11-3.18 (FPR) or 3.36-3.41 (prototype), plus the rotor speeds
@@ -24,7 +24,7 @@ A *sampled plan* is any object with the attributes
 ``t``       (N,) [s]              sample times, non-decreasing
 ``motion``  (5, N, n_s)           s and its derivatives 0..4 (FPR s = [y z phi q21],
                                   prototype xi = [q1 q2])
-``inputs``  MotionInputs          :class:`fpr.inverse_dynamics.MotionInputs` at the N samples
+``inputs``  MotionInputs          :class:`fpr.model.inverse_dynamics.MotionInputs` at the N samples
 ``knots``   (m+1,) [s]            times of all points of the piecewise polynomial
 ``is_way``  (m+1,) bool           True for a way point, False for a via point
 ``points``  (m+1, 5, n_s)         the points; ``points[:, 0]`` are positions in planning coordinates
@@ -53,13 +53,13 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from fpr.errors import ShapeError
+from fpr.model.errors import ShapeError
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from fpr.inverse_dynamics import MotionInputs
+    from fpr.model.inverse_dynamics import MotionInputs
 
 logger = logging.getLogger(__name__)
 
@@ -222,9 +222,9 @@ def _field(owner: str, obj, attribute: str, shape: tuple, what: str) -> np.ndarr
     """obj.attribute as a float array whose shape matches ``shape`` (None = any size)."""
     if not hasattr(obj, attribute):
         if owner.endswith(".inputs"):
-            hint = "pass the MotionInputs of fpr.inverse_dynamics.inverse_dynamics(robot, motion)"
+            hint = "pass the MotionInputs of fpr.model.inverse_dynamics.inverse_dynamics(robot, motion)"
         elif owner == "log":
-            hint = "pass the SimulationLog of fpr.simulate.simulate"
+            hint = "pass the SimulationLog of fpr.sim.closed_loop.simulate"
         else:
             hint = "a sampled plan needs label, t, motion, inputs (MotionInputs), knots, is_way and points"
         raise ValueError(f"{owner} has no attribute {attribute!r}: {hint}")
@@ -250,7 +250,7 @@ def _trace(robot, plan, owner: str, is_reference: bool) -> _Trace:
                                                            f"({robot.name}: n_s = {n_s})")
     if not hasattr(plan, "inputs"):
         raise ValueError(f"{owner} has no attribute 'inputs': pass the MotionInputs of "
-                         "fpr.inverse_dynamics.inverse_dynamics(robot, motion)")
+                         "fpr.model.inverse_dynamics.inverse_dynamics(robot, motion)")
     inputs = plan.inputs
     where = f"{owner}.inputs"
     knots = _field(owner, plan, "knots", (None,), "times of the points [s]")
@@ -407,7 +407,7 @@ def _task_space_joints(robot, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     FPR: the end-effector p and the drone joints r1, r2 (2.1); prototype: the drone joint (joint 3)
     and the elbow (joint 2) (3.35).
     """
-    from fpr.kinematics import fpr_drone_joints, prototype_joints
+    from fpr.model.kinematics import fpr_drone_joints, prototype_joints
 
     if robot.name == "fpr":
         return s[:, :2], fpr_drone_joints(s, robot.link_length)
@@ -597,7 +597,7 @@ def plan_figures(out_dir: str | Path, robot, plan: SampledPlan,
 
     Args:
         out_dir: output folder.
-        robot: the :class:`~fpr.robots.Robot` the plan is for (``robot.name`` "fpr" or "prototype").
+        robot: the :class:`~fpr.model.robot.Robot` the plan is for (``robot.name`` "fpr" or "prototype").
         plan: the sampled plan to show (see the module docstring).
         reference: an optional sampled plan to compare with.
 
@@ -722,7 +722,7 @@ def alpha_study_figure(path: str | Path, alphas, energy_ratio, perturbation_rati
 
 
 def _crossing_comparison(robot, outcomes: Sequence, rate: float) -> Figure:
-    from fpr.inverse_dynamics import MOTION_ORDER, inverse_dynamics
+    from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 
     if not outcomes:
         raise ValueError("outcomes is empty: give at least one planners.crossing.CrossingOutcome")
@@ -835,12 +835,12 @@ class _Simulated:
 
 
 def _simulated(robot, log) -> _Simulated:
-    """Check ``log`` (a :class:`fpr.simulate.SimulationLog`) against ``robot`` and pick its arrays."""
+    """Check ``log`` (a :class:`fpr.sim.closed_loop.SimulationLog`) against ``robot`` and pick its arrays."""
     n_s, n_d = _robot_sizes(robot)
     name = getattr(log, "robot_name", None)
     if name is None or not hasattr(log, "coordinates"):
         raise ValueError("log has no attribute 'robot_name' or 'coordinates': pass the SimulationLog of "
-                         "fpr.simulate.simulate")
+                         "fpr.sim.closed_loop.simulate")
     if name != robot.name:
         raise ValueError(f"log.robot_name={name!r} but robot.name={robot.name!r}: draw a log with the robot "
                          "it simulated")
@@ -1078,9 +1078,9 @@ def simulated_indices(robot, log) -> tuple[np.ndarray, np.ndarray]:
 
     Args:
         robot: the robot the log simulated.
-        log: a :class:`fpr.simulate.SimulationLog`.
+        log: a :class:`fpr.sim.closed_loop.SimulationLog`.
     """
-    from fpr.kinematics import fpr_drone_joint_velocities, prototype_jacobian
+    from fpr.model.kinematics import fpr_drone_joint_velocities, prototype_jacobian
 
     sim = _simulated(robot, log)
     if robot.name == "fpr":
@@ -1127,7 +1127,7 @@ _SIM_BUILDERS: dict[str, Callable[..., Figure]] = {
 
 
 def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None = None) -> list[Path]:
-    """Write the thesis' simulation figures of a :class:`fpr.simulate.SimulationLog` as PNG files.
+    """Write the thesis' simulation figures of a :class:`fpr.sim.closed_loop.SimulationLog` as PNG files.
 
     Files, in ``out_dir`` (created if needed), in the order of :data:`SIMULATION_FIGURES`:
 
@@ -1144,8 +1144,8 @@ def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None
 
     Args:
         out_dir: output folder.
-        robot: the :class:`~fpr.robots.Robot` that was simulated.
-        log: the :class:`fpr.simulate.SimulationLog`.
+        robot: the :class:`~fpr.model.robot.Robot` that was simulated.
+        log: the :class:`fpr.sim.closed_loop.SimulationLog`.
         plan: the sampled plan that was tracked (optional): adds its rotor speeds, rotor forces,
             J_e(t), J_phi(t) and way/via points to the figures.
 
@@ -1192,7 +1192,7 @@ def figure_set(out_dir: str | Path, plan, log=None, reference=None, *, robot=Non
     Args:
         out_dir: output folder (created if needed).
         plan: a :class:`planners.optimize.PlanResult` (sampled at ``rate``) or a sampled plan.
-        log: a :class:`fpr.simulate.SimulationLog` of ``plan``, or None for the planning figures only.
+        log: a :class:`fpr.sim.closed_loop.SimulationLog` of ``plan``, or None for the planning figures only.
         reference: the motion to compare with, typically ``plan(mission, "none")`` (stop at every
             way point): a PlanResult or a sampled plan, or None.
         robot: the robot; default ``plan.robot`` (required for a sampled plan).

@@ -2,7 +2,7 @@
 
 They are read from ``urdf/parameters.yaml``, the single file where the default numbers of the
 robots live (the xacro sources read their geometric defaults from the same file). Geometry and
-inertia are *not* taken from here by the model: :mod:`fpr.robots` reads them back from the URDF.
+inertia are *not* taken from here by the model: :mod:`fpr.model.robot` reads them back from the URDF.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from fpr.description import URDF_DIR
+from fpr.model.description import URDF_DIR
 
 PARAMETERS_FILE = Path(URDF_DIR) / "parameters.yaml"
 

@@ -1,9 +1,9 @@
 """The simulated plant: the closed-chain multibody model driven by rotor speeds through a motor lag.
 
-The plant is the exact model of :mod:`fpr.constrained` (free-flying rigid drones, the passive chain,
+The plant is the exact model of :mod:`fpr.model.constrained` (free-flying rigid drones, the passive chain,
 loop closure by constraint dynamics with Baumgarte stabilisation), not the minimal model the planner
 and the controller use: the controller only sees it through :meth:`Plant.measure` (the state in the
-thesis' coordinates, by :meth:`~fpr.constrained.ClosedChainModel.to_minimal`), and acts on it through
+thesis' coordinates, by :meth:`~fpr.model.constrained.ClosedChainModel.to_minimal`), and acts on it through
 rotor speed commands.
 
 One :meth:`Plant.step` of length dt:
@@ -32,8 +32,8 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from fpr.constrained import ClosedChainModel, build_closed_chain
-from fpr.errors import FprError, check_shape
+from fpr.model.constrained import ClosedChainModel, build_closed_chain
+from fpr.model.errors import FprError, check_shape
 
 _gesv = lapack.dgesv
 
@@ -120,8 +120,8 @@ def _rotor_force_map(closed: ClosedChainModel, mixing) -> np.ndarray | None:
 
 
 def _static_inputs(robot, chain):
-    """Inverse dynamics of a motionless chain (:func:`fpr.inverse_dynamics.inverse_dynamics`), one sample."""
-    from fpr.inverse_dynamics import inverse_dynamics
+    """Inverse dynamics of a motionless chain (:func:`fpr.model.inverse_dynamics.inverse_dynamics`), one sample."""
+    from fpr.model.inverse_dynamics import inverse_dynamics
 
     s = check_shape("chain", chain, (len(robot.layout.chain),))
     motion = np.zeros((5, s.size))
@@ -133,7 +133,7 @@ def hover_configuration(robot, chain) -> np.ndarray:
     """The static pose of a chain configuration: x = psi = theta = 0 and the drone rolls that hold it.
 
     Args:
-        robot: the :class:`~fpr.robots.Robot`.
+        robot: the :class:`~fpr.model.robot.Robot`.
         chain: FPR s = [y z phi q21] [m, m, rad, rad], or prototype xi = [q1 q2] [rad].
 
     Returns:
@@ -148,14 +148,14 @@ def hover_configuration(robot, chain) -> np.ndarray:
 def hover_speeds(robot, q, tolerance: float = 1e-6) -> np.ndarray:
     """Rotor speeds that hold the robot still at a static pose.
 
-    The thrusts and roll torques come from :func:`fpr.inverse_dynamics.inverse_dynamics` with a
+    The thrusts and roll torques come from :func:`fpr.model.inverse_dynamics.inverse_dynamics` with a
     motionless chain: at rest the planning model's thrust vectors are exact (the forces on a drone
     do not depend on where its mass sits), and the roll torques balance the drones' weight about
     their hinges in the exact model. A static pose has the drone rolls along these thrusts (use
     :func:`hover_configuration`) and a vertical plane (theta = 0); x and psi are free.
 
     Args:
-        robot: the :class:`~fpr.robots.Robot`.
+        robot: the :class:`~fpr.model.robot.Robot`.
         q: a static configuration, shape (n,).
         tolerance: accepted difference of the rolls and theta from the static ones [rad].
 
@@ -191,7 +191,7 @@ class Plant:
     state. The rotor speeds are part of the state (the motor lag), not an input.
 
     Attributes:
-        closed: the :class:`~fpr.constrained.ClosedChainModel` (its ``data`` is used as scratch).
+        closed: the :class:`~fpr.model.constrained.ClosedChainModel` (its ``data`` is used as scratch).
         qc: closed-chain configuration, shape (closed.model.nq,).
         vc: closed-chain velocity, shape (closed.model.nv,).
         time: simulated time [s].
@@ -200,7 +200,7 @@ class Plant:
     def __init__(self, closed: ClosedChainModel, qc, vc=None, w=None, time: float = 0.0, reference=None):
         """
         Args:
-            closed: the closed-chain model (:func:`~fpr.constrained.build_closed_chain`).
+            closed: the closed-chain model (:func:`~fpr.model.constrained.build_closed_chain`).
             qc: its configuration, shape (model.nq,).
             vc: its velocity, shape (model.nv,); zero by default.
             w: rotor speeds, shape (n_d, 4) [rad/s]; stopped (zero) by default.
@@ -231,7 +231,7 @@ class Plant:
         """A plant at a state given in thesis coordinates.
 
         Args:
-            robot: the :class:`~fpr.robots.Robot`.
+            robot: the :class:`~fpr.model.robot.Robot`.
             q: configuration, shape (n,) [m, rad].
             v: velocity, shape (n,) [m/s, rad/s]; zero by default.
             w: rotor speeds, shape (n_d, 4) [rad/s]; stopped by default (see :func:`hover_speeds`).
@@ -252,7 +252,7 @@ class Plant:
     # ------------------------------------------------------------------ state
     @property
     def robot(self):
-        """The minimal-coordinate :class:`~fpr.robots.Robot`."""
+        """The minimal-coordinate :class:`~fpr.model.robot.Robot`."""
         return self.closed.robot
 
     @property
@@ -431,12 +431,12 @@ def plant_step_time(robot, steps: int = 1000, dt: float = 1e-3) -> float:
     """Mean wall time of one :meth:`Plant.step` [s], hovering at the robot's reference pose.
 
     Args:
-        robot: a :class:`~fpr.robots.Robot` or its name ("fpr", "prototype").
+        robot: a :class:`~fpr.model.robot.Robot` or its name ("fpr", "prototype").
         steps: number of steps timed.
         dt: simulated step [s].
     """
     if isinstance(robot, str):
-        from fpr.robots import load
+        from fpr.model.robot import load
 
         robot = load(robot)
     q = hover_configuration(robot, REFERENCE_CHAIN[robot.name])

@@ -10,7 +10,7 @@
   arrows show the planned thrusts, blue lines the paths of the end-effector and of the drones'
   centres, green spheres the way points and purple cubes the via points (at the mission's task
   point: the end-effector of the FPR, the drone joint of the prototype);
-* with a simulation log (:class:`fpr.simulate.SimulationLog`): the robot follows the simulated
+* with a simulation log (:class:`fpr.sim.closed_loop.SimulationLog`): the robot follows the simulated
   (tracked) motion with the controller's thrusts and orange paths, and a translucent blue "ghost"
   follows the plan (from ``plan`` when given, else from the reference recorded in the log);
 * with ``configuration`` alone: the robot standing still.
@@ -20,9 +20,9 @@ Thrust arrows start at each drone's centre of mass and point along its body z ax
 on the real time base (key frames at ``fps``, the last one at the exact end time).
 
 Every body is placed by Pinocchio: the thesis coordinates q are mapped by
-:meth:`fpr.robots.Robot.to_pinocchio`, forward kinematics runs on ``robot.model``, and the scene has
+:meth:`fpr.model.robot.Robot.to_pinocchio`, forward kinematics runs on ``robot.model``, and the scene has
 one node per joint, moved by that joint's world placement and holding the URDF visuals attached to
-it (``pinocchio.buildGeomFromUrdfString`` with :func:`fpr.description.mesh_package_dirs`).
+it (``pinocchio.buildGeomFromUrdfString`` with :func:`fpr.model.description.mesh_package_dirs`).
 
 The scene is recorded as meshcat commands (the dictionaries meshcat's Python side sends to its
 viewer) through a ``meshcat.Visualizer`` whose window records instead of sending: no server, no
@@ -52,8 +52,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from fpr import description
-from fpr.errors import FprError, SceneError, check_shape
+from fpr.model import description
+from fpr.model.errors import FprError, SceneError, check_shape
 
 logger = logging.getLogger(__name__)
 
@@ -100,7 +100,7 @@ def _meshcat():
             import meshcat.visualizer  # noqa: F401
             import umsgpack  # noqa: F401  (meshcat's encoding of the commands)
     except ImportError as error:
-        raise ImportError(f"fpr.scene needs meshcat ({error}): pip install meshcat") from error
+        raise ImportError(f"fpr.views.scene needs meshcat ({error}): pip install meshcat") from error
     return meshcat
 
 
@@ -223,10 +223,10 @@ def view(robot, plan=None, log=None, *, configuration=None, fps: float = DEFAULT
     """Build the meshcat scene of a robot, a planned motion and / or a simulated one.
 
     Args:
-        robot: the :class:`fpr.robots.Robot` (``plan.robot``, ``mission.load_robot()``).
+        robot: the :class:`fpr.model.robot.Robot` (``plan.robot``, ``mission.load_robot()``).
         plan: a :class:`planners.optimize.PlanResult`. Alone: the robot follows it. With ``log``: the
             ghost follows it. Its way and via points are marked.
-        log: a :class:`fpr.simulate.SimulationLog`: the robot follows the simulated motion and a
+        log: a :class:`fpr.sim.closed_loop.SimulationLog`: the robot follows the simulated motion and a
             translucent ghost the plan.
         configuration: thesis coordinates q (n,) of a robot standing still (not with a plan or a
             log). With nothing given: FPR s0 = [0 0 5pi/4 pi/2], prototype xi = [0 pi/2].
@@ -329,7 +329,7 @@ class _Motion:
 
 
 def _check_robot(robot):
-    from fpr.robots import Robot
+    from fpr.model.robot import Robot
 
     if not isinstance(robot, Robot):
         raise SceneError("robot", f"got a {type(robot).__name__}; give fpr.load('fpr'), "
@@ -354,7 +354,7 @@ def _check_log(robot, log) -> None:
     if not all(hasattr(log, a) for a in ("robot_name", "coordinates", "t", "q", "thrust", "reference",
                                          "planned_roll")):
         raise SceneError("log", f"got a {type(log).__name__}; give the SimulationLog of "
-                                "fpr.simulate.simulate")
+                                "fpr.sim.closed_loop.simulate")
     if log.robot_name != robot.name or tuple(log.coordinates) != tuple(robot.layout.coordinates):
         raise SceneError("log", f"it is a simulation of the {log.robot_name!r} (coordinates "
                                 f"{', '.join(log.coordinates)}), not of the {robot.name!r} given")
@@ -382,7 +382,7 @@ def _frame_times(duration: float, fps: float) -> np.ndarray:
 
 def _planned_motion(robot, plan, times: np.ndarray) -> _Motion:
     """The plan at ``times``, at rest on its last point after its end: full q and thrusts."""
-    from fpr.inverse_dynamics import MOTION_ORDER, inverse_dynamics
+    from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 
     motion = plan.trajectory.evaluate_held(times, order=MOTION_ORDER)  # 6: singularity crossing
     inputs = inverse_dynamics(robot, motion)

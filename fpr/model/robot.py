@@ -31,10 +31,10 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from fpr import description
-from fpr.errors import UnknownRobotError, check_shape
-from fpr.parameters import Margins, RotorConstants, load_parameters, margins, rotor_constants
-from fpr.rotors import RotorModel
+from fpr.model import description
+from fpr.model.errors import UnknownRobotError, check_shape
+from fpr.model.parameters import Margins, RotorConstants, load_parameters, margins, rotor_constants
+from fpr.model.rotors import RotorModel
 
 logger = logging.getLogger(__name__)
 
@@ -386,12 +386,12 @@ class Robot:
 
     # ------------------------------------------------------------------ variants
     def planar(self, drones: str = "rigid"):
-        """The closed-form in-plane model (:class:`fpr.planar.PlanarModel`), built once and cached.
+        """The closed-form in-plane model (:class:`fpr.model.planar.PlanarModel`), built once and cached.
 
         Args:
             drones: "rigid", "point" (the seed's planning model) or "none" (the passive chain alone).
         """
-        from fpr.planar import PlanarModel
+        from fpr.model.planar import PlanarModel
 
         cache = self.__dict__.setdefault("_planar_cache", {})
         if drones not in cache:

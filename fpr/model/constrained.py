@@ -2,7 +2,7 @@
 
 This is the second, independent formulation of the dynamics and the plant of the simulator. It is
 built from the same rigid bodies as the minimal model (inertias and joint placements are read from
-the :class:`~fpr.robots.Robot`'s Pinocchio model), but with another tree and a loop closure:
+the :class:`~fpr.model.robot.Robot`'s Pinocchio model), but with another tree and a loop closure:
 
 * FPR: drone 1 is a free flyer; the chain hangs from it (hinge 1 reversed, the end-effector with
   link 1, the joint q21, link 2); drone 2 is a second free flyer. The revolute closure "drone 2
@@ -32,7 +32,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from fpr.errors import check_shape
+from fpr.model.errors import check_shape
 
 #: Roll of the FPR's end-effector at the reference pose s0 = [0 0 5pi/4 pi/2] (DESIGN.md) [rad]: without a
 #: reference, :meth:`ClosedChainModel.to_minimal` returns the root roll phi within pi of it.
@@ -315,7 +315,7 @@ def _add_drone(model: pin.Model, robot, index: int) -> tuple[int, int]:
 def build_closed_chain(robot, baumgarte: tuple[float, float] = (400.0, 40.0),
                        accuracy: float = 1e-12, mu: float = 1e-9, max_iter: int = 50,
                        axis_offset: float = 0.1) -> ClosedChainModel:
-    """Build the closed-chain formulation of an FPR or prototype :class:`~fpr.robots.Robot`.
+    """Build the closed-chain formulation of an FPR or prototype :class:`~fpr.model.robot.Robot`.
 
     Args:
         robot: the minimal-coordinate robot (its bodies are reused).

@@ -1,0 +1,435 @@
+"""``python -m fpr.plan``: plan a mission of the FPR or the prototype, and write what the drones must do.
+
+With no argument it plans the built-in ``square`` mission with the 2-step optimisation (seed
+3.2.4) and prints a table comparing the optimised motion with the stop-at-every-way-point one:
+J_e, J_phi, peak rotor force and speed, least ground clearance, least singularity margin and
+solve time, then the worst value of every constraint. Into ``--out`` (default
+``fpr-out/<mission>``) it writes:
+
+* ``mission.toml``: the mission as planned (command-line overrides included), re-usable with --mission;
+* ``plan.json``: mission, robot parameters, summaries of both motions, solver stages, the
+  points, durations and monomial coefficients of every segment;
+* ``trajectory.csv``: one row per sample at ``--rate`` (columns and units in README.md);
+* ``reference.csv``: the same for the stop-at-every-way-point motion;
+* PNG figures of the thesis' planning chapter (``fpr.views.figures``);
+* with ``--simulate``: ``simulation.npz`` (the :class:`fpr.sim.closed_loop.SimulationLog`), ``sim_*``
+  columns in ``trajectory.csv`` and the simulation figures; the summary adds tracking errors,
+  out-of-plane motion, rotor speeds in the plant, allocation saturations and the real-time factor;
+* with ``--meshcat``: ``scene.html``, the 3D scene of :mod:`fpr.views.scene` (the robot following the plan;
+  with ``--simulate``, the simulated robot and the plan as a ghost), a standalone page; ``--serve``
+  also sends it to a live meshcat server, prints its URL and waits for Ctrl-C.
+
+Exit codes: 0 every constraint holds; 1 the planned motion violates a constraint (the files
+are still written and the violated constraints are named); 2 bad input (mission file or
+option, unreachable way point, way point on a singularity).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fpr.model.errors import FprError
+from planners.mission import BUILTIN_MISSIONS, load_mission
+from planners.optimize import METHODS, PlanResult, plan
+
+
+def _floats(text: str, option: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{option} {text!r}: give numbers separated by commas") from None
+    if not values:
+        raise argparse.ArgumentTypeError(f"{option} {text!r}: give at least one number")
+    return values
+
+
+def _ints(text: str) -> list[int]:
+    try:
+        return [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--via-points {text!r}: give integers >= 0 separated by commas") from None
+
+
+def _assignment(text: str) -> tuple[str, float]:
+    key, sep, value = text.partition("=")
+    try:
+        if not sep:
+            raise ValueError
+        return key.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--set {text!r}: write NAME=VALUE, e.g. --set link_length=1.0") from None
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command-line parser."""
+    p = argparse.ArgumentParser(prog="python -m fpr.plan", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--mission", default="square",
+                   help=f"built-in mission ({', '.join(BUILTIN_MISSIONS)}) or a mission TOML file")
+    p.add_argument("--robot", choices=["fpr", "prototype"], default=None,
+                   help="robot the mission must be for (checked; the mission file names its robot)")
+    p.add_argument("--set", dest="robot_parameters", type=_assignment, action="append", default=[],
+                   metavar="NAME=VALUE", help="override a robot parameter (xacro argument), e.g. link_length=1.0")
+    p.add_argument("--alpha", type=float, default=None, help="energy weight in [0, 1] (default: the mission's)")
+    p.add_argument("--via-points", type=_ints, default=None, metavar="N[,N...]",
+                   help="via points per travel, one number for all or one per travel (default: the mission's)")
+    p.add_argument("--times", type=lambda t: _floats(t, "--times"), default=None, metavar="T[,T...]",
+                   help="travel times [s], one for all or one per travel (default: the mission's)")
+    p.add_argument("--method", default="two-step", choices=list(METHODS),
+                   help="two-step / one-step optimisation (seed 3.2.4), or none (stop at every way point)")
+    p.add_argument("--solver", default="sqp", choices=["sqp", "slsqp"],
+                   help="NLP solver: Gauss-Newton SQP (ProxQP) or scipy SLSQP, both with exact gradients")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default fpr-out/<mission>)")
+    p.add_argument("--rate", type=float, default=200.0, help="sample rate of the CSV files [Hz]")
+    p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
+    sim = p.add_argument_group("closed-loop simulation (--simulate)")
+    sim.add_argument("--simulate", action="store_true",
+                     help="track the plan with the cascaded CTC on the closed-chain plant")
+    sim.add_argument("--initial-error", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
+                     help="offset of a coordinate at the start, e.g. y=0.05 [m or rad]")
+    sim.add_argument("--model-mass-scale", type=float, default=1.0,
+                     help="the controller's model has every mass times this (1.1: believes 10 %% heavier)")
+    sim.add_argument("--rotor-constant-scale", type=float, default=1.0,
+                     help="the plant's rotors give this times the nominal force and drag")
+    sim.add_argument("--wind", type=lambda t: _floats(t, "--wind"), default=None, metavar="FX,FY,FZ",
+                     help="constant wind force on each drone, world frame [N]")
+    sim.add_argument("--noise", type=lambda t: _floats(t, "--noise"), default=None, metavar="SQ,SV",
+                     help="standard deviations of the measurement noise on q and v")
+    sim.add_argument("--hold", type=float, default=1.0, help="time simulated after the plan's end [s]")
+    scene = p.add_argument_group("3D scene (meshcat)")
+    scene.add_argument("--meshcat", action="store_true",
+                       help="write scene.html: the robot following the plan (with --simulate: the simulated "
+                            "robot and the plan as a ghost), thrust arrows, paths, way and via points")
+    scene.add_argument("--serve", action="store_true",
+                       help="also show the scene on a live meshcat server, print its URL and wait for Ctrl-C "
+                            "(implies --meshcat)")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    return p
+
+
+def _mission(args):
+    mission = load_mission(args.mission)
+    changes = {}
+    n_travel = len(mission.times)
+    if args.times is not None:
+        changes["times"] = args.times * n_travel if len(args.times) == 1 else args.times
+    if args.via_points is not None:
+        changes["via_points"] = args.via_points[0] if len(args.via_points) == 1 else args.via_points
+    if args.alpha is not None:
+        changes["alpha"] = args.alpha
+    if args.robot_parameters:
+        changes["robot_parameters"] = {**mission.robot_parameters, **dict(args.robot_parameters)}
+    if changes:
+        mission = mission.replace(**changes)
+    if args.robot is not None and args.robot != mission.robot:
+        raise FprError(f"--robot {args.robot}: mission {mission.name!r} is for the {mission.robot!r} robot; "
+                       f"drop --robot or pick a mission for {args.robot!r}")
+    return mission
+
+
+# ------------------------------------------------------------------------------------------- files
+def csv_columns(robot) -> list[tuple[str, str]]:
+    """(name, unit) of every column of ``trajectory.csv`` for ``robot``."""
+    coords = [("y", "m"), ("z", "m"), ("phi", "rad"), ("q21", "rad")] if robot.name == "fpr" \
+        else [("q1", "rad"), ("q2", "rad")]
+    cols = [("t", "s")] + coords + [(n + "_d", u + "/s") for n, u in coords] + [(n + "_dd", u + "/s^2")
+                                                                                 for n, u in coords]
+    for i in range(1, robot.n_drones + 1):
+        cols += [(f"y_j{i}", "m"), (f"z_j{i}", "m"), (f"phi{i}", "rad"), (f"phi{i}_d", "rad/s"), (f"f{i}", "N"),
+                 (f"tau{i}_x", "N m"), (f"tau{i}_y", "N m"), (f"tau{i}_z", "N m")]
+        cols += [(f"w{i}_{m}", "rad/s") for m in range(1, 5)]
+    return cols
+
+
+def _simulated_columns(robot, log, t) -> tuple[list[str], np.ndarray]:
+    """sim_ columns: the simulated counterparts of the planned ones, interpolated at times t."""
+    from fpr.model.kinematics import fpr_drone_joints, prototype_joints
+
+    chain = [log.coordinates.index(c) for c in log.chain]
+    s = log.q[:, chain]
+    joints = fpr_drone_joints(s, robot.link_length) if robot.name == "fpr" \
+        else prototype_joints(s, robot.link_length)[:, 1:]
+    data = {}
+    for c in log.coordinates:
+        data[c] = log.q[:, log.coordinates.index(c)]
+        data[c + "_d"] = log.v[:, log.coordinates.index(c)]
+    for i in range(robot.n_drones):
+        data[f"y_j{i + 1}"], data[f"z_j{i + 1}"] = joints[:, i, 0], joints[:, i, 1]
+        data[f"f{i + 1}"] = log.thrust[:, i]
+        for k, axis in enumerate("xyz"):
+            data[f"tau{i + 1}_{axis}"] = log.torque[:, i, k]
+        for m in range(4):
+            data[f"w{i + 1}_{m + 1}"] = log.speed[:, i, m]
+    names = ["sim_" + n for n in data]
+    return names, np.stack([np.interp(t, log.t, v) for v in data.values()], axis=1)
+
+
+def write_csv(path: Path, robot, sampled, log=None) -> None:
+    """One row per sample of ``sampled`` (a :class:`planners.optimize.SampledPlan`); units in README.md.
+
+    With a :class:`fpr.sim.closed_loop.SimulationLog`, the simulated columns follow, prefixed ``sim_``.
+    """
+    inputs, motion = sampled.inputs, sampled.motion
+    columns = [sampled.t[:, None], motion[0], motion[1], motion[2]]
+    for i in range(robot.n_drones):
+        columns += [inputs.joint_position[:, i], inputs.roll[:, i:i + 1], inputs.roll_rate[:, i:i + 1],
+                    inputs.thrust[:, i:i + 1], inputs.torque[:, i], inputs.rotor_speed[:, i]]
+    names = [n for n, _ in csv_columns(robot)]
+    if log is not None:
+        sim_names, sim_data = _simulated_columns(robot, log, sampled.t)
+        names += sim_names
+        columns.append(sim_data)
+    data = np.hstack(columns)
+    assert data.shape[1] == len(names)
+    with open(path, "w", newline="", encoding="utf-8") as stream:
+        writer = csv.writer(stream)
+        writer.writerow(names)
+        writer.writerows(np.round(data, 9).tolist())
+
+
+def plan_document(mission, robot, result: PlanResult, reference: PlanResult) -> dict:
+    """The content of ``plan.json``."""
+    trajectory = result.trajectory
+    return {
+        "mission": mission.to_dict(),
+        "method": result.method,
+        "robot": {"name": robot.name, "parameters": robot.parameters},
+        "summary": result.summary(),
+        "reference_summary": reference.summary(),
+        "points": trajectory.points.tolist(),
+        "points_layout": "points[p][k][j]: k-th time derivative (k = 0..4) of coordinate j at point p",
+        "is_way_point": result.is_way.tolist(),
+        "durations_s": trajectory.durations.tolist(),
+        "knots_s": trajectory.knots.tolist(),
+        "coefficients": [seg.coefficients.tolist() for seg in trajectory.segments],
+        "coefficients_layout": "coefficients[i][c][j]: s_j(t) = sum_c a[c] (t - knots[i])^c on segment i, SI units",
+    }
+
+
+_TABLE_ROWS = [("J (3.26)", "J", "", "{:.4f}"), ("J_e (energy index)", "J_e", "J", "{:.3f}"),
+               ("J_phi (perturbation index)", "J_phi", "rad^2/s", "{:.4f}"),
+               ("peak thrust", "peak_thrust_N", "N", "{:.3f}"),
+               ("peak rotor force", "peak_rotor_force_N", "N", "{:.3f}"),
+               ("peak rotor speed", "peak_rotor_speed_rad_s", "rad/s", "{:.1f}"),
+               ("least rotor speed", "least_rotor_speed_rad_s", "rad/s", "{:.1f}"),
+               ("peak |roll|", "peak_roll_rad", "rad", "{:.4f}"),
+               ("least ground clearance", "least_ground_clearance_m", "m", "{:.4f}"),
+               ("least singularity margin", "least_singularity_margin_rad", "rad", "{:.4f}"),
+               ("solve time", "wall_time_s", "s", "{:.3f}"),
+               ("every constraint holds", "feasible", "", "{}")]
+# a singularity crossing: no singularity margin (it is 0 by design), the crossing instead
+_CROSSING_ROWS = [("q2 sign changes", "crossings", "", "{}"),
+                  ("criterion residual (4.7)", "criterion_residual_Nm", "N m", "{:.2e}"),
+                  ("crossing time", "crossing_time_s", "s", "{:.3f}")]
+
+
+def comparison_table(reference: PlanResult, result: PlanResult | None = None) -> str:
+    """The table ``python -m fpr.plan`` prints: the reference motion (stop at way points; for a
+    singularity crossing, its first guess) beside the optimised one, one row per quantity."""
+    results = [reference] + ([result] if result is not None else [])
+    summaries = [r.summary() for r in results]
+    rows = list(_TABLE_ROWS)
+    if all(r.crossing is not None for r in results):
+        rows = [row for row in rows if row[1] != "least_singularity_margin_rad"]
+        rows[-2:-2] = _CROSSING_ROWS
+        for s in summaries:
+            s.update({key: s["crossing"][key] for _, key, _, _ in _CROSSING_ROWS})
+    names = [r.label for r in results]
+    lines = [f"  {'':28s} {'unit':8s}" + "".join(f"{n:>24s}" for n in names)]
+    for label, key, unit, fmt in rows:
+        lines.append(f"  {label:28s} {unit:8s}" + "".join(f"{fmt.format(s[key]):>24s}" for s in summaries))
+    return "\n".join(lines)
+
+
+class _Progress:
+    """Prints one line per solver stage, updated in place on a terminal."""
+
+    def __init__(self, stream):
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.stage = None
+
+    def __call__(self, stage, iteration, value, violation):
+        end = "\r" if self.tty else "\n"
+        if self.tty and self.stage is not None and stage != self.stage:
+            self.stream.write("\n")
+        if self.tty or iteration == 1 or iteration % 10 == 0:
+            self.stream.write(f"  {stage}: iteration {iteration:3d}  J = {value:.5f}  violation = {violation:.2e}{end}")
+            self.stream.flush()
+        self.stage = stage
+
+    def close(self):
+        if self.tty and self.stage is not None:
+            self.stream.write("\n")
+
+
+def _simulate(args, robot, final, out, sampled, written, say):
+    """Run the closed-loop simulation, write its files; returns the log (None if it diverged)."""
+    from fpr.sim.plant import PlantDivergedError
+    from fpr.sim.closed_loop import SimulationSettings, simulate
+
+    if args.wind is not None and len(args.wind) != 3:
+        raise FprError(f"--wind {args.wind}: give three numbers FX,FY,FZ [N]")
+    if args.noise is not None and len(args.noise) != 2:
+        raise FprError(f"--noise {args.noise}: give two numbers SQ,SV")
+    settings = SimulationSettings(hold=args.hold, initial_error=dict(args.initial_error),
+                                  model_mass_scale=args.model_mass_scale,
+                                  rotor_constant_scale=args.rotor_constant_scale,
+                                  measurement_noise=tuple(args.noise or (0.0, 0.0)),
+                                  wind=tuple(args.wind or (0.0, 0.0, 0.0)))
+    quiet = args.quiet
+
+    def progress(t, total):
+        if not quiet:
+            print(f"  simulating: {t:6.1f} / {total:.1f} s", file=sys.stderr, flush=True)
+
+    try:
+        log = simulate(final, settings, progress)
+    except PlantDivergedError as error:
+        print(f"error: the closed-loop simulation diverged: {error}", file=sys.stderr)
+        return None
+    log.save(out / "simulation.npz")
+    write_csv(out / "trajectory.csv", robot, sampled, log)
+    written.append("simulation.npz")
+    if not args.no_plots:
+        try:
+            from fpr.views.figures import simulation_figures
+
+            written += [f.name for f in simulation_figures(out, robot, log, sampled)]
+        except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the results
+            print(f"warning: simulation figures not written: {error}", file=sys.stderr)
+    return log
+
+
+def _simulation_table(log) -> str:
+    s = log.summary()
+    lines = ["closed-loop simulation (cascaded CTC, closed-chain plant):"]
+    for name in log.chain:
+        lines.append(f"  tracking error {name:5s}  rms {s['tracking_rms'][name]:.3e}  max {s['tracking_max'][name]:.3e}"
+                     f"  final {s['final_error'][name]:+.3e}")
+    for name, value in s["max_abs_out_of_plane"].items():
+        lines.append(f"  largest |{name}| {value:.3e}")
+    lines.append(f"  rotor speeds in the plant: {s['least_rotor_speed_rad_s']:.1f} .. {s['peak_rotor_speed_rad_s']:.1f} "
+                 f"rad/s (limits 0 .. {s['rotor_speed_limit_rad_s']:.0f}; planning limit "
+                 f"{s['planning_speed_limit_rad_s']:.0f})")
+    lines.append(f"  allocation saturated on {s['saturated_ticks']} of {s['ticks']} control ticks")
+    lines.append(f"  largest closure error {s['max_closure_error_m']:.2e} m; least drone height "
+                 f"{s['least_drone_height_m']:.3f} m")
+    lines.append(f"  {s['simulated_s']:.1f} s simulated in {s['wall_time_s']:.1f} s "
+                 f"(real-time factor {s['real_time_factor']:.2f})")
+    return "\n".join(lines)
+
+
+def _scene(args, robot, final, log, out, written):
+    """Write scene.html (and with --serve start the server); returns the live Visualizer or None."""
+    try:
+        from fpr.views.scene import view
+
+        scene = view(robot, final, log)
+        scene.write(out / "scene.html")
+        written.append("scene.html")
+        return scene.serve() if args.serve else None
+    except (ImportError, FprError, OSError) as error:  # the plan's files are written: keep them, say why
+        print(f"warning: meshcat scene not {'served' if args.serve else 'written'}: {error}", file=sys.stderr)
+        return None
+
+
+def _wait_for_interrupt() -> None:
+    """Sleep until Ctrl-C (or SIGTERM): then return, and meshcat stops its server at exit."""
+    def stop(*_):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def main(argv=None) -> int:
+    """Command line entry point; returns the exit code."""
+    args = parser().parse_args(argv)
+    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, flush=True))
+    if not np.isfinite(args.rate) or args.rate <= 0:
+        print(f"error: --rate {args.rate}: give a positive number of samples per second", file=sys.stderr)
+        return 2
+    start = time.perf_counter()
+    try:
+        mission = _mission(args)
+        robot = mission.load_robot()
+        mission.positions(robot)  # every way point reachable and away from singularities
+    except (FprError, ValueError, OSError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    out = args.out or Path("fpr-out") / mission.name
+    say(f"mission {mission.name!r} ({mission.robot}): {len(mission.times)} travels, "
+        f"{float(np.sum(mission.times)):g} s, via points {list(map(int, mission.via_points))}, "
+        f"alpha {mission.alpha:g}, method {args.method}")
+    progress = None if args.quiet else _Progress(sys.stderr)
+    reference = plan(mission, "none", robot=robot)
+    result = None
+    if args.method != "none":
+        result = plan(mission, args.method, robot=robot, progress=progress, solver=args.solver)
+        if progress is not None:
+            progress.close()
+    final = result or reference
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "mission.toml").write_text(mission.to_toml(), encoding="utf-8")
+    (out / "plan.json").write_text(json.dumps(plan_document(mission, robot, final, reference), indent=1),
+                                   encoding="utf-8")
+    sampled = final.sampled(args.rate)
+    write_csv(out / "trajectory.csv", robot, sampled)
+    written = ["mission.toml", "plan.json", "trajectory.csv"]
+    reference_sampled = None
+    if result is not None:
+        reference_sampled = reference.sampled(args.rate)
+        write_csv(out / "reference.csv", robot, reference_sampled)
+        written.append("reference.csv")
+    if not args.no_plots:
+        try:
+            from fpr.views.figures import plan_figures
+
+            figures = plan_figures(out, robot, sampled, reference_sampled)
+            written += [f.name for f in figures]
+        except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the computed plan
+            print(f"warning: figures not written: {error}", file=sys.stderr)
+    log = None
+    if args.simulate:
+        log = _simulate(args, robot, final, out, sampled, written, say)
+    visualizer = _scene(args, robot, final, log, out, written) if args.meshcat or args.serve else None
+    say(comparison_table(reference, result))
+    say("constraints of the " + ("optimised" if result is not None else "stop-at-way-points") + " motion "
+        "(dense grid, margin >= 0 holds):")
+    for report in final.report.constraints.values():
+        say("  " + report.describe())
+    for stage in final.stages:
+        say(f"  solver {stage.name}: {stage.message} ({stage.iterations} iterations, {stage.wall_time:.3f} s)")
+    if log is not None:
+        say(_simulation_table(log))
+    say(f"wrote {', '.join(written)} into {out} ({time.perf_counter() - start:.1f} s)")
+    code = 0
+    if not final.feasible:
+        names = ", ".join(f"{c.name} (margin {c.margin:.4g} {c.unit} at t = {c.time:.3f} s)"
+                          for c in final.report.violations)
+        print(f"error: the planned motion violates {names}; give more time (--times), more via points "
+              "(--via-points) or move the way points", file=sys.stderr)
+        code = 1
+    if visualizer is not None:
+        print(f"meshcat: open {visualizer.url()} (Ctrl-C to stop the server)", flush=True)
+        _wait_for_interrupt()
+    return code
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
