@@ -22,7 +22,7 @@ with respect to P. The 5 n perturbed copies of all samples go through one batche
 Integrals use Simpson's rule on K equally spaced nodes per segment (the optimisation grid).
 Constraints are enforced on the same nodes, aggregated as the minimum over short windows
 (a few nodes each) to keep the number of NLP constraints small, with a small back-off
-(``CONSTRAINT_BACKOFF``) for what happens between nodes; :func:`planners.optimize.evaluate_motion`
+(``CONSTRAINT_BACKOFF``) for what happens between nodes; :func:`planners.report.evaluate_motion`
 checks the result on a dense grid afterwards.
 
 The absolute value in J_e is smoothed for the optimiser, |x| ~ sqrt(x^2 + eps^2) - eps with
@@ -32,11 +32,13 @@ reported J_e uses the exact absolute value.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from itertools import product
 
 import numpy as np
 
+from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from fpr.model.kinematics import fpr_workspace_margins, prototype_workspace_margins
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
@@ -193,7 +195,8 @@ def entry_scales(durations) -> np.ndarray:
 def simpson_weights(count: int, duration: float) -> np.ndarray:
     """Simpson's rule weights on ``count`` (odd, >= 3) equally spaced nodes over ``duration``."""
     if count < 3 or count % 2 == 0:
-        raise ValueError(f"count={count}: Simpson's rule needs an odd number of nodes >= 3")
+        raise PlannerArgumentError("count", count,
+                                   f"count={count}: Simpson's rule needs an odd number of nodes >= 3")
     w = np.ones(count)
     w[1:-1:2], w[2:-1:2] = 4.0, 2.0
     return w * duration / (3.0 * (count - 1))
@@ -223,6 +226,27 @@ class Evaluation:
     def violation(self) -> float:
         """Largest constraint violation (0 when every constraint holds) [scaled units]."""
         return float(max(0.0, -self.constraints.min()))
+
+
+def cached_evaluation(evaluate):
+    """Keep the last result of an NLP's ``evaluate(self, x, derivatives=False) -> Evaluation``.
+
+    The solvers ask for J, the constraints and their derivatives at one x in separate calls: the
+    decorated method computes once per x (a result with derivatives also serves a call without
+    them). The last result is kept in ``self._cache``; x reaches ``evaluate`` as a float array.
+    """
+    @functools.wraps(evaluate)
+    def cached(self, x, derivatives: bool = False) -> Evaluation:
+        x = np.asarray(x, dtype=float)
+        key = x.tobytes()
+        last = getattr(self, "_cache", None)
+        if last is not None and last[0] == key and (last[1] or not derivatives):
+            return last[2]
+        result = evaluate(self, x, derivatives)
+        self._cache = (key, derivatives, result)
+        return result
+
+    return cached
 
 
 class MotionProblem:
@@ -259,7 +283,8 @@ class MotionProblem:
         self.alpha = float(alpha)
         self.normalisation = tuple(float(v) for v in normalisation)
         if min(self.normalisation) <= 0:
-            raise ValueError(f"normalisation={self.normalisation}: J_e0 and J_phi0 must be > 0")
+            raise PlannerArgumentError("normalisation", self.normalisation,
+                                       f"normalisation={self.normalisation}: J_e0 and J_phi0 must be > 0")
         m, _, n = self.points.shape
         m -= 1
         k = int(samples_per_segment)
@@ -281,7 +306,8 @@ class MotionProblem:
         self.min_thrust = min_thrust
         if crossing is not None:
             if not 0 < int(crossing) < m:
-                raise ValueError(f"crossing={crossing}: must be an interior point index (1..{m - 1})")
+                raise PlannerArgumentError("crossing", crossing,
+                                           f"crossing={crossing}: must be an interior point index (1..{m - 1})")
             sign = np.where(self.segment < int(crossing), 1.0, -1.0)
             sign[int(crossing) * k - 1] = sign[int(crossing) * k] = 0.0  # both sides of the crossing knot
             self.crossing_sign = sign
@@ -334,12 +360,9 @@ class MotionProblem:
     def _weights(self):
         return self.alpha / self.normalisation[0], (1.0 - self.alpha) / self.normalisation[1]
 
+    @cached_evaluation
     def evaluate(self, x, derivatives: bool = False) -> Evaluation:
         """J, the constraints and (optionally) their exact derivatives at x (cached)."""
-        x = np.asarray(x, dtype=float)
-        key = x.tobytes()
-        if self._cache is not None and self._cache[0] == key and (self._cache[1] or not derivatives):
-            return self._cache[2]
         points = self.points_of(x)
         motion = self.motion(points)
         n_r, n_s, n = motion.shape
@@ -394,9 +417,7 @@ class MotionProblem:
             rows_idx = np.arange(sample.size)[:, None]
             full[rows_idx, self.segment[sample][:, None] + np.arange(2)] = local
             jac = full[:, self.free] * self.scale
-        result = Evaluation(value, terms, constraints, grad, jac, hess)
-        self._cache = (key, derivatives, result)
-        return result
+        return Evaluation(value, terms, constraints, grad, jac, hess)
 
     def objective_terms(self, points) -> np.ndarray:
         """[J_e, J_phi] of given points on the grid (smoothed |.|, as the optimiser sees them)."""
