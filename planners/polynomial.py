@@ -23,6 +23,8 @@ from math import perm
 
 import numpy as np
 
+from fpr.model.errors import TrajectoryError
+
 N_COEFFS = 10  # coefficients of a degree-9 polynomial
 N_DERIVS = 5  # derivative orders 0..4 held by a boundary point
 MAX_ORDER = N_COEFFS - 1  # derivatives above 9 vanish identically
@@ -71,30 +73,30 @@ _K = np.arange(N_DERIVS)
 def _check_order(order) -> int:
     if isinstance(order, bool) or not isinstance(order, (int, np.integer)) \
             or not 0 <= order <= MAX_ORDER:
-        raise ValueError(f"order={order!r}: pass an integer in 0..{MAX_ORDER} (the highest "
-                         "derivative wanted; derivatives above 9 are identically zero)")
+        raise TrajectoryError("order", order, f"order={order!r}: pass an integer in 0..{MAX_ORDER} (the highest "
+                              "derivative wanted; derivatives above 9 are identically zero)")
     return int(order)
 
 
 def _check_durations(durations, name: str, unit: str = "s") -> np.ndarray:
     d = np.array(durations, dtype=float)
     if d.size == 0:
-        raise ValueError(f"{name} is empty: give at least one value > 0 [{unit}]")
+        raise TrajectoryError(name, d, f"{name} is empty: give at least one value > 0 [{unit}]")
     bad = np.flatnonzero(~(np.isfinite(d) & (d > 0.0)))
     if bad.size:
         where = f"{name}[{bad[0]}]" if d.ndim else name
-        raise ValueError(f"{where}={float(d.flat[bad[0]])!r}: must be finite and > 0 [{unit}] "
-                         f"({bad.size} bad value(s))")
+        raise TrajectoryError(name, d, f"{where}={float(d.flat[bad[0]])!r}: must be finite and > 0 [{unit}] "
+                                       f"({bad.size} bad value(s))")
     return d
 
 
 def _check_points(points, expected: str) -> np.ndarray:
     p = np.array(points, dtype=float)
     if p.ndim != 3 or p.shape[0] < 2 or p.shape[1] != N_DERIVS or p.shape[2] < 1:
-        raise ValueError(f"points.shape={p.shape}, expected {expected}: the value and "
-                         "derivatives 1..4 of every coordinate at each point")
+        raise TrajectoryError("points", p, f"points.shape={p.shape}, expected {expected}: the value and "
+                                           "derivatives 1..4 of every coordinate at each point")
     if not np.all(np.isfinite(p)):
-        raise ValueError("points contain NaN or inf: give finite values and derivatives")
+        raise TrajectoryError("points", p, "points contain NaN or inf: give finite values and derivatives")
     p.setflags(write=False)
     return p
 
@@ -125,12 +127,12 @@ def _apply_groups(knots: np.ndarray, durations: np.ndarray, t, mats: np.ndarray)
     t = np.atleast_1d(np.asarray(t, dtype=float))
     total = knots[-1]
     if t.ndim != 1:
-        raise ValueError(f"t.shape={t.shape}, expected a scalar or a 1-D array of times [s]")
+        raise TrajectoryError("t", t, f"t.shape={t.shape}, expected a scalar or a 1-D array of times [s]")
     if not np.all(np.isfinite(t)):
-        raise ValueError("t contains NaN or inf: pass finite times in [0, total_duration] [s]")
+        raise TrajectoryError("t", t, "t contains NaN or inf: pass finite times in [0, total_duration] [s]")
     if t.size and (t.min() < -_REL_TOL * total or t.max() > total * (1.0 + _REL_TOL)):
-        raise ValueError(f"t spans [{t.min():.17g}, {t.max():.17g}] s, outside the trajectory "
-                         f"time range [0, {total:.17g}] s: clip or rescale the query times")
+        raise TrajectoryError("t", t, f"t spans [{t.min():.17g}, {t.max():.17g}] s, outside the trajectory "
+                                      f"time range [0, {total:.17g}] s: clip or rescale the query times")
     t = np.clip(t, 0.0, total)
     m = durations.size
     seg = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, m - 1)
@@ -195,10 +197,11 @@ class Segment:
     def __post_init__(self):
         begin, end = np.asarray(self.begin, dtype=float), np.asarray(self.end, dtype=float)
         if begin.ndim != 2 or begin.shape[0] != N_DERIVS or begin.shape != end.shape:
-            raise ValueError(f"begin.shape={begin.shape}, end.shape={end.shape}, expected both "
-                             "(5, n): value and derivatives 1..4 of each coordinate")
+            raise TrajectoryError("begin", begin, f"begin.shape={begin.shape}, end.shape={end.shape}, expected "
+                                                  "both (5, n): value and derivatives 1..4 of each coordinate")
         if np.ndim(self.duration) != 0:
-            raise ValueError(f"duration={self.duration!r}: pass one finite time > 0 [s]")
+            raise TrajectoryError("duration", self.duration,
+                                  f"duration={self.duration!r}: pass one finite time > 0 [s]")
         duration = float(_check_durations(self.duration, "duration"))
         points = _check_points(np.stack([begin, end]), "(5, n) for begin and end")
         object.__setattr__(self, "begin", points[0])
@@ -257,9 +260,9 @@ class PiecewisePolynomial:
         points = _check_points(self.points, "(m+1, 5, n) with m >= 1")
         durations = _check_durations(self.durations, "durations")
         if durations.shape != (points.shape[0] - 1,):
-            raise ValueError(f"durations.shape={durations.shape}, expected "
-                             f"({points.shape[0] - 1},): one duration per segment between "
-                             f"the {points.shape[0]} points")
+            raise TrajectoryError("durations", durations, f"durations.shape={durations.shape}, expected "
+                                                          f"({points.shape[0] - 1},): one duration per segment "
+                                                          f"between the {points.shape[0]} points")
         knots = np.concatenate([[0.0], np.cumsum(durations)])
         for a in (durations, knots):
             a.setflags(write=False)
@@ -347,8 +350,8 @@ def split_evenly(way_times, n_via) -> np.ndarray:
     counts = np.asarray(n_via)
     if counts.shape not in ((), times.shape) or not np.issubdtype(counts.dtype, np.integer) \
             or np.any(counts < 0):
-        raise ValueError(f"n_via={n_via!r}: pass a non-negative integer, or {times.size} of "
-                         "them (one per travel)")
+        raise TrajectoryError("n_via", n_via, f"n_via={n_via!r}: pass a non-negative integer, or {times.size} of "
+                                              "them (one per travel)")
     counts = np.broadcast_to(counts, times.shape)
     return np.repeat(times / (counts + 1), counts + 1)
 
@@ -357,7 +360,41 @@ def stop_points(positions) -> np.ndarray:
     """Points (k, 5, n) at positions (k, n) with zero velocity, acceleration, jerk and snap."""
     pos = np.asarray(positions, dtype=float)
     if pos.ndim != 2:
-        raise ValueError(f"positions.shape={pos.shape}, expected (k, n)")
+        raise TrajectoryError("positions", pos, f"positions.shape={pos.shape}, expected (k, n)")
     points = np.zeros((pos.shape[0], N_DERIVS, pos.shape[1]))
     points[:, 0] = pos
     return points
+
+
+def via_point_times(trajectory: PiecewisePolynomial, begin: float, duration: float, count: int) -> np.ndarray:
+    """Value and derivatives 0..4 of ``trajectory`` at ``count`` evenly spaced times inside
+    [begin, begin + duration] [s], shape (count, 5, n)."""
+    if count == 0:
+        return np.zeros((0,) + trajectory.points.shape[1:])
+    t = begin + duration * np.arange(1, count + 1) / (count + 1)
+    return np.moveaxis(trajectory.evaluate(t, order=4), 1, 0)
+
+
+def with_via_points(trajectory: PiecewisePolynomial, way_times, n_via) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The same motion cut at evenly spaced via times (3.2.1): the new points are the motion's own
+    value and derivatives there, so the motion does not change.
+
+    Args:
+        trajectory: a motion whose knots are the way points (one segment per travel).
+        way_times: travel times (k,) [s], the durations of ``trajectory``.
+        n_via: via points to insert in each travel (k,) (integers >= 0).
+
+    Returns:
+        (points (m+1, 5, n), durations (m,) [s], is_way (m+1,) True at the way points): each travel
+        split evenly (:func:`split_evenly`).
+    """
+    knots = np.concatenate([[0.0], np.cumsum(way_times)])
+    points, durations, is_way = [trajectory.points[0]], [], [True]
+    for j, (duration, count) in enumerate(zip(way_times, n_via)):
+        for via in via_point_times(trajectory, knots[j], duration, int(count)):
+            points.append(via)
+            is_way.append(False)
+        points.append(trajectory.points[j + 1])
+        is_way.append(True)
+        durations += [duration / (count + 1)] * (int(count) + 1)
+    return np.array(points), np.array(durations), np.array(is_way)

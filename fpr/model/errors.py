@@ -136,3 +136,50 @@ def check_shape(argument: str, x, expected: tuple[int | None, ...]) -> np.ndarra
         shown = "(" + ", ".join("N" if e is None else str(e) for e in expected) + ("," if len(expected) == 1 else "") + ")"
         raise ShapeError(argument, a.shape, shown)
     return a
+
+
+class TrajectoryError(FprError, ValueError):
+    """A wrong argument of a polynomial trajectory (:mod:`planners.polynomial`): points, durations,
+    query times, derivative orders, via-point counts.
+
+    Attributes:
+        argument: the offending argument (``points``, ``durations``, ``t``, ``order``...).
+        value: what was given (as given, possibly an array).
+        reason: what is wrong with it and what to give instead.
+    """
+
+    def __init__(self, argument: str, value, reason: str):
+        self.argument = argument
+        self.value = value
+        self.reason = reason
+        super().__init__(reason)
+
+
+class PlannerArgumentError(FprError, ValueError):
+    """A wrong argument of a planner, a planning NLP or a study (:mod:`planners`).
+
+    Attributes:
+        argument: the offending argument (``solver``, ``free``, ``counts``...).
+        value: what was given.
+        reason: what is wrong with it and what to give instead.
+    """
+
+    def __init__(self, argument: str, value, reason: str):
+        self.argument = argument
+        self.value = value
+        self.reason = reason
+        super().__init__(reason)
+
+
+class UnknownMethodError(FprError, ValueError):
+    """A planning method name that is not in the registry (:data:`planners.methods.METHODS`).
+
+    Attributes:
+        name: the name that was given.
+        known: the registered names.
+    """
+
+    def __init__(self, name: str, known: tuple[str, ...]):
+        self.name = name
+        self.known = tuple(known)
+        super().__init__(f"method={name!r}: use one of {', '.join(self.known)}")
