@@ -1,4 +1,5 @@
-"""Tests of fpr.views.figures: the PNG files, what the figures draw, and the input checks."""
+"""Tests of fpr.views.figures (every module of the package): the PNG files, what the figures draw, and the
+input checks."""
 
 import os
 import subprocess
@@ -12,8 +13,9 @@ import pytest
 
 import fpr
 from fpr.views import figures
+from fpr.views.figures import per_robot, planning, simulation, studies
 from fpr.model.inverse_dynamics import inverse_dynamics
-from fpr.model.kinematics import prototype_joints
+from fpr.robots.prototype import prototype_joints
 from planners.optimize import SampledPlan
 from planners.polynomial import PiecewisePolynomial, stop_points
 
@@ -140,7 +142,7 @@ def test_plan_figures_writes_valid_pngs(case, with_reference, request, tmp_path)
 
 def test_fpr_coordinates_figure_has_units_and_bounds(fpr_case):
     robot, plan, reference = fpr_case
-    fig = figures._coordinates_figure(robot, plan, reference)
+    fig = planning._coordinates_figure(robot, plan, reference)
     m = robot.margins.angle
     assert len(fig.axes) == 4
     labels = [ax.get_ylabel() for ax in fig.axes]
@@ -163,7 +165,7 @@ def test_fpr_coordinates_figure_has_units_and_bounds(fpr_case):
 
 def test_prototype_coordinates_figure_bounds(prototype_case):
     robot, plan, _ = prototype_case
-    fig = figures._coordinates_figure(robot, plan)
+    fig = planning._coordinates_figure(robot, plan)
     m = robot.margins.angle
     assert [ax.get_ylabel() for ax in fig.axes] == [r"$q_1$ [rad]", r"$q_2$ [rad]"]
     np.testing.assert_allclose(_limit_values(fig.axes[0]), [-(np.pi / 2 - m), np.pi / 2 - m])
@@ -172,7 +174,7 @@ def test_prototype_coordinates_figure_bounds(prototype_case):
 
 def test_energy_curve_ends_at_the_trapezoid_of_the_power(fpr_case):
     robot, plan, reference = fpr_case
-    fig = figures._energy_figure(robot, plan, reference)
+    fig = planning._energy_figure(robot, plan, reference)
     (ax,) = fig.axes
     assert ax.get_ylabel() == "$J_e$ [J]" and ax.get_xlabel() == "t [s]"
     for sampled in (plan, reference):
@@ -185,7 +187,7 @@ def test_energy_curve_ends_at_the_trapezoid_of_the_power(fpr_case):
 
 def test_perturbation_curve_ends_at_the_trapezoid_of_the_squared_roll_rates(prototype_case):
     robot, plan, _ = prototype_case
-    (ax,) = figures._perturbation_figure(robot, plan).axes
+    (ax,) = planning._perturbation_figure(robot, plan).axes
     assert ax.get_ylabel().endswith("[rad$^2$/s]")
     curve = next(line for line in ax.get_lines() if line.get_gid() == plan.label).get_ydata()
     assert curve[-1] == pytest.approx(np.trapezoid((plan.inputs.roll_rate**2).sum(axis=1), plan.t), rel=1e-9)
@@ -195,15 +197,15 @@ def test_perturbation_curve_ends_at_the_trapezoid_of_the_squared_roll_rates(prot
 def test_per_drone_figures(case, n_drones, request):
     robot, plan, reference = request.getfixturevalue(case)
     m = robot.margins.angle
-    thrust = figures._thrust_figure(robot, plan, reference)
+    thrust = planning._thrust_figure(robot, plan, reference)
     assert len(thrust.axes) == n_drones
     assert all(ax.get_ylabel() == f"$|F_{i + 1}|$ [N]" for i, ax in enumerate(thrust.axes))
     np.testing.assert_array_equal(thrust.axes[-1].get_lines()[-1].get_ydata(), reference.inputs.thrust[:, -1])
-    roll = figures._roll_figure(robot, plan, reference)
+    roll = planning._roll_figure(robot, plan, reference)
     for ax in roll.axes:
         assert ax.get_ylabel().endswith("[rad]")
         np.testing.assert_allclose(_limit_values(ax), [-(np.pi / 2 - m), np.pi / 2 - m])
-    rotors = figures._rotor_speeds_figure(robot, plan, reference)
+    rotors = planning._rotor_speeds_figure(robot, plan, reference)
     w_max = robot.rotor_constants.max_speed - robot.margins.rotor_speed
     for ax in rotors.axes:
         assert ax.get_ylabel().endswith("[rad/s]")
@@ -213,7 +215,7 @@ def test_per_drone_figures(case, n_drones, request):
 
 def test_fpr_path_figure(fpr_case):
     robot, plan, reference = fpr_case
-    (ax,) = figures._path_figure(robot, plan, reference).axes
+    (ax,) = planning._path_figure(robot, plan, reference).axes
     length = robot.link_length
     assert (ax.get_xlabel(), ax.get_ylabel()) == ("y [m]", "z [m]")
     assert ax.get_aspect() == 1.0
@@ -233,7 +235,7 @@ def test_fpr_path_figure(fpr_case):
 
 def test_prototype_path_figure(prototype_case):
     robot, plan, reference = prototype_case
-    (ax,) = figures._path_figure(robot, plan, reference).axes
+    (ax,) = planning._path_figure(robot, plan, reference).axes
     length, margin = robot.link_length, robot.margins.ground
     assert _limit_values(ax) == pytest.approx(sorted([-length + margin, margin]))  # ground and fixed point
     joints = prototype_joints(plan.motion[0], length)
@@ -286,7 +288,7 @@ def test_via_point_study_figure(tmp_path):
     path = figures.via_point_study_figure(tmp_path / "studies" / "via.png", range(5), energy, perturbation)
     assert path == tmp_path / "studies" / "via.png"
     _assert_png(path)
-    fig = figures._via_point_study([0, 1, 2, 3, 4], energy, perturbation)
+    fig = studies._via_point_study([0, 1, 2, 3, 4], energy, perturbation)
     for ax, ratios in zip(fig.axes, (energy, perturbation), strict=True):
         assert ax.get_ylabel().endswith("[-]") and ax.get_xlabel().endswith("[-]")
         np.testing.assert_allclose([bar.get_height() for bar in ax.patches], ratios)
@@ -297,7 +299,7 @@ def test_alpha_study_figure(tmp_path):
     energy, perturbation = [0.7, 1.0, 0.9, 0.8, 0.75], [1.0, 0.3, 0.4, 0.6, 0.9]
     path = figures.alpha_study_figure(tmp_path / "alpha.png", alphas, energy, perturbation)
     _assert_png(path)
-    fig = figures._alpha_study(alphas, energy, perturbation)
+    fig = studies._alpha_study(alphas, energy, perturbation)
     (line,) = fig.axes[0].get_lines()
     np.testing.assert_allclose(line.get_xdata(), [0.0, 0.3, 0.6, 0.9, 1.0])  # sorted by alpha
     np.testing.assert_allclose(line.get_ydata(), [1.0, 0.9, 0.8, 0.75, 0.7])
@@ -350,7 +352,7 @@ def test_matplotlib_is_lazy_and_pyplot_untouched(tmp_path):
 @pytest.mark.parametrize("case", ["fpr_case", "prototype_case"])
 def test_rotor_forces_figure_draws_c_t_w_squared_against_the_limits(case, request):
     robot, plan, reference = request.getfixturevalue(case)
-    fig = figures._rotor_forces_figure(robot, plan, reference)
+    fig = planning._rotor_forces_figure(robot, plan, reference)
     c_t = robot.rotor_constants.thrust_coefficient
     upper = c_t * (robot.rotor_constants.max_speed - robot.margins.rotor_speed) ** 2
     assert upper == pytest.approx(6.25, rel=1e-3)  # 750 rad/s (the seed's 9 N are at 900 rad/s)
@@ -419,7 +421,7 @@ def test_simulation_figures_write_valid_pngs(case, log, request, tmp_path):
 
 def test_sim_path_overlays_plan_and_simulation(fpr_case, fpr_log, prototype_case, prototype_log):
     robot, plan, _ = fpr_case
-    (ax,) = figures._sim_path(robot, fpr_log, plan).axes
+    (ax,) = simulation._sim_path(robot, fpr_log, plan).axes
     assert (ax.get_xlabel(), ax.get_ylabel()) == ("y [m]", "z [m]")
     assert _limit_values(ax) == pytest.approx([-robot.link_length + robot.margins.ground])
     np.testing.assert_allclose(_line(ax, "planned").get_xydata(), plan.motion[0, :, :2])
@@ -427,7 +429,7 @@ def test_sim_path_overlays_plan_and_simulation(fpr_case, fpr_log, prototype_case
     np.testing.assert_allclose(_line(ax, "simulated").get_xydata(), simulated, atol=1e-12)
     assert len(_line(ax, "way").get_xdata()) == 5 and len(_line(ax, "via").get_xdata()) == 4
     robot, plan, _ = prototype_case
-    (ax,) = figures._sim_path(robot, prototype_log, plan).axes
+    (ax,) = simulation._sim_path(robot, prototype_log, plan).axes
     drone_joint = plan.inputs.joint_position[:, 0]
     np.testing.assert_allclose(_line(ax, "planned").get_xydata(), drone_joint, atol=1e-12)
     assert _limit_values(ax) == pytest.approx(sorted([-robot.link_length + robot.margins.ground,
@@ -437,8 +439,8 @@ def test_sim_path_overlays_plan_and_simulation(fpr_case, fpr_log, prototype_case
 @pytest.mark.parametrize("case, log", [("fpr_case", "fpr_log"), ("prototype_case", "prototype_log")])
 def test_sim_coordinates_have_bounds_and_errors(case, log, request):
     robot, plan, _ = request.getfixturevalue(case)
-    fig = figures._sim_coordinates(robot, request.getfixturevalue(log))
-    specs = figures._coordinate_axes(robot)
+    fig = simulation._sim_coordinates(robot, request.getfixturevalue(log))
+    specs = per_robot._coordinate_axes(robot)
     assert len(fig.axes) == 2 * len(specs)
     for j, (label, bounds) in enumerate(specs):
         ax, ax_err = fig.axes[2 * j], fig.axes[2 * j + 1]
@@ -453,16 +455,16 @@ def test_sim_coordinates_have_bounds_and_errors(case, log, request):
 
 def test_sim_out_of_plane_roll_and_heights(fpr_case, fpr_log, prototype_case, prototype_log):
     robot, plan, _ = fpr_case
-    fig = figures._sim_out_of_plane(robot, fpr_log)
+    fig = simulation._sim_out_of_plane(robot, fpr_log)
     assert [ax.get_ylabel() for ax in fig.axes] == ["x [m]", r"$\theta$ [rad]", r"$\psi$ [rad]"]
     np.testing.assert_allclose(_line(fig.axes[0], "simulated").get_ydata(), 0.01 * np.sin(plan.t))
     assert _line(fig.axes[0], "planned").get_ydata()[0] == 0.0
     proto_robot, proto_plan, _ = prototype_case
-    fig = figures._sim_out_of_plane(proto_robot, prototype_log)
+    fig = simulation._sim_out_of_plane(proto_robot, prototype_log)
     assert [ax.get_ylabel() for ax in fig.axes] == [r"$\theta$ [rad]", r"$\psi$ [rad]"]  # no x: pinned
 
     bound = np.pi / 2 - robot.margins.angle
-    roll = figures._sim_roll(robot, fpr_log)
+    roll = simulation._sim_roll(robot, fpr_log)
     for i, ax in enumerate(roll.axes):
         assert ax.get_ylabel() == rf"$\varphi_{i + 1}$ [rad]"
         np.testing.assert_allclose(_limit_values(ax), [-bound, bound])
@@ -470,13 +472,13 @@ def test_sim_out_of_plane_roll_and_heights(fpr_case, fpr_log, prototype_case, pr
         np.testing.assert_allclose(_line(ax, "desired").get_ydata(), plan.inputs.roll[:, i] + 0.01)
 
     ground = -robot.link_length + robot.margins.ground
-    heights = figures._sim_heights(robot, fpr_log)
+    heights = simulation._sim_heights(robot, fpr_log)
     assert [ax.get_ylabel() for ax in heights.axes] == ["$z_1$ [m]", "$z_2$ [m]"]
     for i, ax in enumerate(heights.axes):
         assert _limit_values(ax) == pytest.approx([ground])
         np.testing.assert_allclose(_line(ax, "planned").get_ydata(), plan.inputs.joint_position[:, i, 1])
         np.testing.assert_allclose(_line(ax, "com").get_ydata(), fpr_log.drone_height[:, i])
-    heights = figures._sim_heights(proto_robot, prototype_log)
+    heights = simulation._sim_heights(proto_robot, prototype_log)
     assert [ax.get_ylabel() for ax in heights.axes] == ["$z_{j2}$ [m]", "$z_{j3}$ [m]"]  # Fig. 3.46-3.47
     elbow = prototype_joints(proto_plan.motion[0], proto_robot.link_length)[:, 0, 1]
     np.testing.assert_allclose(_line(heights.axes[0], "planned").get_ydata(), elbow, atol=1e-12)
@@ -490,8 +492,8 @@ def test_sim_rotor_figures_limits_and_saturation(case, log, request):
     log = request.getfixturevalue(log)
     c_t, w_max = robot.rotor_constants.thrust_coefficient, robot.rotor_constants.max_speed
     upper = w_max - robot.margins.rotor_speed
-    speeds = figures._sim_rotor_speeds(robot, log, plan)
-    forces = figures._sim_rotor_forces(robot, log, plan)
+    speeds = simulation._sim_rotor_speeds(robot, log, plan)
+    forces = simulation._sim_rotor_forces(robot, log, plan)
     for i, (ax_w, ax_f) in enumerate(zip(speeds.axes, forces.axes, strict=True)):
         assert ax_w.get_ylabel().endswith("[rad/s]") and ax_f.get_ylabel().endswith("[N]")
         np.testing.assert_allclose(_limit_values(ax_w), [0.0, upper])
@@ -503,7 +505,7 @@ def test_sim_rotor_figures_limits_and_saturation(case, log, request):
         assert len(simulated) == len(planned) == 4
         np.testing.assert_allclose(simulated[2].get_ydata(), c_t * log.speed[:, i, 2] ** 2, rtol=1e-12)
         assert {"rotor 1", "planned", "limit"} <= set(_legend_texts(ax_f))
-    without_plan = figures._sim_rotor_speeds(robot, log)
+    without_plan = simulation._sim_rotor_speeds(robot, log)
     assert len(without_plan.axes[0].get_lines()) == 4 + 3  # no planned lines
 
 
@@ -515,7 +517,7 @@ def test_simulated_indices_of_a_perfect_tracking_equal_the_planned_ones(case, re
     assert energy[-1] == pytest.approx(np.trapezoid(plan.inputs.power.sum(axis=1), plan.t), rel=1e-9)
     squared_rates = (plan.inputs.roll_rate**2).sum(axis=1)
     assert perturbation[-1] == pytest.approx(np.trapezoid(squared_rates, plan.t), rel=1e-9)
-    fig = figures._sim_energy(robot, perfect, plan)
+    fig = simulation._sim_energy(robot, perfect, plan)
     assert [ax.get_ylabel() for ax in fig.axes] == ["$J_e$ [J]", r"$J_\varphi$ [rad$^2$/s]"]
     for ax, curve in zip(fig.axes, (energy, perturbation), strict=True):
         np.testing.assert_allclose(_line(ax, "simulated").get_ydata(), curve)
@@ -547,7 +549,8 @@ def test_figure_set_writes_every_figure(square_stop, tmp_path, monkeypatch):
         path.write_bytes(PNG_MAGIC)
         return path
 
-    monkeypatch.setattr(figures, "_save", save)
+    monkeypatch.setattr(planning, "_save", save)
+    monkeypatch.setattr(simulation, "_save", save)
     robot = square_stop.robot
     sampled = square_stop.sampled(RATE)
     log = _log(robot, sampled, offset=0.01)
