@@ -37,6 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from fpr.model.errors import FprError
+from fpr.views.figures import plan_figures, simulation_figures
+from fpr.views.scene import view
 from planners.mission import BUILTIN_MISSIONS, load_mission
 from planners.optimize import METHODS, PlanResult, plan
 
@@ -301,8 +303,6 @@ def _simulate(args, robot, final, out, sampled, written, say):
     written.append("simulation.npz")
     if not args.no_plots:
         try:
-            from fpr.views.figures import simulation_figures
-
             written += [f.name for f in simulation_figures(out, robot, log, sampled)]
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the results
             print(f"warning: simulation figures not written: {error}", file=sys.stderr)
@@ -331,8 +331,6 @@ def _simulation_table(log) -> str:
 def _scene(args, robot, final, log, out, written):
     """Write scene.html (and with --serve start the server); returns the live Visualizer or None."""
     try:
-        from fpr.views.scene import view
-
         scene = view(robot, final, log)
         scene.write(out / "scene.html")
         written.append("scene.html")
@@ -398,8 +396,6 @@ def main(argv=None) -> int:
         written.append("reference.csv")
     if not args.no_plots:
         try:
-            from fpr.views.figures import plan_figures
-
             figures = plan_figures(out, robot, sampled, reference_sampled)
             written += [f.name for f in figures]
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the computed plan
