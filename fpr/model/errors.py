@@ -184,6 +184,7 @@ class UnknownMethodError(FprError, ValueError):
         self.known = tuple(known)
         super().__init__(f"method={name!r}: use one of {', '.join(self.known)}")
 
+
 class FigureError(FprError, ValueError):
     """A wrong argument of a figure (:mod:`fpr.views.figures`): a sampled plan, a simulation log, a robot,
     a study's numbers or a file name that the figures cannot draw or write.
@@ -199,3 +200,52 @@ class FigureError(FprError, ValueError):
         self.value = value
         self.reason = reason
         super().__init__(reason)
+
+
+class RobotDefinitionError(FprError, ValueError):
+    """A robot description or robot kind that fpr cannot use: a URDF without a joint or frame the kind
+    names, a Pinocchio model whose coordinates are not the kind's layout, a joint outside the plane of
+    motion, an unknown xacro argument, a name registered twice (:mod:`fpr.model`, :mod:`fpr.robots`).
+
+    Attributes:
+        robot: the robot's name, or the xacro / URDF file, concerned.
+        reason: what is wrong and what to change.
+    """
+
+    def __init__(self, robot: str, reason: str):
+        self.robot = str(robot)
+        self.reason = reason
+        super().__init__(f"{self.robot}: {reason}")
+
+
+class ModelArgumentError(FprError, ValueError):
+    """A wrong argument of a model, robot, simulation or controller function (:mod:`fpr.model`,
+    :mod:`fpr.robots`, :mod:`fpr.sim`, :mod:`controllers`).
+
+    Attributes:
+        argument: the offending argument (``mode``, ``arm``, ``dt``, ``q``...).
+        value: what was given.
+        reason: what is wrong with it and what to give instead.
+    """
+
+    def __init__(self, argument: str, value, reason: str):
+        self.argument = argument
+        self.value = value
+        self.reason = reason
+        super().__init__(reason)
+
+
+class NotUniformError(FprError, ValueError):
+    """One value asked of a quantity that differs between the robot's drones (or links), e.g.
+    ``robot.drone_mass`` of a robot whose drones have different masses.
+
+    Attributes:
+        quantity: the quantity asked for (``drone_mass``, ``hinge_offset``...).
+        values: its value for each drone (or link).
+    """
+
+    def __init__(self, quantity: str, values, hint: str):
+        self.quantity = quantity
+        self.values = tuple(float(v) for v in values)
+        super().__init__(f"{quantity}: the robot's values differ ({', '.join(f'{v:.6g}' for v in self.values)}); "
+                         f"{hint}")
