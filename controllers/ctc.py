@@ -1,4 +1,4 @@
-"""The cascaded computed-torque controller of the thesis (seed 2.2), for the FPR and the prototype.
+"""The cascaded computed-torque controller of the thesis (seed 2.2), for any robot of the registry.
 
 **Outer loop** (passive chain, eq. 2.14-2.16, 2.20): from the planned s_d and its derivatives and
 the measured chain state,
@@ -9,27 +9,24 @@ the measured chain state,
 gives the force F_i each drone must apply at its joint (point-mass drones, the planning model);
 the desired roll is its direction, phi_d,i = atan2(-F_iy, F_iz) (2.20). The thrust is its
 component on the drone's measured thrust axis b_z(phi_i) = (-sin phi_i, cos phi_i) (2.15),
-corrected for the drone's offset d_i: the exact multibody model gives, along the thrust axis,
-f_i = b_z . F_i - m_i d_i phi_i'^2 (the thesis' 2.21 adds m_i d_i phi_i'' instead: in the exact
+corrected for the drone's offset d_i (each drone its own m_i, d_i): the exact multibody model gives,
+along the thrust axis, f_i = b_z . F_i - m_i d_i phi_i'^2 (the thesis' 2.21 adds m_i d_i phi_i'' instead: in the exact
 model that term lies across the thrust axis, where a thrust cannot cancel it; DESIGN.md).
 
 An integral term K_ip int(s - s_d) dt (not in the thesis) removes the steady error a wrong model
 leaves (mass or rotor-constant mismatch, wind).
 
-**Through the prototype's Type-2 singularity** (q2 = 0, seed ch. 4) J_h^T F = b cannot be inverted:
-with F = f_r e + f_p e_perp (e along the second link), b2 = L f_p gives the force across the link
-everywhere, but the tension f_r only through L sin(q2) f_r = b1 - b2 (1 + cos q2) = g. The outer
-loop then solves this row in the least-squares sense, regularised towards the planned tension
-f_r,d (the plan satisfies the crossing criterion, so f_r,d is finite):
-f_r = (L sin q2 g + e^2 f_r,d) / ((L sin q2)^2 + e^2), e^2 = eps^2 max(0, 1 - (L sin q2 / 10 eps)^2),
-eps = L sin(``singular_band``). Where |sin q2| >= 10 sin(band) this is the CTC law exactly (and within
-(eps / L sin q2)^2 closer in); near q2 = 0 the elbow's motion across the straight chain, which no
-drone force can act on, follows the plan open loop.
+The solve J_h^T F = b is the robot kind's (``robot.kind.outer_loop_forces``). **Through the
+prototype's Type-2 singularity** (q2 = 0, seed ch. 4) it cannot be inverted: the prototype solves the
+tension's row in the least-squares sense, regularised towards the planned tension
+(:func:`fpr.robots.prototype_thrust.regularised_force`, the same split of F along and across the link
+as the planner's inverse dynamics; ``singular_band`` sets the regularisation), so that near q2 = 0 the
+elbow's motion across the straight chain, which no drone force can act on, follows the plan open loop.
 
-**Out of the plane** (FPR): the pitch theta tilts every thrust out of the plane, so the lateral
-position x is held by a desired pitch theta_d = (-k_px x - k_dx x') / (d x'' / d theta), the
-sensitivity taken from the model at the hover pose; psi_d = 0. The prototype's chain is pinned:
-psi_d = theta_d = 0.
+**Out of the plane** (a robot with a coordinate x, the FPR): the pitch theta tilts every thrust out
+of the plane, so the lateral position x is held by a desired pitch theta_d = (-k_px x - k_dx x') /
+(d x'' / d theta), the sensitivity taken from the model at the hover pose ``kind.reference_chain``;
+psi_d = 0. A pinned chain (the prototype) has no x: psi_d = theta_d = 0.
 
 **Inner loop** (attitude, eq. 2.23): u_a = q_a,d'' - K_pa (q_a - q_a,d) - K_da (q_a' - q_a,d') for
 q_a = [psi, theta, phi_1, (phi_2)], with the planned roll rate and acceleration as feed-forward;
@@ -49,6 +46,7 @@ import numpy as np
 import pinocchio as pin
 
 from controllers.allocation import AllocationResult, Allocator
+from fpr.model.inverse_dynamics import inverse_dynamics
 
 
 @dataclass
@@ -71,8 +69,9 @@ class ControllerSettings:
         lateral_frequency, lateral_damping: same for x (FPR only).
         max_pitch: bound on theta_d [rad].
         attitude_weight, thrust_weight: allocation weights (:class:`controllers.allocation.Allocator`).
-        singular_band: prototype only, the angle [rad] that sets the regularisation eps = L sin(band)
-            of the tension near q2 = 0 (used when the reference carries the planned force).
+        singular_band: the angle [rad] that sets the regularisation near a Type-2 singularity (the
+            prototype's eps = L sin(band) of the tension near q2 = 0, used when the reference carries
+            the planned force; ``robot.kind.outer_loop_forces``).
     """
 
     outer_rate: float = 100.0
@@ -100,8 +99,8 @@ class Reference:
     Attributes:
         motion: s_d and its derivatives 0..4, shape (5, n_s).
         roll_rate, roll_acceleration: planned phi_i', phi_i'' (feed-forward), shape (n_d,).
-        force: planned thrust vectors F_i, shape (n_d, 2) [N], or None. The prototype's outer loop
-            uses it near q2 = 0 (module docstring).
+        force: planned thrust vectors F_i, shape (n_d, 2) [N], or None. The robot kind's outer-loop
+            solve may use it (the prototype's near q2 = 0, module docstring).
     """
 
     motion: np.ndarray
@@ -159,8 +158,8 @@ class CascadedController:
         self.rolls = r.indices(r.layout.rolls)
         self.attitude = r.indices(r.layout.attitude)
         self.allocator = Allocator(r, st.attitude_weight, st.thrust_weight)
-        self.offset = r.hinge_offset
-        self.mass = r.drone_mass
+        self.offset = np.array(r.hinge_offsets)  # d_i, (n_d,) [m]
+        self.mass = np.array(r.drone_masses)  # m_i, (n_d,) [kg]
         self.lateral = "x" in r.layout.coordinates
         self._pitch_gain = self._lateral_sensitivity() if self.lateral else 1.0
         self._force = None
@@ -173,12 +172,11 @@ class CascadedController:
         self._integral = np.zeros(len(self.chain))
 
     def _lateral_sensitivity(self) -> float:
-        """d x'' / d theta at the hover pose s0 with hover thrusts (FPR)."""
-        from fpr.model.inverse_dynamics import inverse_dynamics
-
+        """d x'' / d theta at the hover pose s0 = ``kind.reference_chain`` with hover thrusts."""
         r = self.robot
-        s0 = np.array([0.0, 0.0, 5 * np.pi / 4, np.pi / 2])
-        hover = inverse_dynamics(r, np.concatenate([s0[None, None], np.zeros((4, 1, 4))]))
+        s0 = np.array(r.kind.reference_chain, dtype=float)
+        n_s = s0.size
+        hover = inverse_dynamics(r, np.concatenate([s0[None, None], np.zeros((4, 1, n_s))]))
         q = np.zeros(r.nq)
         q[self.chain] = s0
         q[self.rolls] = hover.roll[0]
@@ -196,24 +194,7 @@ class CascadedController:
         sd = reference.motion
         u = sd[2] - kp * (s - sd[0]) - kd * (ds - sd[1]) - st.chain_integral * self._integral
         m, c, jac = self._point_dynamics(s, ds)
-        if self.robot.name == "prototype" and reference.force is not None:
-            return self._prototype_force(s, m @ u + c, reference.force[0])[None, :]
-        force = np.linalg.solve(jac.T, m @ u + c)
-        return force.reshape(-1, 2)
-
-    def _prototype_force(self, xi, b, planned) -> np.ndarray:
-        """F from J_pr^T F = b, the tension regularised towards the planned one (module docstring)."""
-        length = self.robot.link_length
-        q12 = xi[0] + xi[1]
-        along = np.array([np.cos(q12), np.sin(q12)])
-        across = np.array([-np.sin(q12), np.cos(q12)])
-        f_p = b[1] / length
-        lever = length * np.sin(xi[1])
-        eps2 = (length * np.sin(self.settings.singular_band)) ** 2
-        # tapered off for |L sin q2| >= 10 eps: the plain CTC law there (within ~1 % before)
-        eps2 *= max(0.0, 1.0 - lever**2 / (100.0 * eps2))
-        f_r = (lever * (b[0] - b[1] * (1.0 + np.cos(xi[1]))) + eps2 * (planned @ along)) / (lever**2 + eps2)
-        return f_r * along + f_p * across
+        return self.robot.kind.outer_loop_forces(s, m @ u + c, jac, reference.force, st.singular_band)
 
     def _point_dynamics(self, s, ds):
         """M_s(s), c_s(s, s') and the hinge Jacobian J_h(s) (2 n_d, n_s) of the point-drone planning model.

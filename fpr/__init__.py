@@ -3,7 +3,7 @@
 Quick start::
 
     import fpr
-    robot = fpr.load("fpr")            # or fpr.load("prototype")
+    robot = fpr.load("fpr")            # or fpr.load("prototype"); fpr.ROBOTS lists the built-in ones
     q = robot.configuration(phi=5 * 3.14159 / 4, q21=3.14159 / 2)
     M = robot.mass_matrix(q)           # in the seed thesis' coordinates
 
@@ -23,10 +23,14 @@ from fpr.model.errors import FprError, ShapeError, SingularityError, UnknownRobo
 
 def __getattr__(name):
     # Pinocchio is imported on first use, so that ``python -m fpr.model.description`` stays light.
-    if name in ("ROBOTS", "Robot", "load"):
-        from fpr.model import robot as robots
+    if name in ("ROBOTS", "load", "register"):
+        from fpr import robots
 
-        return getattr(robots, name)
+        return robots.BUILTIN if name == "ROBOTS" else getattr(robots, name)
+    if name == "Robot":
+        from fpr.model.robot import Robot
+
+        return Robot
     raise AttributeError(f"module 'fpr' has no attribute {name!r}")
 
 
@@ -41,4 +45,5 @@ __all__ = [
     "UnknownRobotError",
     "WorkspaceError",
     "load",
+    "register",
 ]

@@ -19,8 +19,8 @@ File format (every key at the top level, except the optional ``[robot_parameters
 ``description`` (string, optional)
     Free text. Default ``""``.
 ``robot`` (string, required)
-    ``"fpr"`` (two drones and the end-effector) or ``"prototype"`` (one drone, chain pinned at the
-    origin).
+    A registered robot (:mod:`fpr.robots`): ``"fpr"`` (two drones and the end-effector) or
+    ``"prototype"`` (one drone, chain pinned at the origin), or one you registered.
 ``space`` (string, optional)
     In which coordinates the way points are written. Default ``"task"``.
 
@@ -30,10 +30,13 @@ File format (every key at the top level, except the optional ``[robot_parameters
     * prototype, ``"task"``: the drone joint position [y, z] [m] in the vertical plane, fixed point
       at the origin; the planner converts it to xi with the assembly mode ``arm``.
     * prototype, ``"joint"``: xi = [q1, q2] [rad], joint 2 = L u(q1), drone joint = L u(q1) + L u(q1 + q2).
+
+    In general: ``"joint"`` is the robot's planning coordinates, ``"task"`` its ``task_coordinates``
+    (the robot kind converts them, ``kind.planning_pose``).
 ``arm`` (string, optional)
     Assembly mode of the prototype: ``"down"`` (q2 > 0, the elbow below the line fixed point ->
     drone) or ``"up"`` (q2 < 0). Default ``"down"``. Must be one of the two for the FPR too, where
-    it is ignored.
+    it is ignored (a robot without ``assembly_modes``).
 ``way_points`` (array of arrays of numbers, required)
     k >= 2 way points, each with 4 numbers (FPR) or 2 (prototype), in the coordinates of ``space``.
     The robot starts at rest at the first and stops at rest at the last.
@@ -47,8 +50,8 @@ File format (every key at the top level, except the optional ``[robot_parameters
     J = alpha Je / Je0 + (1 - alpha) Jphi / Jphi0: 1 minimises the energy only, 0 the drone
     perturbation (roll rates) only. Default 0.5.
 ``cross_singularity`` (boolean, optional)
-    Prototype only: ``true`` asks for a motion that crosses the Type-2 singularity q2 = 0 exactly
-    once (seed ch. 4, :mod:`planners.crossing`). The mission then has 2 way points, the start in
+    Prototype only (a robot whose kind ``crosses_singularity``): ``true`` asks for a motion that
+    crosses the Type-2 singularity q2 = 0 exactly once (seed ch. 4, :mod:`planners.crossing`). The mission then has 2 way points, the start in
     the assembly mode ``arm`` and the end in the other one, and 2 travel times and via-point
     counts: start -> crossing and crossing -> end (the times are first guesses; the planner
     optimises them with the crossing state). Default ``false``.
@@ -102,15 +105,9 @@ from typing import Any
 
 import numpy as np
 
+from fpr import robots
 from fpr.model import description
-from fpr.model.errors import MissionError, SingularityError, WorkspaceError
-from fpr.model.kinematics import (
-    check_margins,
-    fpr_workspace_margins,
-    prototype_inverse_kinematics,
-    prototype_workspace_margins,
-    singularity_margin,
-)
+from fpr.model.errors import MissionError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -119,18 +116,11 @@ else:  # Python 3.10: tomllib joined the standard library in 3.11; "tomli" is th
 
 logger = logging.getLogger(__name__)
 
-ROBOTS = description.ROBOTS  # the same tuple as fpr.model.robot.ROBOTS, without importing Pinocchio
 SPACES = ("task", "joint")
 ARMS = ("down", "up")
 BUILTIN_MISSIONS = ("square", "study", "prototype-tour", "cross-singularity")
 """Names of the built-in missions, files ``planners/missions/<name>.toml``."""
 
-_COORDINATES = {
-    ("fpr", "task"): ("y [m]", "z [m]", "phi [rad]", "q21 [rad]"),
-    ("fpr", "joint"): ("y [m]", "z [m]", "phi [rad]", "q21 [rad]"),
-    ("prototype", "task"): ("y [m]", "z [m]"),
-    ("prototype", "joint"): ("q1 [rad]", "q2 [rad]"),
-}
 _REQUIRED_KEYS = ("robot", "way_points", "times")
 _FILE_KEYS = ("name", "description", "robot", "space", "arm", "way_points", "times", "via_points", "alpha",
               "cross_singularity", "robot_parameters")
@@ -164,7 +154,7 @@ class Mission:
 
     Attributes:
         name: the mission's name.
-        robot: "fpr" or "prototype".
+        robot: a registered robot name (:func:`fpr.robots.names`), e.g. "fpr" or "prototype".
         way_points: shape (k, n), k >= 2, in the coordinates of ``space``: FPR n = 4,
             s = [y z phi q21] [m, m, rad, rad]; prototype n = 2, task [y z] of the drone joint [m]
             or joint xi = [q1 q2] [rad].
@@ -201,7 +191,7 @@ class Mission:
         self._set("source", str(self.source))
         self._set("name", self._text("name", self.name, allow_empty=False))
         self._set("description", self._text("description", self.description))
-        self._set("robot", self._choice("robot", self.robot, ROBOTS, "the robot to plan for"))
+        self._set("robot", self._choice("robot", self.robot, robots.names(), "the robot to plan for"))
         self._set("space", self._choice("space", self.space, SPACES, "the coordinates of way_points"))
         self._set("arm", self._choice("arm", self.arm, ARMS, "the prototype's assembly mode, down: q2 > 0"))
         way_points = self._way_points(self.way_points)
@@ -234,8 +224,13 @@ class Mission:
                                           f"{', '.join(map(repr, choices))}")
         return value
 
+    @property
+    def kind(self):
+        """The robot kind (class) of ``robot``, from the registry (:func:`fpr.robots.get`)."""
+        return robots.get(self.robot)
+
     def _way_points(self, value) -> np.ndarray:
-        coords = _COORDINATES[(self.robot, self.space)]
+        coords = self.kind.mission_coordinates(self.space)
         n, listed = len(coords), ", ".join(coords)
         shape_hint = f"a list of way points, each a list of {n} numbers [{listed}]"
         if not _is_sequence(value):
@@ -262,10 +257,11 @@ class Mission:
     def _crossing(self, value, k: int) -> bool:
         if not isinstance(value, (bool, np.bool_)):
             raise self._error("cross_singularity", f"{value!r}: write true or false")
-        if value and (self.robot != "prototype" or k != 2):
-            reason = ("true needs the prototype and exactly 2 way points (the start, in the assembly mode "
-                      f"`arm`, and the end, in the other one); this mission has robot = {self.robot!r} and "
-                      f"{k} way points")
+        if value and (not self.kind.crosses_singularity or k != 2):
+            able = [name for name in robots.names() if robots.get(name).crosses_singularity]
+            reason = (f"true needs a robot that can cross its singularity ({', '.join(map(repr, able))}) and "
+                      "exactly 2 way points (the start, in the assembly mode `arm`, and the end, in the other "
+                      f"one); this mission has robot = {self.robot!r} and {k} way points")
             raise self._error("cross_singularity", reason)
         return bool(value)
 
@@ -331,32 +327,29 @@ class Mission:
         return MappingProxyType(checked)
 
     def _check_arm_signs(self) -> None:
-        """Prototype in joint space: sign(q2) must match ``arm`` (q2 = 0 is left to the singularity check)."""
-        if self.robot != "prototype" or self.space != "joint":
+        """Joint space: each way point must be in the assembly mode ``arm_of`` it (a pose on a mode's
+        border, such as the prototype's q2 = 0, is left to the singularity check)."""
+        kind = self.kind
+        if not kind.assembly_modes or self.space != "joint":
             return
-        sign = 1.0 if self.arm == "down" else -1.0
-        signs = np.full(self.way_points.shape[0], sign)
+        k = self.way_points.shape[0]
+        expected = [self.arm_of(i) for i in range(k)]
+        actual = [kind.assembly_mode(point) for point in self.way_points]
+        wrong = [i for i in range(k) if actual[i] is not None and actual[i] != expected[i]]
+        if not wrong:
+            return
+        i = wrong[0]
+        where = f"{_text_of(self.way_points[i])} is in the assembly mode {kind.describe_mode(actual[i])}"
         if self.cross_singularity:
-            signs[-1] = -sign  # the end is in the other assembly mode
-            wrong = np.flatnonzero(signs * self.way_points[:, 1] < 0)
-            if wrong.size:
-                i = int(wrong[0])
-                mode = "down (q2 > 0)" if signs[i] > 0 else "up (q2 < 0)"
-                reason = (f"q2 = {self.way_points[i, 1]:.6g} rad: a singularity crossing starts in the mode "
-                          f"`arm` = {self.arm!r} and ends in the other, so this way point needs its elbow {mode}")
-                raise self._error(f"way_points[{i}]", reason)
-            return
-        wrong = np.flatnonzero(sign * self.way_points[:, 1] < 0)
-        if wrong.size == 0:
-            return
-        mode, other = ("up (q2 < 0)", "up") if sign > 0 else ("down (q2 > 0)", "down")
-        if wrong.size == self.way_points.shape[0]:
-            reason = (f"{self.arm!r}, but every way point has its elbow {mode}: set arm = {other!r} or "
-                      "change the sign of q2")
+            reason = (f"{where}: a singularity crossing starts in the mode `arm` = {self.arm!r} and ends in the "
+                      f"other, so this way point needs the mode {kind.describe_mode(expected[i])}")
+            raise self._error(f"way_points[{i}]", reason)
+        if len(wrong) == k and len(set(actual)) == 1:
+            reason = (f"{self.arm!r}, but every way point is in the assembly mode {kind.describe_mode(actual[0])}: "
+                      f"set arm = {actual[0]!r} or change the way points")
             raise self._error("arm", reason)
-        i = int(wrong[0])
-        reason = (f"q2 = {self.way_points[i, 1]:.6g} rad puts the elbow {mode}, arm = {self.arm!r}: change "
-                  "the sign of q2 (the assembly mode cannot change at a way point; q2 = 0 is a singularity)")
+        reason = (f"{where}, arm = {self.arm!r}: change the way point (the assembly mode cannot change at a way "
+                  "point; the modes meet at a singularity)")
         raise self._error(f"way_points[{i}]", reason)
 
     # ------------------------------------------------------------------ comparisons and copies
@@ -405,12 +398,10 @@ class Mission:
             MissionError: a robot parameter that the description does not accept
                 (field ``robot_parameters.<key>``).
         """
-        from fpr.model import robot as robots  # Pinocchio is imported on first use only
-
         try:
             return robots.load(self.robot, **self.robot_parameters)
         except (ValueError, TypeError) as error:
-            known = description.xacro_arguments()
+            known = description.xacro_arguments(self.kind.xacro)
             bad = next((k for k in self.robot_parameters if k not in known), None)
             if bad is None:
                 raise
@@ -420,12 +411,13 @@ class Mission:
         """The way points in planning coordinates, each checked against the workspace margins.
 
         Args:
-            robot: the :class:`fpr.model.robot.Robot` to plan for (only ``name``, ``link_length`` and
-                ``margins`` are used); default :meth:`load_robot`.
+            robot: the :class:`fpr.model.robot.Robot` to plan for (its ``kind`` converts and checks the
+                way points); default :meth:`load_robot`.
 
         Returns:
-            shape (k, n_s): FPR s = [y z phi q21] [m, m, rad, rad] (both spaces), prototype
-            xi = [q1 q2] [rad] (task-space way points converted with the assembly mode ``arm``).
+            shape (k, n_s), the robot's planning coordinates: FPR s = [y z phi q21] [m, m, rad, rad]
+            (both spaces), prototype xi = [q1 q2] [rad] (task-space way points converted with the
+            assembly mode ``arm``).
 
         Raises:
             MissionError: ``robot`` is not the mission's robot, or was built with another link length.
@@ -463,43 +455,16 @@ class Mission:
         return self.arm
 
     def _planning_pose(self, i: int, point: np.ndarray, robot) -> np.ndarray:
-        if self.robot == "fpr" or self.space == "joint":
-            return point.copy()
-        try:
-            return prototype_inverse_kinematics(point, robot.link_length, self.arm_of(i),
-                                                min_margin=robot.margins.angle)
-        except WorkspaceError as error:
-            raise WorkspaceError(point, f"{self._where(i, point)}: {error.reason}; move the way point closer "
-                                        "to the fixed point (the origin)") from error
-        except SingularityError as error:
-            near = 2 * robot.link_length * np.sin(robot.margins.angle / 2)
-            far = 2 * robot.link_length * np.cos(robot.margins.angle / 2)
-            raise SingularityError(
-                error.configuration, error.margin, error.required,
-                f"{self._where(i, point)}: the links are (nearly) aligned; move the way point so that its "
-                f"distance to the fixed point is between {near:.4g} m and {far:.4g} m",
-            ) from error
+        return robot.kind.planning_pose(point, self.space, self._mode_of(i), self._where(i, point))
+
+    def _mode_of(self, i: int) -> str | None:
+        """The assembly mode of way point i for the robot kind (None: the robot has no modes to keep)."""
+        return self.arm_of(i) if self.kind.assembly_modes else None
 
     def _check_way_point(self, i: int, point: np.ndarray, pose: np.ndarray, robot) -> None:
-        what = self._where(i, point) + ("" if np.array_equal(point, pose) else f" (xi = {_text_of(pose)})")
-        if self.robot == "fpr":
-            check_margins(fpr_workspace_margins(pose, robot.link_length, robot.margins), pose, what,
-                          margins=robot.margins)
-            return
-        values = prototype_workspace_margins(pose, robot.link_length, robot.margins)
-        if self.arm_of(i) == "down":
-            check_margins(values, pose, what, margins=robot.margins)
-            return
-        # prototype_workspace_margins encodes arm down (m_ga <= q2 <= pi - m_ga): mirror its q2 bounds.
-        m = robot.margins.angle
-        values["q2_low"], values["q2_high"] = -pose[1] - m, np.pi - m + pose[1]
-        try:
-            check_margins(values, pose, what, margins=robot.margins)
-        except SingularityError as error:
-            raise SingularityError(
-                pose, float(singularity_margin(pose[1])), m,
-                f"{what}: q2 = {pose[1]:.4g} rad; with arm 'up' keep -pi + {m:.4g} <= q2 <= -{m:.4g} rad",
-            ) from error
+        names = ", ".join(robot.layout.chain)
+        what = self._where(i, point) + ("" if np.array_equal(point, pose) else f" ({names} = {_text_of(pose)})")
+        robot.kind.check_pose(pose, self._mode_of(i), what)
 
     # ------------------------------------------------------------------ output
     def to_dict(self) -> dict[str, Any]:
@@ -533,10 +498,10 @@ class Mission:
             "# Mission written by planners.mission.Mission.to_toml (format: see planners/mission.py)",
             f"name = {_toml_value(d['name'])}",
             f"description = {_toml_value(d['description'])}",
-            f"robot = {_toml_value(d['robot'])}  # \"fpr\" or \"prototype\"",
+            f"robot = {_toml_value(d['robot'])}  # {' or '.join(_toml_value(n) for n in robots.names())}",
             f"space = {_toml_value(d['space'])}  # coordinates of way_points: \"task\" or \"joint\"",
             f"arm = {_toml_value(d['arm'])}  # prototype assembly mode: \"down\" (q2 > 0) or \"up\" (q2 < 0)",
-            f"# {', '.join(_COORDINATES[(self.robot, self.space)])} per way point",
+            f"# {', '.join(self.kind.mission_coordinates(self.space))} per way point",
             f"way_points = [\n{rows}]",
             f"times = {_toml_value(d['times'])}  # travel time of each way-to-way travel [s]",
             f"via_points = {_toml_value(d['via_points'])}  # via points inside each travel",
@@ -686,7 +651,6 @@ __all__ = [
     "ARMS",
     "BUILTIN_MISSIONS",
     "Mission",
-    "ROBOTS",
     "SPACES",
     "builtin_mission_text",
     "load_mission",

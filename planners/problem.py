@@ -40,7 +40,6 @@ import numpy as np
 
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
-from fpr.model.kinematics import fpr_workspace_margins, prototype_workspace_margins
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
 
 COMPLEX_STEP = 1e-30
@@ -95,19 +94,11 @@ def constraint_kind(name: str) -> str:
 
 
 def _workspace(robot, s, crossing_sign=None) -> dict:
-    if robot.name == "fpr":
-        return fpr_workspace_margins(s, robot.link_length, robot.margins)
+    """The robot kind's workspace margins of the motion's samples s (N, n_s): in the assembly mode the
+    motion starts in (seed 3.46), or, with ``crossing_sign``, those of a single singularity crossing."""
     if crossing_sign is None:
-        # the assembly mode the motion starts in (a motion that must stay in one mode: seed 3.46)
-        arm = "up" if np.real(np.reshape(s, (-1, 2))[0, 1]) < 0 else "down"
-        return prototype_workspace_margins(s, robot.link_length, robot.margins, arm)
-    margins = prototype_workspace_margins(s, robot.link_length, robot.margins, "down")
-    del margins["q2_low"], margins["q2_high"]
-    q2 = s[..., 1] * crossing_sign  # > 0 on the correct side of the crossing
-    at_crossing = crossing_sign == 0  # the crossing itself: q2 = 0 there by construction
-    margins["crossing_side"] = np.where(at_crossing, 1.0, q2)
-    margins["crossing_range"] = np.where(at_crossing, 1.0, (np.pi - robot.margins.angle) - q2)
-    return margins
+        return robot.kind.workspace_margins(s)
+    return robot.kind.crossing_margins(s, crossing_sign)
 
 
 def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossing_sign=None,

@@ -12,6 +12,7 @@ import yaml
 import yourdfpy
 
 from fpr.model import description
+from fpr.model.errors import RobotDefinitionError, UnknownRobotError
 
 PARAMS = yaml.safe_load((description.URDF_DIR / "parameters.yaml").read_text(encoding="utf-8"))
 DRONES = {"fpr": ("drone_1", "drone_2"), "prototype": ("drone_1",)}
@@ -79,7 +80,7 @@ def _origin_xyz(urdf_text: str, joint: str) -> np.ndarray:
 # --- generation -----------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("robot", description.ROBOTS)
+@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
 def test_committed_urdf_matches_xacro(robot, tmp_path, monkeypatch):
     # from another working directory: relative paths in the xacro files must not depend on it
     monkeypatch.chdir(tmp_path)
@@ -93,11 +94,28 @@ def test_check_command_passes():
 
 
 def test_paths_and_unknown_robot():
+    assert description.DESCRIPTIONS == ("fpr", "prototype")
     assert description.xacro_path("fpr").name == "fpr.urdf.xacro"
     assert description.urdf_path("prototype") == description.URDF_DIR / "prototype.urdf"
     for function in (description.xacro_path, description.urdf_path, description.generate_urdf):
-        with pytest.raises(ValueError, match="'fpr', 'prototype'"):
+        with pytest.raises(UnknownRobotError, match="'fpr', 'prototype'"):
             function("tripod")
+    with pytest.raises(RobotDefinitionError, match="no such xacro file"):
+        description.xacro_path("/nowhere/tripod.urdf.xacro")
+
+
+def test_a_xacro_path_is_a_description(tmp_path):
+    """A robot outside the library names its xacro file by path: same text as by name, URDF beside it."""
+    path = description.xacro_path("prototype")
+    assert description.generate_urdf(path) == description.generate_urdf("prototype")
+    copy = tmp_path / "copy.urdf.xacro"
+    copy.write_text(path.read_text(encoding="utf-8").replace(
+        '<xacro:include filename="', f'<xacro:include filename="{description.URDF_DIR.as_posix()}/'), encoding="utf-8")
+    assert description.urdf_path(copy) == tmp_path / "copy.urdf"
+    assert description.main([str(copy)]) == 0
+    text = (tmp_path / "copy.urdf").read_text(encoding="utf-8")
+    assert f"Generated from {copy.as_posix()} and" in text
+    assert text.split("-->", 1)[1] == description.generate_urdf("prototype").split("-->", 1)[1]
 
 
 def test_xacro_arguments_are_parameter_keys():
@@ -110,7 +128,7 @@ def test_xacro_arguments_are_parameter_keys():
 
 def test_mesh_uris_are_machine_independent():
     dirs = description.mesh_package_dirs()
-    for robot in description.ROBOTS:
+    for robot in description.DESCRIPTIONS:
         meshes = ET.fromstring(description.urdf_path(robot).read_text(encoding="utf-8")).iter("mesh")
         for mesh in meshes:
             uri = mesh.get("filename")
@@ -126,7 +144,7 @@ def test_mesh_package_dirs():
         assert (Path(folder) / "example-robot-data" / "robots" / "hector_description").is_dir()
 
 
-@pytest.mark.parametrize("robot", description.ROBOTS)
+@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
 def test_xacro_arg_overrides_link_length(robot):
     text = description.generate_urdf(robot, link_length=1.0)
     sign = -1.0 if robot == "fpr" else 1.0
@@ -153,7 +171,7 @@ def test_write_urdf(tmp_path):
 # --- the URDF as read by yourdfpy ---------------------------------------------------------------
 
 
-@pytest.mark.parametrize("robot", description.ROBOTS)
+@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
 def test_yourdfpy_loads(robot):
     urdf = _load_yourdfpy(robot, load_meshes=False, build_scene_graph=True)
     assert urdf.validate()
@@ -162,7 +180,7 @@ def test_yourdfpy_loads(robot):
 
 
 @pytest.mark.skipif(not description.mesh_package_dirs(), reason="example-robot-data is not installed")
-@pytest.mark.parametrize("robot", description.ROBOTS)
+@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
 def test_yourdfpy_loads_meshes(robot):
     urdf = _load_yourdfpy(robot, filename_handler=_package_handler)
     names = set(urdf.scene.geometry)
@@ -171,7 +189,7 @@ def test_yourdfpy_loads_meshes(robot):
         assert f"{drone}_rotor_1_propeller" in names
 
 
-@pytest.mark.parametrize("robot", description.ROBOTS)
+@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
 def test_inertials_are_physical(robot):
     urdf = _load_yourdfpy(robot, load_meshes=False)
     with_inertial = [link for link in urdf.robot.links if link.inertial is not None]
@@ -190,7 +208,7 @@ def test_inertials_are_physical(robot):
         assert not any(f"{drone}_rotor_{m}" in names for m in range(1, 5))
 
 
-@pytest.mark.parametrize("robot", description.ROBOTS)
+@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
 def test_inertial_values_follow_parameters(robot):
     urdf = _load_yourdfpy(robot, load_meshes=False)
     links = urdf.link_map
@@ -215,7 +233,7 @@ def test_inertial_values_follow_parameters(robot):
     np.testing.assert_allclose(inertial.inertia, 0.4 * m * r**2 * np.eye(3))
 
 
-@pytest.mark.parametrize("robot", description.ROBOTS)
+@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
 def test_joint_types_and_axes(robot):
     urdf = _load_yourdfpy(robot, load_meshes=False)
     joints = urdf.joint_map
@@ -235,7 +253,7 @@ def test_joint_types_and_axes(robot):
 # --- the URDF as read by Pinocchio --------------------------------------------------------------
 
 
-@pytest.mark.parametrize("robot", description.ROBOTS)
+@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
 def test_pinocchio_loads_with_total_mass(robot):
     model = _load_pinocchio(robot)
     drones = len(DRONES[robot])
@@ -250,7 +268,7 @@ def test_pinocchio_loads_with_total_mass(robot):
 
 
 @pytest.mark.skipif(not description.mesh_package_dirs(), reason="example-robot-data is not installed")
-@pytest.mark.parametrize("robot", description.ROBOTS)
+@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
 def test_pinocchio_loads_meshes(robot):
     model = _load_pinocchio(robot)
     geometry = pin.buildGeomFromUrdf(
@@ -275,7 +293,7 @@ def _random_configuration(model: pin.Model, seed: int = 0) -> np.ndarray:
     return q
 
 
-@pytest.mark.parametrize("robot", description.ROBOTS)
+@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
 def test_rotor_frames(robot):
     model = _load_pinocchio(robot)
     data = model.createData()

@@ -6,7 +6,7 @@ import pytest
 import fpr
 from fpr.model.inverse_dynamics import inverse_dynamics, thrust_vectors
 from fpr.model.jets import Jet
-from fpr.model.kinematics import prototype_jacobian
+from fpr.robots.prototype import prototype_jacobian
 from fpr.model.parameters import load_parameters
 
 SEED = 7

@@ -1,4 +1,5 @@
-"""Planar kinematics of the FPR and of the prototype against the DESIGN.md formulas (seed 2.1, 3.3, ch. 4).
+"""Planar kinematics of the FPR and of the prototype (fpr.robots.fpr, fpr.robots.prototype, fpr.model.kinematics)
+against the DESIGN.md formulas (seed 2.1, 3.3, ch. 4).
 
 Tolerances: closed-form identities at 1e-12; inverse/direct round trips (kept >= 0.1 rad from the
 singular set) at 1e-9; central finite differences (h = 1e-6) at 1e-8.
@@ -8,18 +9,19 @@ import numpy as np
 import pytest
 
 from fpr.model.errors import SingularityError, WorkspaceError
-from fpr.model.kinematics import (
-    check_margins,
+from fpr.model.kinematics import check_margins, singularity_margin
+from fpr.robots.fpr import (
     fpr_chain_jacobian,
     fpr_direct_kinematics,
     fpr_drone_joint_velocities,
     fpr_drone_joints,
     fpr_workspace_margins,
+)
+from fpr.robots.prototype import (
     prototype_inverse_kinematics,
     prototype_jacobian,
     prototype_joints,
     prototype_workspace_margins,
-    singularity_margin,
 )
 from fpr.model.parameters import load_parameters, margins
 
@@ -66,17 +68,32 @@ def test_drone_joints_formula_random_batch():
     np.testing.assert_allclose(r[..., 1, 1], s[..., 1] - L * np.sin(phi + q21), atol=1e-12)
 
 
+UNEQUAL = (0.9, 0.6)  # (L1, L2) of a chain with unequal links [m]
+
+
+@pytest.mark.parametrize("lengths", [L, UNEQUAL])
 @pytest.mark.parametrize("mode", [1, -1])
-def test_direct_kinematics_inverts_drone_joints(mode):
+def test_direct_kinematics_inverts_drone_joints(mode, lengths):
     s = random_fpr_poses(np.random.default_rng(SEED + mode), 200, mode)
-    r = fpr_drone_joints(s, L)
-    back = fpr_direct_kinematics(r[:, 0], r[:, 1], L, mode)
+    r = fpr_drone_joints(s, lengths)
+    back = fpr_direct_kinematics(r[:, 0], r[:, 1], lengths, mode)
     np.testing.assert_allclose(back[:, :2], s[:, :2], atol=1e-9)
     np.testing.assert_allclose(wrap(back[:, 2:] - s[:, 2:]), 0.0, atol=1e-9)
     assert np.all((back[:, 2] >= 0) & (back[:, 2] < 2 * np.pi))
-    other = fpr_direct_kinematics(r[:, 0], r[:, 1], L, -mode)  # the other assembly mode
+    other = fpr_direct_kinematics(r[:, 0], r[:, 1], lengths, -mode)  # the other assembly mode
     assert np.all(np.sign(np.sin(other[:, 3])) == -mode)
-    np.testing.assert_allclose(fpr_drone_joints(other, L), r, atol=1e-9)
+    np.testing.assert_allclose(fpr_drone_joints(other, lengths), r, atol=1e-9)
+
+
+def test_unequal_links_drone_joints_formula():
+    """r1 = p - L1 u(phi), r2 = p - L2 u(phi + q21) (DESIGN.md with one length per link)."""
+    s = random_fpr_poses(np.random.default_rng(SEED), 20, 1)
+    r = fpr_drone_joints(s, UNEQUAL)
+    phi, q21 = s[:, 2], s[:, 3]
+    np.testing.assert_allclose(r[:, 0, 1], s[:, 1] - UNEQUAL[0] * np.sin(phi), atol=1e-12)
+    np.testing.assert_allclose(r[:, 1, 0], s[:, 0] - UNEQUAL[1] * np.cos(phi + q21), atol=1e-12)
+    with pytest.raises(WorkspaceError, match=r"\|L1 - L2\| = 0\.3 m"):
+        fpr_direct_kinematics([0.0, 0.0], [0.2, 0.0], UNEQUAL)  # closer than |L1 - L2|
 
 
 def test_direct_kinematics_reference_mode_is_end_effector_below():
@@ -84,14 +101,16 @@ def test_direct_kinematics_reference_mode_is_end_effector_below():
     np.testing.assert_allclose(fpr_direct_kinematics(r[0], r[1], L, 1), S0, atol=1e-12)
 
 
-def test_chain_jacobian_finite_differences_and_determinant():
+@pytest.mark.parametrize("lengths", [L, UNEQUAL])
+def test_chain_jacobian_finite_differences_and_determinant(lengths):
     s = random_fpr_poses(np.random.default_rng(SEED), 20, 1)
     s[10:, 3] *= -1
-    jac = fpr_chain_jacobian(s, L)
+    jac = fpr_chain_jacobian(s, lengths)
     for k in range(len(s)):
-        fd = central_difference(lambda x: fpr_drone_joints(x, L).reshape(4), s[k])
+        fd = central_difference(lambda x: fpr_drone_joints(x, lengths).reshape(4), s[k])
         np.testing.assert_allclose(jac[k], fd, atol=FD_TOL)
-    np.testing.assert_allclose(np.linalg.det(jac), -L**2 * np.sin(s[:, 3]), atol=1e-12)
+    l1, l2 = np.broadcast_to(lengths, 2)
+    np.testing.assert_allclose(np.linalg.det(jac), -l1 * l2 * np.sin(s[:, 3]), atol=1e-12)
 
 
 def test_drone_joint_velocities_are_jacobian_times_rate():
@@ -107,7 +126,7 @@ def test_drone_joint_velocities_are_jacobian_times_rate():
 
 def test_unreachable_drone_joints_raise_workspace_error():
     far = 2 * L + 0.01
-    with pytest.raises(WorkspaceError, match=rf"{far:.4g} m apart.*2 L = {2 * L:.4g} m"):
+    with pytest.raises(WorkspaceError, match=rf"{far:.4g} m apart.*L1 \+ L2 = {2 * L:.4g} m"):
         fpr_direct_kinematics([0.0, 0.0], [far, 0.0], L)
     r1 = np.zeros((3, 2))
     r2 = np.array([[1.0, 0.0], [0.0, far], [0.5, 0.5]])
@@ -243,10 +262,11 @@ def test_check_margins_errors():
         check_margins(fpr_workspace_margins(low, L, M), low, margins=M)
     batch = np.stack([S0, [0.0, 0.0, 3 * np.pi / 2 - 0.05, 0.1], S0])
     with pytest.raises(SingularityError, match=r"q21_low.*0\.2 <= q21") as info:
-        check_margins(fpr_workspace_margins(batch, L, M), batch, margins=M)
+        check_margins(fpr_workspace_margins(batch, L, M), batch, margins=M, singular=("q21",))
     assert (info.value.margin, info.value.required) == (pytest.approx(0.1), M.angle)
     np.testing.assert_allclose(info.value.configuration, batch[1])
     for xi, margin in (([0.3, 0.1], 0.1), ([0.9, -0.5], 0.5)):  # the second is arm up: q2 < m_ga but far
         with pytest.raises(SingularityError, match="q2_low") as info:
-            check_margins(prototype_workspace_margins(np.array(xi), L, M), xi, margins=M, singular_angle=1)
+            check_margins(prototype_workspace_margins(np.array(xi), L, M), xi, margins=M, singular_angle=1,
+                          singular=("q2_",))
         assert (info.value.margin, info.value.required) == (pytest.approx(margin), M.angle)

@@ -12,7 +12,8 @@ import pytest
 
 import fpr
 from fpr.model.errors import MissionError, SingularityError, WorkspaceError
-from fpr.model.kinematics import fpr_workspace_margins, prototype_joints, prototype_workspace_margins
+from fpr.robots.fpr import fpr_workspace_margins
+from fpr.robots.prototype import prototype_joints, prototype_workspace_margins
 from planners import mission as mission_module
 from planners.mission import (
     BUILTIN_MISSIONS,

@@ -5,7 +5,8 @@ import pytest
 
 import fpr
 from helpers import random_state
-from fpr.sim.plant import (REFERENCE_CHAIN, Plant, PlantDivergedError, hover_configuration, hover_speeds,
+from fpr.model.errors import ModelArgumentError
+from fpr.sim.plant import (Plant, PlantDivergedError, hover_configuration, hover_speeds,
                        plant_step_time)
 
 SEED = 23
@@ -15,7 +16,7 @@ DT = 1e-3
 def hovering(name, **coordinates):
     """A robot, a static pose at its reference chain (with the given x / psi), and its hover speeds."""
     robot = fpr.load(name)
-    q = hover_configuration(robot, REFERENCE_CHAIN[name])
+    q = hover_configuration(robot, robot.kind.reference_chain)
     for c, value in coordinates.items():
         q[robot.index[c]] = value
     return robot, q, hover_speeds(robot, q)
@@ -41,11 +42,11 @@ def test_hover_speeds_hold_the_pose(name, coordinates):
 def test_hover_speeds_refuse_a_pose_that_is_not_static():
     robot, q, _ = hovering("fpr")
     q[robot.index["phi1"]] += 0.1
-    with pytest.raises(ValueError, match="not a static pose"):
+    with pytest.raises(ModelArgumentError, match="not a static pose"):
         hover_speeds(robot, q)
-    q = hover_configuration(robot, REFERENCE_CHAIN["fpr"])
+    q = hover_configuration(robot, robot.kind.reference_chain)
     q[robot.index["theta"]] = 0.2  # the plane tilted: gravity pulls it out of the plane
-    with pytest.raises(ValueError, match="theta"):
+    with pytest.raises(ModelArgumentError, match="theta"):
         hover_speeds(robot, q)
 
 
@@ -152,7 +153,7 @@ def test_plant_errors():
     plant = Plant.from_minimal(robot, q, w=w)
     with pytest.raises(fpr.ShapeError, match="w_command"):
         plant.step(w[0], DT)
-    with pytest.raises(ValueError, match="positive"):
+    with pytest.raises(ModelArgumentError, match="positive"):
         plant.step(w, 0.0)
     with pytest.raises(fpr.ShapeError, match="wind"):
         plant.step(w, DT, wind=np.zeros(2))

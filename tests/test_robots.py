@@ -1,12 +1,16 @@
-"""The Pinocchio models in thesis coordinates, checked against physics they did not compute themselves."""
+"""The registry of robots and their Pinocchio models in thesis coordinates, checked against physics they did not
+compute themselves."""
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
 import fpr
+import fpr.robots
 from helpers import random_state
-from fpr.model.errors import ShapeError, UnknownRobotError
+from fpr.model.errors import RobotDefinitionError, ShapeError, UnknownRobotError
+from fpr.robots.fpr import Fpr
+from fpr.robots.prototype import Prototype
 
 RNG_SEED = 20261122
 FD_STEP = 1e-6
@@ -27,12 +31,44 @@ def test_unknown_robot_and_bad_shapes(robots):
         robots["fpr"].input_wrenches([1.0], np.zeros((2, 3)))
 
 
+def test_registry_maps_names_to_kinds():
+    assert fpr.ROBOTS == fpr.robots.BUILTIN == ("fpr", "prototype")
+    assert fpr.robots.names()[:2] == ("fpr", "prototype")
+    assert fpr.robots.get("fpr") is Fpr and fpr.robots.get("prototype") is Prototype
+    with pytest.raises(UnknownRobotError, match="'fpr', 'prototype'"):
+        fpr.robots.get("hexapod")
+    with pytest.raises(RobotDefinitionError, match="RobotKind"):
+        fpr.robots.register(object)
+    twin = type("Twin", (Fpr,), {})  # a second kind under a taken name
+
+    with pytest.raises(RobotDefinitionError, match="taken"):
+        fpr.robots.register(twin)
+
+
+def test_a_registered_kind_is_loaded_and_bound(robots):
+    """register() one line, load() by name; the robot holds its kind bound to it, also in its variants."""
+    renamed = type("Renamed", (Fpr,), {"name": "fpr_renamed"})
+    fpr.robots.register(renamed)
+    try:
+        robot = fpr.load("fpr_renamed", hinge_offset=0.0)
+        assert isinstance(robot.kind, renamed) and robot.kind.robot is robot and robot.name == "fpr_renamed"
+        assert type(robot.with_drones_as("point").kind) is renamed
+        assert robot.hinge_offset == 0.0 and robot.link_length == robots["fpr"].link_length
+    finally:
+        fpr.robots.unregister("fpr_renamed")
+    assert "fpr_renamed" not in fpr.robots.names()
+
+
 def test_geometry_read_from_urdf(robots):
     r = robots["fpr"]
     p = r.parameters
     assert r.link_length == pytest.approx(p["link_length"])
     assert r.hinge_offset == pytest.approx(p["hinge_offset"])
     assert r.drone_mass == pytest.approx(p["drone_mass"])
+    np.testing.assert_allclose(r.drone_masses, [p["drone_mass"]] * 2)
+    np.testing.assert_allclose(r.hinge_offsets, [p["hinge_offset"]] * 2)
+    assert r.kind.link_lengths == pytest.approx((p["link_length"],) * 2)
+    assert robots["prototype"].kind.link_lengths == pytest.approx((p["link_length"],) * 2)
     assert r.total_mass == pytest.approx(2 * p["drone_mass"] + 2 * p["link_mass"] + p["end_effector_mass"])
     other = fpr.load("fpr", link_length=1.0, hinge_offset=0.0)
     assert other.link_length == pytest.approx(1.0)

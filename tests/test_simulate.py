@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fpr.model.errors import ModelArgumentError
 from fpr.sim.closed_loop import SimulationLog, SimulationSettings, simulate
 from planners.mission import load_mission
 from planners.optimize import plan
@@ -96,5 +97,5 @@ def test_log_round_trip(tmp_path, square_log):
 
 
 def test_rates_must_divide():
-    with pytest.raises(ValueError, match="integer multiple"):
+    with pytest.raises(ModelArgumentError, match="integer multiple"):
         simulate(plan(load_mission("study"), "none"), SimulationSettings(plant_rate=750.0))

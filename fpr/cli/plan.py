@@ -140,8 +140,7 @@ def _mission(args):
 # ------------------------------------------------------------------------------------------- files
 def csv_columns(robot) -> list[tuple[str, str]]:
     """(name, unit) of every column of ``trajectory.csv`` for ``robot``."""
-    coords = [("y", "m"), ("z", "m"), ("phi", "rad"), ("q21", "rad")] if robot.name == "fpr" \
-        else [("q1", "rad"), ("q2", "rad")]
+    coords = list(robot.kind.planning_columns())
     cols = [("t", "s")] + coords + [(n + "_d", u + "/s") for n, u in coords] + [(n + "_dd", u + "/s^2")
                                                                                  for n, u in coords]
     for i in range(1, robot.n_drones + 1):
@@ -153,12 +152,9 @@ def csv_columns(robot) -> list[tuple[str, str]]:
 
 def _simulated_columns(robot, log, t) -> tuple[list[str], np.ndarray]:
     """sim_ columns: the simulated counterparts of the planned ones, interpolated at times t."""
-    from fpr.model.kinematics import fpr_drone_joints, prototype_joints
-
     chain = [log.coordinates.index(c) for c in log.chain]
     s = log.q[:, chain]
-    joints = fpr_drone_joints(s, robot.link_length) if robot.name == "fpr" \
-        else prototype_joints(s, robot.link_length)[:, 1:]
+    joints = robot.kind.drone_joints(s)
     data = {}
     for c in log.coordinates:
         data[c] = log.q[:, log.coordinates.index(c)]

@@ -2,18 +2,12 @@
 
 This is the second, independent formulation of the dynamics and the plant of the simulator. It is
 built from the same rigid bodies as the minimal model (inertias and joint placements are read from
-the :class:`~fpr.model.robot.Robot`'s Pinocchio model), but with another tree and a loop closure:
-
-* FPR: drone 1 is a free flyer; the chain hangs from it (hinge 1 reversed, the end-effector with
-  link 1, the joint q21, link 2); drone 2 is a second free flyer. The revolute closure "drone 2
-  turns about hinge 2" (pin 4 has no 5D revolute constraint) is made of two 3D point constraints:
-  the hinge point and a second point on the hinge axis coincide on link 2 and on drone 2. Their 6
-  rows have rank 5, which the proximal solver of pin.constraintDynamics handles;
-  14 velocities - 5 = 9 degrees of freedom, as the minimal model. (A 6D weld onto a massless stub
-  carrying the hinge in the tree is the other option; its zero inertia makes the solve singular.)
-* Prototype: the drone is a free flyer; the chain hangs from it (hinge reversed, link 2 with the
-  end-effector, joint 2 reversed, link 1); the end of link 1 is held at the fixed point by a 3D
-  point constraint (a ball joint): 8 - 3 = 5 degrees of freedom.
+the :class:`~fpr.model.robot.Robot`'s Pinocchio model), but with another tree and a loop closure.
+Which tree and which closure is the robot kind's (``robot.kind.closed_chain``, e.g.
+:mod:`fpr.robots.fpr`: drone 2 held on link 2 by two point constraints; :mod:`fpr.robots.prototype`: the
+chain's end held at the fixed point by a ball joint); this module holds what every robot shares:
+the free-flying drones (:func:`add_free_drone`), the joints reversed from the minimal model, the
+state maps and the constraint dynamics.
 
 Each free flyer's frame is the drone's hinge frame (drone axes, at the joint), so the free-flyer
 velocity is the drone body twist there. Closure drift is held by Baumgarte stabilisation.
@@ -34,10 +28,6 @@ from scipy.linalg import lapack
 
 from fpr.model.errors import check_shape
 
-#: Roll of the FPR's end-effector at the reference pose s0 = [0 0 5pi/4 pi/2] (DESIGN.md) [rad]: without a
-#: reference, :meth:`ClosedChainModel.to_minimal` returns the root roll phi within pi of it.
-NOMINAL_ROOT_ROLL = {"fpr": 5 * np.pi / 4, "prototype": 0.0}
-
 _posv = lapack.dposv
 
 
@@ -46,7 +36,7 @@ def wrap_angle(a):
     return np.mod(np.asarray(a, dtype=float) + np.pi, 2 * np.pi) - np.pi
 
 
-def _euler_zyx(rotation, reference=None) -> np.ndarray:
+def euler_zyx(rotation, reference=None) -> np.ndarray:
     """Z-Y-X Euler angles [psi, theta, phi] of R = Rz(psi) Ry(theta) Rx(phi) [rad].
 
     Of the two solutions (theta in [-pi/2, pi/2] and (psi + pi, pi - theta, phi + pi)) the first is
@@ -59,6 +49,24 @@ def _euler_zyx(rotation, reference=None) -> np.ndarray:
     gap = wrap_angle(both - reference)  # both candidates at once (to_minimal runs at every simulator tick)
     squared = np.einsum("ij,ij->i", gap, gap)  # squared distances: the same order as the norms
     return both[1] if squared[1] < squared[0] else both[0]
+
+
+@dataclass
+class ClosureTree:
+    """What a robot kind adds to the closed-chain model (``kind.closed_chain``).
+
+    Attributes:
+        constraints: the loop-closure constraints (pin.StdVec_RigidConstraintModel).
+        freeflyer_ids: joint of each drone's free flyer (:func:`add_free_drone`), in drone order.
+        frame_ids: frame of each drone's centre of mass, in drone order.
+        reversed_ids: ``{joint of the closed chain: (joint of the minimal model, sign)}``: the closed
+            chain's joint angle is sign times the minimal model's.
+    """
+
+    constraints: object
+    freeflyer_ids: tuple
+    frame_ids: tuple
+    reversed_ids: dict
 
 
 @dataclass
@@ -117,25 +125,21 @@ class ClosedChainModel:
         """Thesis coordinates of the minimal model from a closed-chain state (inverse of from_minimal).
 
         Configuration, by extraction (exact on a closed loop; with closure drift, the loop is read
-        from drone 1 along the tree, the closure only fixing what the tree cannot):
-
-        * FPR: the end-effector placement is drone 1's free flyer times the reversed hinge 1 and the
-          inverse of hinge 1's joint placement; it gives x, y, z and the Z-Y-X Euler angles psi,
-          theta, phi of the root joint. q21 and hinge 1 are the tree's joints; hinge 2's angle is the
-          rotation about x between link 2's hinge frame and drone 2's free flyer.
-        * Prototype: yaw, pitch and q1 are the Z-Y-X Euler angles of link 1 (pivot joints about
-          z, y, x at the fixed point); q2 and the hinge are the reversed joints.
+        from drone 1 along the tree, the closure only fixing what the tree cannot): the joints the
+        closed chain shares with the minimal model (``reversed_ids``) are copied, the others are read
+        from the placements by the robot kind's reader (``kind.closure_reader``; e.g. the FPR's root
+        joint from the end-effector placement, the prototype's pivot from link 1's).
 
         Velocity: ``from_minimal`` is linear in v, vc = K(q) v with K the drone hinges' body
         Jacobians and the rows of the reversed joints; v is the least-squares solution of
         K v = vc (K has full column rank), exact when vc satisfies the closure.
 
-        Angles: without ``reference``, psi and theta are in [-pi, pi) and [-pi/2, pi/2], the
-        end-effector roll phi (FPR) within pi of 5pi/4 (the reference pose), q1 (prototype) in
-        [-pi, pi), drone 2's absolute roll phi2 (FPR) in [-pi, pi) (within pi of level); q21, q2 and
-        phi1 keep the continuous values of the tree's joints. With ``reference``, every angle is
-        returned within pi of it (the Euler solution closer to it is chosen), which keeps a sequence of
-        measurements continuous when each is given the previous one.
+        Angles: without ``reference``, psi and theta are in [-pi, pi) and [-pi/2, pi/2], the others as
+        the kind's reader puts them (FPR: phi within pi of 5pi/4, the reference pose, and phi2 within
+        pi of level; prototype: q1 in [-pi, pi)); the tree's joints (q21, q2, phi1) keep their
+        continuous values. With ``reference``, every angle is returned within pi of it (the Euler
+        solution closer to it is chosen), which keeps a sequence of measurements continuous when each
+        is given the previous one.
 
         Args:
             qc: closed-chain configuration, shape (model.nq,).
@@ -154,27 +158,11 @@ class ClosedChainModel:
         omi = self.data.oMi
         qp = np.zeros(r.nq)
         qp[cache.reversed_q_source] = cache.reversed_sign * qc[cache.reversed_q]
-        if r.name == "fpr":
-            motion = cache.root_placement_inv * omi[cache.reversed_1] * cache.hinge_1_inv  # composite joint
-            i0 = cache.root_q
-            ref = None if reference is None else reference[cache.euler_coordinates]
-            euler = _euler_zyx(motion.rotation, ref)
-            if ref is None:
-                euler[2] = NOMINAL_ROOT_ROLL[r.name] + wrap_angle(euler[2] - NOMINAL_ROOT_ROLL[r.name])
-            qp[i0:i0 + 3] = motion.translation
-            qp[i0 + 3:i0 + 6] = euler
-            hinge_frame = omi[cache.q21] * cache.hinge_2
-            rel = hinge_frame.rotation.T @ omi[self.freeflyer_ids[1]].rotation
-            qp[cache.hinge_2_q] = np.arctan2(rel[2, 1], rel[1, 1])
-        else:
-            link_1 = omi[cache.q2_reversed] * cache.q2_placement_inv
-            ref = None if reference is None else reference[cache.euler_coordinates]
-            euler = _euler_zyx(link_1.rotation, ref)  # the pivot joints' placements have no rotation
-            qp[cache.pivot_q] = euler  # pivot_yaw, pivot_pitch, q1
+        cache.reader.read(qp, omi, reference)  # the robot's own: what the tree's joints do not give
         q = r.from_pinocchio(qp)
-        if reference is None and r.name == "fpr":
-            q[cache.phi2] = wrap_angle(q[cache.phi2])  # drone 2's roll within pi of level
-        if reference is not None:
+        if reference is None:
+            cache.reader.wrap(q)
+        else:
             angular = cache.angular
             q[angular] = reference[angular] + wrap_angle(q[angular] - reference[angular])
         if vc is None:
@@ -251,7 +239,7 @@ class ClosedChainModel:
 
 
 class _MinimalCache:
-    """Indices, placements and constant rows used by :meth:`ClosedChainModel.to_minimal` and ``velocity_map``.
+    """Indices, constant rows and the kind's reader used by :meth:`ClosedChainModel.to_minimal` and ``velocity_map``.
 
     Built once per model (:func:`_minimal_cache`) rather than at every call: the joint-name lookups,
     SE3 inverses and constant rows cost more than the kinematics itself (the simulator measures
@@ -260,7 +248,7 @@ class _MinimalCache:
 
     def __init__(self, closed: "ClosedChainModel"):
         r, model = closed.robot, closed.model
-        src, jp = r.model, r.model.jointPlacements
+        src = r.model
         rev = [(model.joints[model.getJointId(name)], src.joints[src.getJointId(source)], sign)
                for name, (source, sign) in closed.reversed_ids.items()]
         self.reversed_q = np.array([j.idx_q for j, _, _ in rev], dtype=int)
@@ -272,25 +260,8 @@ class _MinimalCache:
             self.velocity_rows[j.idx_v] = sign * r.T[source.idx_v]
         pairs = zip(closed.freeflyer_ids, r.hinge_joint_ids, strict=True)
         self.freeflyer_rows = tuple((model.joints[fly].idx_v, hinge) for fly, hinge in pairs)
-        self.reversed_1 = model.getJointId("drone_1_hinge_reversed")
         self.angular = closed._angular
-        if r.name == "fpr":
-            root = src.getJointId("end_effector_root")
-            h1, h2 = r.hinge_joint_ids
-            self.root_placement_inv = jp[root].inverse()
-            self.hinge_1_inv = jp[h1].inverse()
-            self.root_q = src.joints[root].idx_q
-            self.euler_coordinates = r.indices(("psi", "theta", "phi"))
-            self.q21 = model.getJointId("q21")
-            self.hinge_2 = jp[h2]
-            self.hinge_2_q = src.joints[h2].idx_q
-            self.phi2 = r.index["phi2"]
-        else:
-            self.q2_reversed = model.getJointId("q2_reversed")
-            self.q2_placement_inv = jp[src.getJointId("q2")].inverse()
-            self.euler_coordinates = r.indices(("psi", "theta", "q1"))
-            self.pivot_q = np.array([src.joints[src.getJointId(n)].idx_q
-                                     for n in ("pivot_yaw", "pivot_pitch", "q1")], dtype=int)
+        self.reader = r.kind.closure_reader(closed)
 
 
 def _minimal_cache(closed: "ClosedChainModel") -> _MinimalCache:
@@ -301,8 +272,20 @@ def _minimal_cache(closed: "ClosedChainModel") -> _MinimalCache:
     return cache
 
 
-def _add_drone(model: pin.Model, robot, index: int) -> tuple[int, int]:
-    """A free-flying drone whose joint frame is the minimal model's hinge frame."""
+def add_free_drone(model: pin.Model, robot, index: int) -> tuple[int, int]:
+    """Add drone ``index`` of ``robot`` to ``model`` as a free flyer whose joint frame is its hinge frame.
+
+    The drone's body (inertia of the minimal model's hinge joint) hangs on the free flyer, and the
+    frame ``<drone>_center`` marks its centre of mass (where thrust and torques act).
+
+    Args:
+        model: the closed-chain model being built.
+        robot: the minimal-coordinate :class:`~fpr.model.robot.Robot`.
+        index: the drone's position in ``robot.layout.drones``.
+
+    Returns:
+        (free-flyer joint id, centre frame id).
+    """
     name = robot.layout.drones[index]
     hinge = robot.hinge_joint_ids[index]
     jid = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), f"{name}_freeflyer")
@@ -315,63 +298,32 @@ def _add_drone(model: pin.Model, robot, index: int) -> tuple[int, int]:
 def build_closed_chain(robot, baumgarte: tuple[float, float] = (400.0, 40.0),
                        accuracy: float = 1e-12, mu: float = 1e-9, max_iter: int = 50,
                        axis_offset: float = 0.1) -> ClosedChainModel:
-    """Build the closed-chain formulation of an FPR or prototype :class:`~fpr.model.robot.Robot`.
+    """Build the closed-chain formulation of a :class:`~fpr.model.robot.Robot`.
+
+    The tree and the closure are the robot kind's (``robot.kind.closed_chain``).
 
     Args:
         robot: the minimal-coordinate robot (its bodies are reused).
         baumgarte: (Kp, Kd) closure stabilisation gains [1/s^2, 1/s].
         accuracy: proximal solver accuracy.
-        mu: proximal regularisation (the FPR's closure rows are redundant: 6 rows of rank 5).
+        mu: proximal regularisation (a closure may have redundant rows, e.g. the FPR's: 6 of rank 5).
         max_iter: proximal solver iterations.
-        axis_offset: distance between the two closure points on hinge 2's axis (FPR) [m].
+        axis_offset: distance between two closure points on a hinge's axis, for a revolute closure made
+            of two point constraints (FPR) [m].
     """
-    src = robot.model
-    jp = src.jointPlacements
-    inertias = src.inertias
     model = pin.Model()
-    model.gravity = src.gravity
-    ff1, fc1 = _add_drone(model, robot, 0)
-    h1 = robot.hinge_joint_ids[0]
-    constraints = pin.StdVec_RigidConstraintModel()
-    if robot.name == "fpr":
-        root = src.getJointId("end_effector_root")
-        q21 = src.getJointId("q21")
-        h2 = robot.hinge_joint_ids[1]
-        r1 = model.addJoint(ff1, pin.JointModelRX(), pin.SE3.Identity(), "drone_1_hinge_reversed")
-        model.appendBodyToJoint(r1, inertias[root], jp[h1].inverse())
-        j21 = model.addJoint(r1, pin.JointModelRX(), jp[h1].inverse() * jp[q21], "q21")
-        model.appendBodyToJoint(j21, inertias[q21], pin.SE3.Identity())
-        ff2, fc2 = _add_drone(model, robot, 1)
-        # revolute closure at hinge 2: the hinge point and a point on its axis coincide (rank 5 of 6 rows)
-        on_axis = pin.SE3(np.eye(3), np.array([axis_offset, 0.0, 0.0]))
-        for offset in (pin.SE3.Identity(), on_axis):
-            constraints.append(pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, j21, jp[h2] * offset,
-                                                        ff2, offset, pin.LOCAL))
-        freeflyers, frames = (ff1, ff2), (fc1, fc2)
-        reversed_ids = {"drone_1_hinge_reversed": ("drone_1_hinge", -1.0), "q21": ("q21", 1.0)}
-    elif robot.name == "prototype":
-        j2 = src.getJointId("q2")
-        j1 = src.getJointId("q1")
-        r1 = model.addJoint(ff1, pin.JointModelRX(), pin.SE3.Identity(), "drone_1_hinge_reversed")
-        model.appendBodyToJoint(r1, inertias[j2], jp[h1].inverse())
-        r2 = model.addJoint(r1, pin.JointModelRX(), jp[h1].inverse(), "q2_reversed")
-        model.appendBodyToJoint(r2, inertias[j1], jp[j2].inverse())
-        pivot = pin.SE3.Identity()
-        for name in ("pivot_yaw", "pivot_pitch", "q1"):
-            pivot = pivot * jp[src.getJointId(name)]
-        # joint 1 of the constraint is the world: its frame is fixed, so the LOCAL error and velocity agree
-        constraints.append(pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, 0, pivot,
-                                                    r2, jp[j2].inverse(), pin.LOCAL))
-        freeflyers, frames = (ff1,), (fc1,)
-        reversed_ids = {"drone_1_hinge_reversed": ("drone_1_hinge", -1.0), "q2_reversed": ("q2", -1.0)}
-    else:  # pragma: no cover - Robot() already refuses other names
-        raise ValueError(robot.name)
+    model.gravity = robot.model.gravity
+    tree = robot.kind.closed_chain(model, axis_offset)
     data = model.createData()
     datas = pin.StdVec_RigidConstraintData()
-    for cm in constraints:
+    for cm in tree.constraints:
         datas.append(cm.createData())
     settings = pin.ProximalSettings(accuracy, mu, max_iter)
-    closed = ClosedChainModel(robot, model, data, constraints, datas, frames, freeflyers, reversed_ids, settings)
+    closed = ClosedChainModel(robot, model, data, tree.constraints, datas, tree.frame_ids, tree.freeflyer_ids,
+                              tree.reversed_ids, settings)
     closed.set_baumgarte(*baumgarte)
-    pin.initConstraintDynamics(model, data, constraints, datas)
+    pin.initConstraintDynamics(model, data, tree.constraints, datas)
     return closed
+
+
+__all__ = ["ClosedChainModel", "ClosureTree", "add_free_drone", "build_closed_chain", "euler_zyx", "wrap_angle"]

@@ -5,11 +5,17 @@ from ``urdf/parameters.yaml``: each xacro file loads it and declares one xacro a
 it uses, with the yaml value as default, so ``generate_urdf("fpr", link_length=1.0)`` gives a
 variant of the robot without editing any file.
 
+Nothing here is specific to one robot: ``urdf/<name>.urdf.xacro`` generates ``urdf/<name>.urdf``, and a
+robot outside the library passes the path of its own top-level xacro file (which may include the
+library's macros, e.g. ``urdf/quadrotor.xacro``). Which robot uses which description is said by its
+robot module (:mod:`fpr.robots`).
+
 xacro runs without ROS, through xacrodoc. Mesh URIs stay ``package://example-robot-data/...`` in
 the generated text, so that the committed URDFs do not depend on the machine; give
 :func:`mesh_package_dirs` to Pinocchio (``package_dirs``) or yourdfpy to resolve them.
 
-Regenerate the committed files with ``python -m fpr.model.description`` (``--check`` only compares).
+Regenerate the committed files with ``python -m fpr.model.description`` (``--check`` only compares; give
+xacro paths to regenerate other descriptions).
 """
 
 from __future__ import annotations
@@ -23,16 +29,12 @@ import sys
 from pathlib import Path
 from xml.dom import minidom
 
-from fpr.model.errors import UnknownRobotError
+from fpr.model.errors import RobotDefinitionError, UnknownRobotError
 
 logger = logging.getLogger(__name__)
 
-ROBOTS = ("fpr", "prototype")
-"""Names of the robots described in ``urdf/``."""
-
-_XACRO_FILES = {"fpr": "fpr.urdf.xacro", "prototype": "prototype.urdf.xacro"}
-_URDF_FILES = {"fpr": "fpr.urdf", "prototype": "prototype.urdf"}
 _MESH_PACKAGE = "example-robot-data"
+_XACRO_SUFFIX = ".urdf.xacro"
 
 
 def _find_urdf_dir() -> Path:
@@ -47,57 +49,91 @@ def _find_urdf_dir() -> Path:
 
 
 URDF_DIR: Path = _find_urdf_dir()
-"""The folder holding the xacro sources, ``parameters.yaml`` and the generated URDFs."""
+"""The folder holding the library's xacro sources, ``parameters.yaml`` and the generated URDFs."""
 
 
-def _check_robot(robot: str) -> str:
-    if robot not in ROBOTS:
-        raise UnknownRobotError(robot, ROBOTS)
-    return robot
+def descriptions() -> tuple[str, ...]:
+    """Return the names of the robot descriptions in ``urdf/``: every ``<name>.urdf.xacro`` file there.
+
+    Returns:
+        The sorted names, e.g. ``("fpr", "prototype")``.
+    """
+    return tuple(sorted(p.name[: -len(_XACRO_SUFFIX)] for p in URDF_DIR.glob("*" + _XACRO_SUFFIX)))
 
 
-def xacro_path(robot: str) -> Path:
+DESCRIPTIONS: tuple[str, ...] = descriptions()
+"""Names of the robot descriptions in ``urdf/`` (``urdf/<name>.urdf.xacro`` -> ``urdf/<name>.urdf``)."""
+
+
+def _is_path(robot) -> bool:
+    """Whether ``robot`` is a file path rather than the name of a description in ``urdf/``."""
+    return isinstance(robot, Path) or "/" in str(robot) or str(robot).endswith(".xacro")
+
+
+def xacro_path(robot: str | Path) -> Path:
     """Return the top-level xacro file of a robot.
 
     Args:
-        robot: one of :data:`ROBOTS`.
+        robot: the name of a description in ``urdf/`` (one of :data:`DESCRIPTIONS`), or the path of a
+            top-level xacro file anywhere (a robot outside the library brings its own).
 
     Returns:
-        The path of ``urdf/<robot>.urdf.xacro``.
+        ``urdf/<robot>.urdf.xacro``, or the path given.
 
     Raises:
-        UnknownRobotError: ``robot`` is not one of :data:`ROBOTS`.
+        UnknownRobotError: ``robot`` is a name with no ``urdf/<robot>.urdf.xacro``.
+        RobotDefinitionError: ``robot`` is a path to no file.
     """
-    return URDF_DIR / _XACRO_FILES[_check_robot(robot)]
+    if _is_path(robot):
+        path = Path(robot)
+        if not path.is_file():
+            raise RobotDefinitionError(str(path), "no such xacro file: give the path of a top-level .urdf.xacro file")
+        return path
+    path = URDF_DIR / f"{robot}{_XACRO_SUFFIX}"
+    if not path.is_file():
+        raise UnknownRobotError(str(robot), descriptions())
+    return path
 
 
-def urdf_path(robot: str) -> Path:
-    """Return the committed, generated URDF file of a robot.
+def urdf_path(robot: str | Path) -> Path:
+    """Return the generated URDF file of a robot: its xacro file's path with ``.urdf`` for ``.urdf.xacro``.
 
     Args:
-        robot: one of :data:`ROBOTS`.
+        robot: the name of a description in ``urdf/`` or the path of a top-level xacro file (see
+            :func:`xacro_path`).
 
     Returns:
-        The path of ``urdf/<robot>.urdf``.
+        ``urdf/<robot>.urdf`` (committed for the library's robots), or ``<folder>/<name>.urdf`` beside the
+        xacro file given.
 
     Raises:
-        UnknownRobotError: ``robot`` is not one of :data:`ROBOTS`.
+        UnknownRobotError: ``robot`` is a name with no ``urdf/<robot>.urdf.xacro``.
     """
-    return URDF_DIR / _URDF_FILES[_check_robot(robot)]
+    path = xacro_path(robot)
+    name = path.name[: -len(_XACRO_SUFFIX)] if path.name.endswith(_XACRO_SUFFIX) else path.stem
+    return path.with_name(name + ".urdf")
 
 
-def xacro_arguments() -> tuple[str, ...]:
+def xacro_arguments(xacro: str | Path | None = None) -> tuple[str, ...]:
     """Return the names of the xacro arguments the robot descriptions accept.
 
-    They are the ``<xacro:arg name=...>`` declared in ``urdf/*.xacro``; each is a key of
-    ``urdf/parameters.yaml`` whose value is its default.
+    They are the ``<xacro:arg name=...>`` declared in ``urdf/*.xacro`` (each is a key of
+    ``urdf/parameters.yaml`` whose value is its default), plus, for a robot outside the library,
+    those declared in the xacro files of its own folder.
+
+    Args:
+        xacro: a robot name or top-level xacro path (see :func:`xacro_path`), or None for the library's.
 
     Returns:
         The sorted argument names.
     """
+    folders = [URDF_DIR]
+    if xacro is not None and _is_path(xacro):
+        folders.append(xacro_path(xacro).parent)
     names: set[str] = set()
-    for path in sorted(URDF_DIR.glob("*.xacro")):
-        names.update(re.findall(r"<xacro:arg\s+name=\"(\w+)\"", path.read_text(encoding="utf-8")))
+    for folder in dict.fromkeys(folders):
+        for path in sorted(folder.glob("*.xacro")):
+            names.update(re.findall(r"<xacro:arg\s+name=\"(\w+)\"", path.read_text(encoding="utf-8")))
     return tuple(sorted(names))
 
 
@@ -105,7 +141,7 @@ def _robot_name(path: Path) -> str:
     """Return the ``name`` attribute of the root ``<robot>`` element of a xacro file."""
     root = minidom.parse(str(path)).documentElement
     if root.tagName != "robot" or not root.getAttribute("name"):
-        raise ValueError(f"{path}: the root element must be <robot name=...>")
+        raise RobotDefinitionError(str(path), "the root element must be <robot name=...>")
     return root.getAttribute("name")
 
 
@@ -116,14 +152,15 @@ def _format_arg(value) -> str:
     return repr(float(value)) if isinstance(value, (int, float)) else str(value)
 
 
-def generate_urdf(robot: str, **xacro_args) -> str:
+def generate_urdf(robot: str | Path, **xacro_args) -> str:
     """Run xacro on a robot's top-level file (without ROS) and return the URDF text.
 
     Mesh URIs are kept as ``package://example-robot-data/...`` (not resolved to paths of this
     machine), so the text is machine independent.
 
     Args:
-        robot: one of :data:`ROBOTS`.
+        robot: the name of a description in ``urdf/`` or the path of a top-level xacro file (see
+            :func:`xacro_path`).
         **xacro_args: values overriding the defaults of ``urdf/parameters.yaml``, e.g.
             ``link_length=1.0``; see :func:`xacro_arguments` for the accepted names.
 
@@ -131,18 +168,19 @@ def generate_urdf(robot: str, **xacro_args) -> str:
         The URDF document, starting with a banner saying where it comes from.
 
     Raises:
-        ValueError: unknown robot or unknown xacro argument.
+        UnknownRobotError: unknown robot name.
+        RobotDefinitionError: unknown xacro argument, or no such xacro file.
     """
     # Imported here: xacrodoc patches xacro's package look-up at import time, and most users of
     # fpr only read the committed URDFs.
     from xacrodoc import XacroDoc
 
     path = xacro_path(robot)
-    unknown = sorted(set(xacro_args) - set(xacro_arguments()))
+    known = xacro_arguments(robot)
+    unknown = sorted(set(xacro_args) - set(known))
     if unknown:
-        raise ValueError(
-            f"unknown xacro argument(s) {', '.join(unknown)} for {robot!r}: "
-            f"use some of {', '.join(xacro_arguments())}"
+        raise RobotDefinitionError(
+            str(robot), f"unknown xacro argument(s) {', '.join(unknown)}: use some of {', '.join(known)}"
         )
     subargs = {name: _format_arg(value) for name, value in xacro_args.items()}
     logger.debug("running xacro on %s with %s", path, subargs)
@@ -161,7 +199,8 @@ def generate_urdf(robot: str, **xacro_args) -> str:
         resolve_packages=False,  # keep package:// URIs: the committed files are machine independent
     )
 
-    banner = f" Generated from urdf/{path.name} and urdf/parameters.yaml by `python -m fpr.model.description`"
+    source = f"urdf/{path.name}" if path.parent.resolve() == URDF_DIR.resolve() else path.as_posix()
+    banner = f" Generated from {source} and urdf/parameters.yaml by `python -m fpr.model.description`"
     if subargs:
         banner += " with " + " ".join(f"{k}:={v}" for k, v in sorted(subargs.items()))
     banner += ". Do not edit by hand. "
@@ -169,12 +208,12 @@ def generate_urdf(robot: str, **xacro_args) -> str:
     return doc.to_urdf_string(pretty=True)
 
 
-def write_urdf(robot: str, path: str | Path | None = None, **xacro_args) -> Path:
+def write_urdf(robot: str | Path, path: str | Path | None = None, **xacro_args) -> Path:
     """Generate a robot's URDF and write it to a file.
 
     Args:
-        robot: one of :data:`ROBOTS`.
-        path: where to write; default: the committed ``urdf/<robot>.urdf``.
+        robot: the name of a description in ``urdf/`` or the path of a top-level xacro file.
+        path: where to write; default: :func:`urdf_path` (``urdf/<robot>.urdf`` for the library's).
         **xacro_args: overrides of the ``urdf/parameters.yaml`` defaults (see :func:`generate_urdf`).
 
     Returns:
@@ -248,7 +287,13 @@ def main(argv: list[str] | None = None) -> int:
     """
     parser = argparse.ArgumentParser(
         prog="python -m fpr.model.description",
-        description="Regenerate urdf/fpr.urdf and urdf/prototype.urdf from their xacro sources.",
+        description="Regenerate the URDFs (urdf/<name>.urdf) from their xacro sources (urdf/<name>.urdf.xacro).",
+    )
+    parser.add_argument(
+        "xacro",
+        nargs="*",
+        help="top-level xacro files to regenerate (each writes <name>.urdf beside it); default: every "
+             "urdf/*.urdf.xacro",
     )
     parser.add_argument(
         "--check",
@@ -258,7 +303,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     status = 0
-    for robot in ROBOTS:
+    for robot in args.xacro or descriptions():
         path = urdf_path(robot)
         text = generate_urdf(robot)
         if args.check:

@@ -101,22 +101,33 @@ def _motion_array(robot, motion) -> np.ndarray:
 def thrust_vectors(robot, motion: Jet, order: int | None = None) -> Jet:
     """F = J_h^-T (M_s s'' + c_s) along a motion (planning model), Jet of shape (N, n_d, 2).
 
-    For the prototype the solve is written so that it stays exact through its Type-2 singularity
-    (see :func:`prototype_thrust_vectors`).
+    The generalised force b = M_s s'' + c_s comes from the point-drone planar model; the solve
+    J_h^T F = b is the robot kind's (``robot.kind.thrust_vectors``): :func:`solve_thrust_vectors` for
+    most robots, a solve that stays exact through a Type-2 singularity for the prototype.
 
     Args:
         robot: the :class:`~fpr.model.robot.Robot`.
         motion: s as a Jet of order K >= 2, shape (N, n_s).
         order: derivative order of the result (default K - 2).
     """
-    point = robot.planar("point")
-    generalized = point.inverse_dynamics_jet(motion)
-    if robot.name == "prototype":
-        return prototype_thrust_vectors(motion, generalized, robot.link_length,
-                                        generalized.order if order is None else order)[:, None, :]
+    generalized = robot.planar("point").inverse_dynamics_jet(motion)
+    return robot.kind.thrust_vectors(motion, generalized, order)
+
+
+def solve_thrust_vectors(robot, motion: Jet, generalized: Jet, order: int | None = None) -> Jet:
+    """F from J_h(s)^T F = b by a plain solve along the motion, Jet of shape (N, n_d, 2) [N].
+
+    Exact wherever J_h is invertible (away from Type-2 singularities).
+
+    Args:
+        robot: the robot.
+        motion: s as a Jet of order K, shape (N, n_s).
+        generalized: b = M_s s'' + c_s, Jet of order K - 2, shape (N, n_s) [N or N m].
+        order: derivative order of the result (default: that of ``generalized``).
+    """
     if order is not None:
         generalized = generalized.truncate(order)
-    jac = point.hinge_jacobian_jet(motion.truncate(generalized.order))
+    jac = robot.planar("point").hinge_jacobian_jet(motion.truncate(generalized.order))
     force = jets.solve(jac.mT, generalized)
     return force.reshape(force.shape[:-1] + (robot.n_drones, 2))
 
@@ -124,112 +135,6 @@ def thrust_vectors(robot, motion: Jet, order: int | None = None) -> Jet:
 #: Derivative order at which to evaluate planned motions for :func:`inverse_dynamics` (0..6: the
 #: prototype's crossing of its Type-2 singularity needs the 5th and 6th; elsewhere 0..4 suffice).
 MOTION_ORDER = 6
-
-#: |sin q2| below which a sample is examined for a nearby crossing of q2 = 0 (and the motion's 5th
-#: and 6th derivatives are used, when given).
-SINGULAR_SCREEN = 5e-2
-
-#: Largest time [s] between a sample and the crossing (the root of sin q2's Taylor polynomial) at
-#: which the link tension's limit is computed by deflation. Beyond it the plain quotient is accurate
-#: (its error in F'' grows like eps / (q2' dt^3): ~1e-6 of the value at 3 ms and q2' = 0.2 rad/s).
-SINGULAR_TIME = 3e-3
-
-#: Largest criterion residual g(t*) [N m], relative to 1 + the size of g's Taylor coefficients,
-#: for which the crossing is taken as meeting the criterion (finite force). A larger one is a real
-#: singularity: the plain quotient is kept, and the force there is as large as it really is.
-CRITERION_TOLERANCE = 1e-6
-
-
-def prototype_thrust_vectors(motion: Jet, generalized: Jet, link_length: float, order: int) -> Jet:
-    """The prototype's thrust vector F from J_pr^T F = b (seed 3.37), exact through q2 = 0.
-
-    With e = u(q1 + q2) along the second link and e_perp = u_perp(q1 + q2) across it, the columns of
-    J_pr are L (u_perp(q1) + e_perp) and L e_perp, so writing F = f_r e + f_p e_perp::
-
-        b2 = L f_p,      b1 - b2 (1 + cos q2) = L f_r sin q2.
-
-    The component across the link, f_p, is regular everywhere. The tension f_r = g / (L sin q2),
-    g = b1 - b2 (1 + cos q2), is a 0/0 limit at the singularity when the motion satisfies the
-    crossing criterion (seed 4.7: at q2 = 0, g = -[-1 2] b = 0), and there the plain quotient
-    loses every digit. So at a sample where q2 crosses 0 nearby (cos q2 > 0, a simple real root t*
-    of sin q2's Taylor polynomial within :data:`SINGULAR_TIME`) *and* g(t*) vanishes there (within
-    :data:`CRITERION_TOLERANCE`), both Taylor polynomials are deflated by (t - t*) and
-    f_r = g~ / s~, without cancellation. Everywhere else, a grazing q2 = 0 and a crossing that
-    misses the criterion included, the plain quotient is used: the force there is really large.
-
-    Args:
-        motion: xi = [q1, q2] as a Jet of order K, shape (N, 2).
-        generalized: b = M xi'' + c (point-mass drone), Jet of order >= ``order``, shape (N, 2).
-        link_length: L [m].
-        order: derivative order of F wanted. Deflation needs K >= order + 4 (F, F', F'' need xi up
-            to its 6th derivative: with one order less the truncated Taylor polynomials leave, at
-            3 ms from a crossing at 2.5 rad/s, ~1e-3 N in F and ~10 rad/s^2 in the roll
-            acceleration; tested); with less, the plain quotient is used.
-
-    Returns:
-        F, Jet of the given order, shape (N, 2) [N].
-    """
-    xi = motion
-    q12 = xi[..., 0] + xi[..., 1]
-    s_e, c_e = jets.sincos(q12.truncate(order))
-    sin2 = jets.sin(xi[..., 1])
-    b1, b2 = generalized[..., 0], generalized[..., 1]
-    g = b1 - b2 * (1.0 + jets.cos(xi[..., 1].truncate(b1.order)))
-    f_p = b2.truncate(order) / link_length
-    with np.errstate(divide="ignore", invalid="ignore"):
-        plain = g.truncate(order) / sin2.truncate(order)
-    d = np.array(plain.d)
-    near = (np.abs(np.real(sin2.value)) < SINGULAR_SCREEN) & (np.cos(np.real(xi.value[..., 1])) > 0)
-    if np.any(near) and g.order >= order + 2:
-        k = min(g.order, sin2.order) + 1  # every Taylor coefficient available (more = more accurate)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            quotient, root, remainder, size = _deflated_quotient(g.d[:k, near], sin2.d[:k, near], order)
-        use = (np.isfinite(np.real(root)) & (np.abs(np.real(root)) <= SINGULAR_TIME)
-               & (np.abs(np.real(remainder)) <= CRITERION_TOLERANCE * (1.0 + size)))
-        index = np.flatnonzero(near)[use]
-        d[:, index] = quotient[:, use]
-    f_r = Jet(d) / link_length
-    fy = f_r * c_e - f_p * s_e
-    fz = f_r * s_e + f_p * c_e
-    return jets.stack([fy, fz], axis=-1)
-
-
-def _deflated_quotient(num: np.ndarray, den: np.ndarray, order: int):
-    """Derivatives 0..order of num/den at samples where den has a simple root t* near 0.
-
-    ``num``, ``den``: derivatives 0..k-1 (leading axis, k >= order + 2) of each function at the samples.
-    Both Taylor polynomials are divided by (eps - eps*), eps* the root of den's polynomial found
-    by Newton's method from -den/den', and the quotient's Taylor coefficients follow from the
-    deflated ones. Analytic in the inputs (complex-step safe).
-
-    Returns:
-        (derivatives (order+1, N), eps* (N,) [s], the dropped remainder num(t*) (N,), the size of num's
-        Taylor coefficients (N,)), for the caller to accept the deflation or not.
-    """
-    k = num.shape[0]
-    fact = np.cumprod(np.r_[1.0, np.arange(1, k)])[:, None]
-    a = num / fact  # Taylor coefficients a_0..a_{k-1}
-    c = den / fact
-    root = -c[0] / c[1]
-    for _ in range(6):
-        value = sum(c[j] * root**j for j in range(k))
-        slope = sum(j * c[j] * root ** (j - 1) for j in range(1, k))
-        root = root - value / slope
-
-    def deflate(p):
-        q = [None] * (k - 1)
-        q[k - 2] = p[k - 1]
-        for j in range(k - 3, -1, -1):
-            q[j] = p[j + 1] + root * q[j + 1]
-        return q, p[0] + root * q[0]
-
-    (at, remainder), (ct, _) = deflate(a), deflate(c)
-    f = []
-    for j in range(order + 1):
-        acc = at[j] - sum(f[i] * ct[j - i] for i in range(j))
-        f.append(acc / ct[0])
-    size = np.max(np.abs(np.real(a)), axis=0)
-    return np.stack(f) * fact[:order + 1], root, remainder, size
 
 
 def roll_torques(robot, q, v, thrust, roll_acceleration) -> np.ndarray:
@@ -268,18 +173,19 @@ def inverse_dynamics(robot, motion) -> MotionInputs:
     """Thrusts, rolls, torques and rotor speeds along a motion of the chain.
 
     Args:
-        robot: the :class:`~fpr.model.robot.Robot` (FPR or prototype).
+        robot: the :class:`~fpr.model.robot.Robot`.
         motion: s and its time derivatives 0..4, shape (5, N, n_s) (or (5, n_s) for one sample),
             e.g. from :meth:`planners.polynomial.PiecewisePolynomial.evaluate`. Rows 5 and 6 (the
-            5th and 6th derivatives) are used, and needed, where the prototype comes within
-            :data:`SINGULAR_SCREEN` of its Type-2 singularity (the link tension's limit there).
+            5th and 6th derivatives) are used, and needed, where the robot kind says so
+            (``kind.needs_high_derivatives``: the prototype near its Type-2 singularity, where the
+            link tension is a limit).
 
     Returns:
         the :class:`MotionInputs` at the N samples.
     """
     m = _motion_array(robot, motion)
-    near = robot.name == "prototype" and np.any(np.abs(np.sin(np.real(m[0, :, 1]))) < SINGULAR_SCREEN)
-    s = Jet(m if near else m[:5])  # higher derivatives only where the tension's limit needs them
+    near = robot.kind.needs_high_derivatives(m[0])
+    s = Jet(m if near else m[:5])  # higher derivatives only where the robot's solve needs them
     force = thrust_vectors(robot, s, order=2)
     fy, fz = force[..., 0], force[..., 1]
     thrust = jets.sqrt(fy * fy + fz * fz)
@@ -287,7 +193,7 @@ def inverse_dynamics(robot, motion) -> MotionInputs:
 
     point = robot.planar("point")
     hinges = jets.stack([h.position_jet(s.truncate(2)) for h in point.hinges], axis=-2)  # (N, n_d, 2)
-    chain_force = force.value - robot.drone_mass * (hinges.d[2] - np.array([0.0, -point.gravity]))
+    chain_force = force.value - robot.drone_masses[:, None] * (hinges.d[2] - np.array([0.0, -point.gravity]))
 
     q = np.concatenate([m[0], roll.value], axis=-1)
     v = np.concatenate([m[1], roll.d[1]], axis=-1)

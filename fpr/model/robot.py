@@ -1,7 +1,10 @@
-"""The FPR and its prototype as Pinocchio models, in the coordinates of the seed thesis.
+"""A robot of the toolkit as a Pinocchio model, in the coordinates of the seed thesis.
 
-:func:`load` reads ``urdf/fpr.urdf`` or ``urdf/prototype.urdf`` into Pinocchio and wraps it in a
-:class:`Robot` whose methods speak the thesis' coordinates (seed 2.1, 3.3):
+:class:`Robot` wraps the Pinocchio model of a URDF and speaks the thesis' coordinates. It is generic:
+what is specific to one robot (its coordinate layout, kinematics, margins, closure...) is its *kind*,
+an object of :mod:`fpr.robots` that the Robot holds as ``robot.kind`` and that generic code asks.
+Build a Robot with :func:`fpr.robots.load` (``fpr.load``), which finds the kind by name in the
+registry. The built-in layouts (seed 2.1, 3.3):
 
 * FPR: ``q = [x y z psi theta phi q21 phi1 phi2]``: end-effector position, its yaw / pitch / roll
   (Z-Y-X Euler angles), the angle between the links, and the *absolute* roll of each drone.
@@ -11,13 +14,14 @@
   the two link angles and the drone's absolute roll.
 
 Pinocchio's own coordinates differ only by the drone hinge angles, which are relative to the link
-(``beta_1 = phi1 - phi``...): the map ``q_pin = T q`` is linear and constant, so
-``M = T^T M_pin T`` and ``c = T^T c_pin`` hold exactly.
+(``beta_1 = phi1 - phi``...): the map ``q_pin = T q`` is linear and constant (the :class:`Layout`),
+so ``M = T^T M_pin T`` and ``c = T^T c_pin`` hold exactly.
 
 The drones are actuated by a thrust along their body z axis and three body torques applied at the
 drone's centre of mass (frame ``drone_<i>_center``); the generalised force is ``J^T w`` with
 ``w = [0, 0, f, tau_x, tau_y, tau_z]`` and ``J`` the drone's twist Jacobian in its own frame
-(seed 2.10-2.11).
+(seed 2.10-2.11). Each drone ``<d>`` of the layout has a hinge joint ``<d>_hinge`` (its passive joint)
+and frames ``<d>_center`` and ``<d>_rotor_1`` .. ``<d>_rotor_4``.
 """
 
 from __future__ import annotations
@@ -25,20 +29,16 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from functools import cached_property
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from fpr.model import description
-from fpr.model.errors import UnknownRobotError, check_shape
+from fpr.model.errors import ModelArgumentError, NotUniformError, RobotDefinitionError, check_shape
 from fpr.model.parameters import Margins, RotorConstants, load_parameters, margins, rotor_constants
 from fpr.model.rotors import RotorModel
 
 logger = logging.getLogger(__name__)
-
-ROBOTS = description.ROBOTS
 
 _posv = lapack.dposv
 
@@ -69,35 +69,6 @@ class Layout:
         """The drones' absolute roll coordinates (phi1, phi2...), the in-plane part of the attitude."""
         return tuple(c for c in self.attitude if c.startswith("phi"))
 
-
-LAYOUTS = {
-    "fpr": Layout(
-        coordinates=("x", "y", "z", "psi", "theta", "phi", "q21", "phi1", "phi2"),
-        joints={
-            "q21": {"q21": 1.0},
-            "drone_1_hinge": {"phi1": 1.0, "phi": -1.0},
-            "drone_2_hinge": {"phi2": 1.0, "phi": -1.0, "q21": -1.0},
-        },
-        drones=("drone_1", "drone_2"),
-        chain=("y", "z", "phi", "q21"),
-        attitude=("psi", "theta", "phi1", "phi2"),
-        euler_root=True,
-    ),
-    "prototype": Layout(
-        coordinates=("psi", "theta", "q1", "q2", "phi1"),
-        joints={
-            "pivot_yaw": {"psi": 1.0},
-            "pivot_pitch": {"theta": 1.0},
-            "q1": {"q1": 1.0},
-            "q2": {"q2": 1.0},
-            "drone_1_hinge": {"phi1": 1.0, "q1": -1.0, "q2": -1.0},
-        },
-        drones=("drone_1",),
-        chain=("q1", "q2"),
-        attitude=("psi", "theta", "phi1"),
-        euler_root=False,
-    ),
-}
 
 EULER_ROOT_NAME = "end_effector_root"
 
@@ -138,27 +109,40 @@ class AttitudeModel:
 
 
 class Robot:
-    """A Pinocchio model of the FPR or of its prototype, used in the thesis' coordinates.
+    """A robot's Pinocchio model, used in the thesis' coordinates.
 
-    Build it with :func:`load`. All methods take and return thesis coordinates; the Pinocchio
-    model (``model``, ``data``) is available for anything else, with ``to_pinocchio`` /
-    ``from_pinocchio`` to convert.
+    Build it with :func:`fpr.robots.load` (``fpr.load``). All methods take and return thesis
+    coordinates; the Pinocchio model (``model``, ``data``) is available for anything else, with
+    ``to_pinocchio`` / ``from_pinocchio`` to convert. What is specific to the robot is asked of
+    ``kind`` (:class:`fpr.robots.base.RobotKind`), never of its name.
 
     Attributes:
-        name: "fpr" or "prototype".
-        layout: the coordinate layout.
+        kind: the robot kind bound to this robot (its coordinates, kinematics, margins, closure...).
+        name: the kind's registry name (e.g. "fpr", "prototype"), for messages and files.
+        layout: the coordinate layout, ``kind.layout``.
         model: the Pinocchio model.
         data: its data.
         rotor_constants: c_T, c_Q, w_max, spin senses.
         margins: planning margins.
         urdf: the URDF text the model was built from.
+        parameters: the parameter dictionary (``urdf/parameters.yaml`` and the xacro overrides).
     """
 
-    def __init__(self, name: str, urdf: str, params: dict | None = None):
-        if name not in LAYOUTS:
-            raise UnknownRobotError(name, ROBOTS)
-        self.name = name
-        self.layout = LAYOUTS[name]
+    def __init__(self, kind, urdf: str, params: dict | None = None):
+        """Build the model of ``urdf`` for a robot kind.
+
+        Args:
+            kind: a robot kind *class* (:class:`fpr.robots.base.RobotKind` subclass); the robot holds
+                ``kind(self)``, an instance bound to it.
+            urdf: the URDF text.
+            params: the parameter dictionary; default ``urdf/parameters.yaml``.
+
+        Raises:
+            RobotDefinitionError: the URDF lacks a joint or frame of the layout, or its coordinates are
+                not the layout's.
+        """
+        self.name = kind.name
+        self.layout = kind.layout
         self.urdf = urdf
         self.parameters = params or load_parameters()
         if self.layout.euler_root:
@@ -172,16 +156,19 @@ class Robot:
         self._build_coordinate_map()
         self.drone_frame_ids = tuple(self.model.getFrameId(f"{d}_center") for d in self.layout.drones)
         self.hinge_joint_ids = tuple(self.model.getJointId(f"{d}_hinge") for d in self.layout.drones)
-        for fid, d in zip(self.drone_frame_ids, self.layout.drones):
-            if fid >= self.model.nframes:
-                raise ValueError(f"the URDF has no frame '{d}_center'")
+        for fid, jid, d in zip(self.drone_frame_ids, self.hinge_joint_ids, self.layout.drones):
+            if fid >= self.model.nframes or jid >= self.model.njoints:
+                raise RobotDefinitionError(self.name, f"the URDF has no frame '{d}_center' or no joint '{d}_hinge': "
+                                                      "make each drone with the quadrotor macro of urdf/quadrotor.xacro")
+        self.kind = kind(self)
 
     # ------------------------------------------------------------------ coordinates
     def _build_coordinate_map(self):
         names = self.layout.coordinates
         n = len(names)
         if self.model.nq != n or self.model.nv != n:
-            raise ValueError(f"{self.name}: Pinocchio model has nq={self.model.nq}, expected {n} coordinates {names}")
+            raise RobotDefinitionError(self.name, f"the Pinocchio model has nq={self.model.nq}, nv={self.model.nv}; the "
+                                                  f"layout expects {n} coordinates {names}")
         t = np.zeros((n, n))
         if self.layout.euler_root:
             jid = self.model.getJointId(EULER_ROOT_NAME)
@@ -190,7 +177,7 @@ class Robot:
         for joint, combination in self.layout.joints.items():
             jid = self.model.getJointId(joint)
             if jid >= self.model.njoints:
-                raise ValueError(f"the {self.name} URDF has no joint {joint!r}")
+                raise RobotDefinitionError(self.name, f"the URDF has no joint {joint!r} (named in the layout)")
             for coordinate, coefficient in combination.items():
                 t[self.model.joints[jid].idx_q, names.index(coordinate)] = coefficient
         self.T = t
@@ -238,18 +225,46 @@ class Robot:
     # ------------------------------------------------------------------ geometry read from the URDF
     @cached_property
     def link_length(self) -> float:
-        """L, read from the drone hinge position in its link's frame [m]."""
+        """L, read from drone 1's hinge position in the frame of the link that carries it [m].
+
+        The length of every link of the built-in robots, and the ground's depth below the origin
+        (z = -L). A robot with links of different lengths: ask its kind (``kind.link_lengths``,
+        ``kind.ground_height``).
+        """
         return float(np.linalg.norm(self.model.jointPlacements[self.hinge_joint_ids[0]].translation))
 
     @cached_property
-    def hinge_offset(self) -> float:
-        """d, distance from the drone hinge to the drone's centre of mass [m]."""
-        return float(np.linalg.norm(self.model.frames[self.drone_frame_ids[0]].placement.translation))
+    def hinge_offsets(self) -> np.ndarray:
+        """d_i, distance from each drone's hinge to its centre of mass, shape (n_d,) [m]."""
+        return np.array([np.linalg.norm(self.model.frames[f].placement.translation) for f in self.drone_frame_ids])
 
     @cached_property
+    def drone_masses(self) -> np.ndarray:
+        """m_i, mass of each drone, shape (n_d,) [kg]."""
+        return np.array([self.model.inertias[j].mass for j in self.hinge_joint_ids], dtype=float)
+
+    def _uniform(self, quantity: str, values: np.ndarray, plural: str) -> float:
+        if np.ptp(values) > 1e-12 * max(1.0, float(np.abs(values).max())):
+            raise NotUniformError(quantity, values, f"use robot.{plural}, one value per drone")
+        return float(values[0])
+
+    @property
+    def hinge_offset(self) -> float:
+        """d, distance from the drone hinge to the drone's centre of mass, the same for every drone [m].
+
+        Raises:
+            NotUniformError: the drones' offsets differ (use :attr:`hinge_offsets`).
+        """
+        return self._uniform("hinge_offset", self.hinge_offsets, "hinge_offsets")
+
+    @property
     def drone_mass(self) -> float:
-        """m_d, mass of one drone [kg]."""
-        return float(self.model.inertias[self.hinge_joint_ids[0]].mass)
+        """m_d, mass of one drone, the same for every drone [kg].
+
+        Raises:
+            NotUniformError: the drones' masses differ (use :attr:`drone_masses`).
+        """
+        return self._uniform("drone_mass", self.drone_masses, "drone_masses")
 
     @cached_property
     def total_mass(self) -> float:
@@ -266,7 +281,7 @@ class Robot:
             for m in range(1, 5):
                 rid = self.model.getFrameId(f"{drone}_rotor_{m}")
                 if rid >= self.model.nframes:
-                    raise ValueError(f"the URDF has no frame '{drone}_rotor_{m}'")
+                    raise RobotDefinitionError(self.name, f"the URDF has no frame '{drone}_rotor_{m}'")
                 positions.append((centre.inverse() * self.model.frames[rid].placement).translation)
             models.append(RotorModel(np.array(positions), self.rotor_constants))
         return tuple(models)
@@ -406,8 +421,8 @@ class Robot:
         eq. 2.6-2.7); "none" leaves the passive chain alone (M_p, c_p of eq. 2.6).
         """
         if kind not in ("rigid", "point", "none"):
-            raise ValueError(f"kind={kind!r}: use 'rigid', 'point' or 'none'")
-        other = Robot(self.name, self.urdf, self.parameters)
+            raise ModelArgumentError("kind", kind, f"kind={kind!r}: use 'rigid', 'point' or 'none'")
+        other = Robot(type(self.kind), self.urdf, self.parameters)
         for j in other.hinge_joint_ids:
             inertia = other.model.inertias[j]
             if kind == "point":
@@ -418,34 +433,4 @@ class Robot:
         return other
 
 
-def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Robot:
-    """Load a robot into Pinocchio.
-
-    Args:
-        name: "fpr" (two drones and the end-effector) or "prototype" (one drone, chain pinned).
-        urdf: a URDF file to use instead of the committed ``urdf/<name>.urdf``.
-        **xacro_args: overrides of the description's xacro arguments (the geometric and inertial
-            keys of ``urdf/parameters.yaml`` and ``rotor_arm``, e.g. ``link_length=1.0``): the URDF
-            is then regenerated from xacro with them, and ``robot.parameters`` shows them too.
-
-    Returns:
-        the :class:`Robot`.
-
-    Raises:
-        UnknownRobotError: for a name other than "fpr" or "prototype".
-        ValueError: a key that is not a xacro argument (rotor constants, margins: edit the
-            parameter file instead), or both ``urdf`` and overrides given.
-    """
-    if name not in ROBOTS:
-        raise UnknownRobotError(name, ROBOTS)
-    if urdf is not None and xacro_args:
-        raise ValueError("give either a URDF file or xacro arguments, not both")
-    if xacro_args:
-        text = description.generate_urdf(name, **xacro_args)
-    else:
-        text = Path(urdf or description.urdf_path(name)).read_text(encoding="utf-8")
-    params = {**load_parameters(), **xacro_args}
-    return Robot(name, text, params)
-
-
-__all__ = ["AttitudeModel", "Layout", "LAYOUTS", "ROBOTS", "Robot", "load", "euler_root_joint"]
+__all__ = ["AttitudeModel", "EULER_ROOT_NAME", "Layout", "Robot", "euler_root_joint"]

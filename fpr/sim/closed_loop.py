@@ -21,12 +21,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-import fpr
 from controllers.ctc import CascadedController, ControllerSettings, Reference
+from fpr.model.errors import ModelArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
+from fpr.robots import load
 from fpr.sim.plant import Plant
-
-MASS_PARAMETERS = ("drone_mass", "link_mass", "end_effector_mass")
 
 
 @dataclass
@@ -64,7 +63,7 @@ class SimulationLog:
     """Everything recorded at the inner-loop ticks (N samples).
 
     Attributes:
-        robot_name: "fpr" or "prototype".
+        robot_name: the robot's registry name (``robot.name``: "fpr", "prototype"...).
         coordinates: names of the columns of q and v.
         chain: names of the planning coordinates (columns of reference).
         t: times (N,) [s].
@@ -159,11 +158,12 @@ class SimulationLog:
 
 
 def _scaled_robot(robot, scale: float):
-    """The same robot with every mass multiplied by ``scale`` (a controller's wrong belief)."""
+    """The same robot with every mass (the kind's ``mass_parameters``) multiplied by ``scale`` (a
+    controller's wrong belief)."""
     if scale == 1.0:
         return robot
-    overrides = {k: robot.parameters[k] * scale for k in MASS_PARAMETERS}
-    return fpr.load(robot.name, **overrides)
+    overrides = {k: robot.parameters[k] * scale for k in robot.kind.mass_parameters}
+    return load(robot.name, **overrides)
 
 
 def simulate(result, settings: SimulationSettings | None = None, progress=None) -> SimulationLog:
@@ -179,15 +179,17 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
 
     Raises:
         fpr.sim.plant.PlantDivergedError: the plant's state became non-finite.
-        ValueError: rates that are not integer multiples of each other.
+        ModelArgumentError: rates that are not integer multiples of each other, or an initial error on
+            an unknown coordinate.
     """
     st = settings or SimulationSettings()
     robot = result.robot
     ctrl_settings = st.controller
     steps_per_tick = st.plant_rate / ctrl_settings.inner_rate
     if abs(steps_per_tick - round(steps_per_tick)) > 1e-9 or steps_per_tick < 1:
-        raise ValueError(f"plant_rate {st.plant_rate:g} Hz must be an integer multiple of the inner-loop "
-                         f"rate {ctrl_settings.inner_rate:g} Hz")
+        raise ModelArgumentError("plant_rate", st.plant_rate,
+                                 f"plant_rate {st.plant_rate:g} Hz must be an integer multiple of the inner-loop "
+                                 f"rate {ctrl_settings.inner_rate:g} Hz")
     steps_per_tick = int(round(steps_per_tick))
     dt = 1.0 / st.plant_rate
     tick = steps_per_tick * dt
@@ -202,7 +204,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
     q0 = q_plan[0].copy()
     for name, offset in st.initial_error.items():
         if name not in robot.index:
-            raise ValueError(f"initial_error: unknown coordinate {name!r}; use one of {', '.join(robot.index)}")
+            raise ModelArgumentError("initial_error", name,
+                                     f"initial_error: unknown coordinate {name!r}; use one of {', '.join(robot.index)}")
         q0[robot.index[name]] += offset
     w0 = planned.rotor_speed[0] / np.sqrt(st.rotor_constant_scale)
     plant = Plant.from_minimal(robot, q0, np.zeros(robot.nq), w0)

@@ -33,13 +33,11 @@ import pinocchio as pin
 from scipy.linalg import lapack
 
 from fpr.model.constrained import ClosedChainModel, build_closed_chain
-from fpr.model.errors import FprError, check_shape
+from fpr.model.errors import FprError, ModelArgumentError, check_shape
+from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.robots import load
 
 _gesv = lapack.dgesv
-
-#: A static pose of each robot's chain (FPR s = [y z phi q21], prototype xi = [q1 q2]),
-#: used by :func:`plant_step_time`.
-REFERENCE_CHAIN = {"fpr": (0.0, 0.0, 5 * np.pi / 4, np.pi / 2), "prototype": (0.3, 1.2)}
 
 
 class PlantDivergedError(FprError, FloatingPointError):
@@ -121,8 +119,6 @@ def _rotor_force_map(closed: ClosedChainModel, mixing) -> np.ndarray | None:
 
 def _static_inputs(robot, chain):
     """Inverse dynamics of a motionless chain (:func:`fpr.model.inverse_dynamics.inverse_dynamics`), one sample."""
-    from fpr.model.inverse_dynamics import inverse_dynamics
-
     s = check_shape("chain", chain, (len(robot.layout.chain),))
     motion = np.zeros((5, s.size))
     motion[0] = s
@@ -134,7 +130,8 @@ def hover_configuration(robot, chain) -> np.ndarray:
 
     Args:
         robot: the :class:`~fpr.model.robot.Robot`.
-        chain: FPR s = [y z phi q21] [m, m, rad, rad], or prototype xi = [q1 q2] [rad].
+        chain: the planning coordinates ``robot.layout.chain`` (FPR s = [y z phi q21] [m, m, rad, rad],
+            prototype xi = [q1 q2] [rad]), e.g. ``robot.kind.reference_chain``.
 
     Returns:
         q, shape (n,), with the drones' rolls along their static thrust vectors (seed 2.20).
@@ -163,7 +160,7 @@ def hover_speeds(robot, q, tolerance: float = 1e-6) -> np.ndarray:
         w, shape (n_d, 4) [rad/s].
 
     Raises:
-        ValueError: q is not a static pose, or holding it needs a rotor speed outside [0, w_max].
+        ModelArgumentError: q is not a static pose, or holding it needs a rotor speed outside [0, w_max].
     """
     q = check_shape("q", q, (robot.nq,))
     inputs = _static_inputs(robot, q[robot.indices(robot.layout.chain)])
@@ -172,15 +169,14 @@ def hover_speeds(robot, q, tolerance: float = 1e-6) -> np.ndarray:
     static = np.append(inputs.roll[0], 0.0)
     off = np.abs(np.mod(actual - static + np.pi, 2 * np.pi) - np.pi)
     if off.max() > tolerance:
-        raise ValueError(f"q is not a static pose: ({', '.join(names)}) = "
-                         f"{np.array2string(actual, precision=6)} where holding the chain still needs "
-                         f"{np.array2string(static, precision=6)} "
-                         "(use hover_configuration)")
+        raise ModelArgumentError("q", q, f"q is not a static pose: ({', '.join(names)}) = "
+                                         f"{np.array2string(actual, precision=6)} where holding the chain still "
+                                         f"needs {np.array2string(static, precision=6)} (use hover_configuration)")
     w2 = inputs.rotor_speed_squared[0]
     w_max = robot.rotor_constants.max_speed
     if w2.min() < 0 or w2.max() > w_max**2:
-        raise ValueError(f"holding this pose needs rotor speeds^2 {np.array2string(w2, precision=1)} "
-                         f"(rad/s)^2, outside [0, {w_max:g}^2]")
+        raise ModelArgumentError("q", q, f"holding this pose needs rotor speeds^2 {np.array2string(w2, precision=1)} "
+                                         f"(rad/s)^2, outside [0, {w_max:g}^2]")
     return np.sqrt(w2)
 
 
@@ -390,11 +386,11 @@ class Plant:
                 same on every drone) or (n_d, 3); None for no wind.
 
         Raises:
-            ValueError: dt <= 0.
+            ModelArgumentError: dt <= 0.
             PlantDivergedError: the state became non-finite.
         """
         if not dt > 0:
-            raise ValueError(f"dt = {dt!r}: the time step must be positive [s]")
+            raise ModelArgumentError("dt", dt, f"dt = {dt!r}: the time step must be positive [s]")
         w_cmd = self.saturate(w_command)
         w0 = self._w
         lag = self.robot.rotor_constants.time_constant
@@ -428,18 +424,17 @@ class Plant:
 
 
 def plant_step_time(robot, steps: int = 1000, dt: float = 1e-3) -> float:
-    """Mean wall time of one :meth:`Plant.step` [s], hovering at the robot's reference pose.
+    """Mean wall time of one :meth:`Plant.step` [s], hovering at the robot's reference pose
+    (``robot.kind.reference_chain``).
 
     Args:
-        robot: a :class:`~fpr.model.robot.Robot` or its name ("fpr", "prototype").
+        robot: a :class:`~fpr.model.robot.Robot` or a registered robot name ("fpr", "prototype"...).
         steps: number of steps timed.
         dt: simulated step [s].
     """
     if isinstance(robot, str):
-        from fpr.model.robot import load
-
         robot = load(robot)
-    q = hover_configuration(robot, REFERENCE_CHAIN[robot.name])
+    q = hover_configuration(robot, robot.kind.reference_chain)
     w = hover_speeds(robot, q)
     plant = Plant.from_minimal(robot, q, w=w)
     plant.step(w, dt)  # warm up
@@ -449,5 +444,5 @@ def plant_step_time(robot, steps: int = 1000, dt: float = 1e-3) -> float:
     return (_time.perf_counter() - start) / steps
 
 
-__all__ = ["Plant", "PlantDivergedError", "REFERENCE_CHAIN", "hover_configuration", "hover_speeds",
+__all__ = ["Plant", "PlantDivergedError", "hover_configuration", "hover_speeds",
            "plant_step_time", "rkmk4_step"]

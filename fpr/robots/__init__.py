@@ -1,0 +1,120 @@
+"""The robots: one module per robot, found by name in a registry.
+
+Each robot is a :class:`~fpr.robots.base.RobotKind` subclass (its coordinates, kinematics, margins,
+thrust from motion, closure, controller specifics, figure titles) in its own module; :func:`register`
+adds it under its ``name`` and :func:`load` builds a :class:`~fpr.model.robot.Robot` of it::
+
+    import fpr.robots
+    robot = fpr.robots.load("prototype", link_length=1.0)   # also fpr.load(...)
+
+    from my_lab.tripod import Tripod                         # a robot of your own:
+    fpr.robots.register(Tripod)                              # one line, then load("tripod")
+
+The built-in robots: ``"fpr"`` (:mod:`fpr.robots.fpr`) and ``"prototype"`` (:mod:`fpr.robots.prototype`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fpr.model import description
+from fpr.model.errors import RobotDefinitionError, UnknownRobotError
+from fpr.model.parameters import load_parameters
+from fpr.model.robot import Robot
+from fpr.robots.base import RobotKind
+from fpr.robots.fpr import Fpr
+from fpr.robots.prototype import Prototype
+
+_REGISTRY: dict[str, type[RobotKind]] = {}
+
+
+def register(kind: type[RobotKind], replace: bool = False) -> type[RobotKind]:
+    """Add a robot kind to the registry under ``kind.name``.
+
+    Args:
+        kind: a :class:`~fpr.robots.base.RobotKind` subclass.
+        replace: allow replacing a kind registered under the same name.
+
+    Returns:
+        ``kind`` (so that ``register`` can decorate the class).
+
+    Raises:
+        RobotDefinitionError: ``kind`` is not a RobotKind subclass with a name, or the name is taken.
+    """
+    if not (isinstance(kind, type) and issubclass(kind, RobotKind)) or not isinstance(getattr(kind, "name", None), str):
+        raise RobotDefinitionError(repr(kind), "register a subclass of fpr.robots.base.RobotKind with a `name`")
+    if kind.name in _REGISTRY and _REGISTRY[kind.name] is not kind and not replace:
+        raise RobotDefinitionError(kind.name, f"the name is taken by {_REGISTRY[kind.name].__qualname__}: choose "
+                                              "another name, or register(..., replace=True)")
+    _REGISTRY[kind.name] = kind
+    return kind
+
+
+def unregister(name: str) -> None:
+    """Remove a robot kind from the registry (e.g. a test's).
+
+    Raises:
+        UnknownRobotError: no robot of that name.
+    """
+    get(name)
+    del _REGISTRY[name]
+
+
+def get(name: str) -> type[RobotKind]:
+    """The robot kind registered under ``name``.
+
+    Raises:
+        UnknownRobotError: no robot of that name (the message lists the registered ones).
+    """
+    try:
+        return _REGISTRY[name]
+    except (KeyError, TypeError):
+        raise UnknownRobotError(str(name), names()) from None
+
+
+def names() -> tuple[str, ...]:
+    """The registered robot names, in registration order (the built-in ones first)."""
+    return tuple(_REGISTRY)
+
+
+def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Robot:
+    """Load a robot into Pinocchio.
+
+    Args:
+        name: a registered robot: "fpr" (two drones and the end-effector), "prototype" (one drone,
+            chain pinned), or one you registered.
+        urdf: a URDF file to use instead of the kind's (``kind.urdf``, e.g. the committed ``urdf/fpr.urdf``).
+        **xacro_args: overrides of the description's xacro arguments (the geometric and inertial
+            keys of ``urdf/parameters.yaml`` and ``rotor_arm``, e.g. ``link_length=1.0``, and the
+            arguments of the kind's own xacro files): the URDF is then regenerated from the kind's xacro
+            file with them, and ``robot.parameters`` shows them too. A kind without a committed URDF
+            (``kind.urdf`` None) is always generated from its xacro file.
+
+    Returns:
+        the :class:`~fpr.model.robot.Robot`, its kind bound as ``robot.kind``.
+
+    Raises:
+        UnknownRobotError: a name that is not registered.
+        RobotDefinitionError: a key that is not a xacro argument (rotor constants, margins: edit the
+            parameter file instead), both ``urdf`` and overrides given, or a URDF the kind cannot use.
+    """
+    kind = get(name)
+    if urdf is not None and xacro_args:
+        raise RobotDefinitionError(name, "give either a URDF file or xacro arguments, not both")
+    if urdf is not None:
+        text = Path(urdf).read_text(encoding="utf-8")
+    elif xacro_args or kind.urdf is None:
+        text = description.generate_urdf(kind.xacro, **xacro_args)
+    else:
+        text = Path(kind.urdf).read_text(encoding="utf-8")
+    params = {**load_parameters(), **xacro_args}
+    return Robot(kind, text, params)
+
+
+register(Fpr)
+register(Prototype)
+
+BUILTIN: tuple[str, ...] = names()
+"""The names of the robots that come with the library: ("fpr", "prototype")."""
+
+__all__ = ["BUILTIN", "RobotKind", "get", "load", "names", "register", "unregister"]

@@ -1,0 +1,300 @@
+"""What a robot must say about itself: the :class:`RobotKind` protocol.
+
+Generic code (the model, the planners, the controller, the simulator, the views) never tests a robot's
+name; it asks the robot's *kind*, ``robot.kind``, an instance of a :class:`RobotKind` subclass bound to
+one :class:`~fpr.model.robot.Robot` (its ``robot`` attribute). A subclass is one robot module
+(:mod:`fpr.robots.fpr`, :mod:`fpr.robots.prototype`, or a module of your own) registered by name in
+:mod:`fpr.robots` (``register(MyRobot)``).
+
+The members come in two groups, in the manner of Pink's ``Task`` or Crocoddyl's abstract action models:
+
+* **class attributes**, known without a model (the registry, missions and file columns use them):
+  ``name``, ``xacro``, ``urdf``, ``layout``, ``chain_units``, ``task_coordinates``, ``assembly_modes``,
+  ``crosses_singularity``, ``singular_margins``, ``margin_hints``, ``reference_chain``,
+  ``mass_parameters``, ``titles``, ``task_point_labels``, ``task_frame``, ``fixed_point``;
+* **methods** of the bound instance, which read the robot's geometry from its model: link lengths and
+  ground, kinematics (``drone_joints``, ``drone_joint_velocities``, ``chain_jacobian``,
+  ``task_points``), workspace and assembly modes (``workspace_margins``, ``crossing_margins``,
+  ``planning_pose``, ``check_pose``, ``assembly_mode``, ``coordinate_axes``), thrust from motion
+  (``thrust_vectors``, ``needs_high_derivatives``), the closure of the plant (``closed_chain``,
+  ``closure_reader``) and the controller's outer-loop solve (``outer_loop_forces``).
+
+Members marked *required* must be given by every robot; the others have defaults here that suit a
+robot whose planning coordinates are its task coordinates and whose drone-joint Jacobian is invertible
+in its workspace. Shapes: ``s`` is the planning vector (``layout.chain``, n_s entries) with any leading
+batch shape, n_d is the number of drones, N a number of samples.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from functools import cached_property
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+
+from fpr.model import inverse_dynamics
+from fpr.model.errors import FprError, ModelArgumentError
+from fpr.model.jets import Jet
+from fpr.model.kinematics import check_margins, last_axis
+from fpr.model.robot import Layout
+
+
+class RobotKind:
+    """The robot-specific part of a :class:`~fpr.model.robot.Robot` (see the module docstring).
+
+    Subclass it, fill in the class attributes and the required methods, and register the subclass
+    (:func:`fpr.robots.register`). The robot builds its kind with ``kind_class(robot)``.
+
+    Class attributes:
+        name: the registry name, e.g. "fpr" (required).
+        xacro: the robot's top-level xacro file, anywhere on disk (required).
+        urdf: its generated URDF, read by :func:`fpr.robots.load`; None to run xacro at every load.
+        layout: thesis coordinates -> Pinocchio joints, drones, planning coordinates
+            (:class:`~fpr.model.robot.Layout`, required).
+        chain_units: unit of each planning coordinate ``layout.chain``, e.g. ("m", "m", "rad", "rad")
+            (required; CSV columns, mission labels, figure axes).
+        task_coordinates: (name, unit) of the coordinates of a task-space way point; None when they
+            are the planning coordinates (then ``planning_pose`` copies task-space way points).
+        assembly_modes: the assembly modes a mission may name (``arm``), e.g. ("down", "up"); empty
+            when the mission's ``arm`` is ignored.
+        crosses_singularity: whether :mod:`planners.crossing` can plan a crossing of the robot's
+            Type-2 singularity (then ``crossing_margins`` is given).
+        singular_margins: prefixes of the names of the workspace margins that keep the last planning
+            coordinate away from the Type-2 singularity (e.g. ("q21",)): violated, they raise a
+            SingularityError.
+        margin_hints: what to do when a workspace margin is violated, by prefix of its name.
+        reference_chain: a static pose of the chain inside the workspace, the robot's default
+            configuration (hover tests, timing, the controller's hover linearisation, drawings) [m, rad].
+        mass_parameters: the xacro arguments that are masses (a controller that believes the robot
+            heavier scales them, :mod:`fpr.sim.closed_loop`).
+        titles: figure titles by figure name ("path", "coordinates", ..., "sim_path", ..., see
+            :mod:`fpr.views.figures`).
+        task_point_labels: (the main task-space point, the other joints) of ``task_points``, for legends.
+        task_frame: the Pinocchio frame of the main task-space point (3D scenes).
+        fixed_point: (y, z) of a point of the chain fixed in the world [m], or None.
+    """
+
+    name: ClassVar[str]
+    xacro: ClassVar[Path]
+    urdf: ClassVar[Path | None] = None
+    layout: ClassVar[Layout]
+    chain_units: ClassVar[tuple[str, ...]]
+    task_coordinates: ClassVar[tuple[tuple[str, str], ...] | None] = None
+    assembly_modes: ClassVar[tuple[str, ...]] = ()
+    crosses_singularity: ClassVar[bool] = False
+    singular_margins: ClassVar[tuple[str, ...]] = ()
+    margin_hints: ClassVar[Mapping[str, str]] = {}
+    reference_chain: ClassVar[tuple[float, ...]]
+    mass_parameters: ClassVar[tuple[str, ...]] = ("drone_mass", "link_mass", "end_effector_mass")
+    titles: ClassVar[Mapping[str, str]] = {}
+    task_point_labels: ClassVar[tuple[str, str]] = ("end-effector", "drone joints")
+    task_frame: ClassVar[str] = "end_effector"
+    fixed_point: ClassVar[tuple[float, float] | None] = None
+
+    def __init__(self, robot):
+        """Bind the kind to ``robot`` (a :class:`~fpr.model.robot.Robot` built from this kind's layout)."""
+        self.robot = robot
+
+    # ------------------------------------------------------------------ static information
+    @classmethod
+    def planning_columns(cls) -> tuple[tuple[str, str], ...]:
+        """(name, unit) of each planning coordinate, e.g. (("y", "m"), ..., ("q21", "rad"))."""
+        return tuple(zip(cls.layout.chain, cls.chain_units, strict=True))
+
+    @classmethod
+    def mission_coordinates(cls, space: str) -> tuple[str, ...]:
+        """Labels "name [unit]" of a way point's entries in ``space`` ("task" or "joint")."""
+        pairs = cls.task_coordinates if space == "task" and cls.task_coordinates is not None \
+            else cls.planning_columns()
+        return tuple(f"{n} [{u}]" for n, u in pairs)
+
+    @classmethod
+    def assembly_mode(cls, pose) -> str | None:
+        """The assembly mode of a planning pose, one of ``assembly_modes``, or None (none or undecided).
+
+        Args:
+            pose: planning coordinates, shape (n_s,).
+        """
+        return None
+
+    @classmethod
+    def describe_mode(cls, mode: str) -> str:
+        """A mode in words for messages, e.g. "up (q2 < 0)"."""
+        return mode
+
+    # ------------------------------------------------------------------ geometry read from the model
+    @cached_property
+    def link_lengths(self) -> tuple[float, ...]:
+        """Joint-to-joint length of each link of the chain [m] (required)."""
+        raise NotImplementedError
+
+    @property
+    def ground_height(self) -> float:
+        """z of the ground [m]: -L, with L the link length of the first drone's link (DESIGN.md)."""
+        return -self.robot.link_length
+
+    # ------------------------------------------------------------------ kinematics
+    def drone_joints(self, s) -> np.ndarray:
+        """Drone joint positions r_i (world y, z), shape (..., n_d, 2) [m].
+
+        Default: from the point-drone planar model (exact, not closed form).
+        """
+        s = last_axis(s, len(self.layout.chain), "s")
+        return np.stack([h.position(s) for h in self.robot.planar("point").hinges], axis=-2)
+
+    def drone_joint_velocities(self, s, s_dot) -> np.ndarray:
+        """Drone joint velocities r_i', shape (..., n_d, 2) [m/s], for s' [m/s, rad/s] of the same shape as s."""
+        jac = self.chain_jacobian(s)
+        v = np.einsum("...ij,...j->...i", jac, last_axis(s_dot, len(self.layout.chain), "s_dot"))
+        return v.reshape(v.shape[:-1] + (-1, 2))
+
+    def chain_jacobian(self, s) -> np.ndarray:
+        """J_h = d[r_1; ...; r_nd]/ds, shape (..., 2 n_d, n_s) (seed 2.6, 3.35).
+
+        Default: from the point-drone planar model.
+        """
+        return self.robot.planar("point").hinge_jacobian(last_axis(s, len(self.layout.chain), "s"))
+
+    def task_points(self, s) -> tuple[np.ndarray, np.ndarray]:
+        """The points a path figure draws: (the main point (..., 2), the other joints (..., k, 2)) [m].
+
+        Labelled by ``task_point_labels``. Default: the end-effector p = s[..., :2] and the drone joints.
+        """
+        s = last_axis(s, len(self.layout.chain), "s")
+        return s[..., :2], self.drone_joints(s)
+
+    # ------------------------------------------------------------------ workspace and assembly modes
+    def workspace_margins(self, s, mode: str | None = None) -> dict[str, np.ndarray]:
+        """Signed margins of the geometric constraints (>= 0 where satisfied), each of shape (...) (required).
+
+        Names start with the constraint kind (:data:`planners.problem.CONSTRAINT_KINDS`: ``ground_1``,
+        ``q21_low``...). Units: m or rad.
+
+        Args:
+            s: planning coordinates, shape (..., n_s) (complex allowed: the planner differentiates by
+                complex step).
+            mode: the assembly mode whose bounds apply; None: the mode of the first sample.
+        """
+        raise NotImplementedError
+
+    def crossing_margins(self, s, crossing_sign) -> dict[str, np.ndarray]:
+        """The workspace margins of a motion that crosses the Type-2 singularity once (``crosses_singularity``).
+
+        Args:
+            s: planning coordinates, shape (N, n_s).
+            crossing_sign: per sample +1 before the crossing, -1 after it, 0 at it, shape (N,).
+        """
+        raise FprError(f"the {self.name} cannot plan a crossing of its Type-2 singularity")
+
+    def check_pose(self, pose, mode: str | None, what: str) -> None:
+        """Raise a WorkspaceError / SingularityError naming the first violated margin at a planning pose.
+
+        Args:
+            pose: planning coordinates, shape (n_s,).
+            mode: the assembly mode the pose must be in (one of ``assembly_modes``), or None.
+            what: the pose's name in messages (e.g. "way_points[2] = [...] of mission 'square'").
+        """
+        check_margins(self.workspace_margins(pose, mode), pose, what, margins=self.robot.margins,
+                      singular=self.singular_margins, hints=dict(self.margin_hints))
+
+    def planning_pose(self, point, space: str, mode: str | None, what: str) -> np.ndarray:
+        """A way point in planning coordinates (the inverse kinematics of a task-space point).
+
+        Args:
+            point: the way point in ``space`` coordinates, shape (n,).
+            space: "task" or "joint".
+            mode: the assembly mode to solve in (one of ``assembly_modes``), or None.
+            what: the way point's name in messages.
+
+        Returns:
+            s, shape (n_s,).
+
+        Raises:
+            WorkspaceError, SingularityError: the point is out of reach, or on a singularity.
+        """
+        if space == "task" and self.task_coordinates is not None:
+            raise ModelArgumentError("space", space, f"{what}: the {self.name} has no inverse kinematics "
+                                                     "for task-space way points: write them in joint space")
+        return np.array(point, dtype=float)
+
+    def coordinate_axes(self) -> list[tuple[str, tuple[float, float] | None]]:
+        """(axis label, (lower, upper) bound or None) of each planning coordinate, for figures [m, rad].
+
+        Default: "name [unit]" and no bound.
+        """
+        return [(f"{n} [{u}]", None) for n, u in self.planning_columns()]
+
+    # ------------------------------------------------------------------ thrust from motion
+    def thrust_vectors(self, motion: Jet, generalized: Jet, order: int | None = None) -> Jet:
+        """Thrust vectors F_i from J_h(s)^T F = b along a motion (seed 2.16, 3.12, 3.37).
+
+        Args:
+            motion: s as a Jet of order K >= 2, shape (N, n_s).
+            generalized: b = M_s s'' + c_s of the point-drone model, Jet of order K - 2, shape (N, n_s).
+            order: derivative order of the result (default: that of ``generalized``).
+
+        Returns:
+            F in world (y, z), Jet of shape (N, n_d, 2) [N]. Default: a plain solve
+            (:func:`fpr.model.inverse_dynamics.solve_thrust_vectors`).
+        """
+        return inverse_dynamics.solve_thrust_vectors(self.robot, motion, generalized, order)
+
+    def needs_high_derivatives(self, s) -> bool:
+        """Whether the inverse dynamics at these poses needs the motion's 5th and 6th derivatives.
+
+        Args:
+            s: planning coordinates of the samples, shape (N, n_s).
+        """
+        return False
+
+    # ------------------------------------------------------------------ closure of the plant
+    def closed_chain(self, model, axis_offset: float):
+        """Build the robot as free-flying drones plus the chain and its loop closure (required).
+
+        Add the drones with :func:`fpr.model.constrained.add_free_drone` (drone 1 first), the chain's
+        bodies as a tree hanging from them, and the closure constraints.
+
+        Args:
+            model: an empty ``pin.Model`` (gravity set) to fill.
+            axis_offset: distance between two closure points on a hinge axis [m], if the closure needs it.
+
+        Returns:
+            a :class:`fpr.model.constrained.ClosureTree`.
+        """
+        raise NotImplementedError
+
+    def closure_reader(self, closed):
+        """The reader of the minimal coordinates the closed chain's shared joints do not give (required).
+
+        Args:
+            closed: the :class:`fpr.model.constrained.ClosedChainModel` built by :meth:`closed_chain`.
+
+        Returns:
+            an object with ``read(q_pin, oMi, reference)``, which fills in the Pinocchio coordinates
+            (of the minimal model, shape (n,)) that are not copies of the closed chain's joints from the
+            closed chain's joint placements ``oMi`` (``reference``: thesis configuration to unwrap the
+            angles to, or None), and ``wrap(q)``, which puts the angles of a thesis configuration read
+            without reference into their default ranges (in place).
+        """
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ control
+    def outer_loop_forces(self, s, b, jacobian, planned_force, singular_band: float) -> np.ndarray:
+        """F_i the controller's outer loop asks of the drones: J_h^T F = b at one state (seed 2.16).
+
+        Args:
+            s: measured planning coordinates, shape (n_s,).
+            b: M_s u_p + c_s, shape (n_s,) [N or N m].
+            jacobian: J_h(s), shape (2 n_d, n_s).
+            planned_force: the plan's F_i at this instant, shape (n_d, 2) [N], or None.
+            singular_band: the controller's regularisation angle near a Type-2 singularity [rad].
+
+        Returns:
+            F, shape (n_d, 2) [N]. Default: the plain solve.
+        """
+        return np.linalg.solve(jacobian.T, b).reshape(-1, 2)
+
+
+__all__ = ["RobotKind"]
