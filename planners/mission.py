@@ -313,7 +313,7 @@ class Mission:
         if not isinstance(value, Mapping):
             reason = f"{value!r} is not a table: write [robot_parameters] then lines like link_length = 1.0"
             raise self._error("robot_parameters", reason)
-        known = description.xacro_arguments()
+        known = description.xacro_arguments(self.kind.xacro)
         checked = {}
         for key, x in value.items():
             name = f"robot_parameters.{key}"

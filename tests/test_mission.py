@@ -370,7 +370,7 @@ def test_robot_parameters_reach_the_model():
 def test_bad_override_key_from_load_robot(monkeypatch):
     """A key that passed validation but that fpr.load rejects is reported on its field."""
     with monkeypatch.context() as patch:
-        patch.setattr(mission_module.description, "xacro_arguments", lambda: ("foo", "link_length"))
+        patch.setattr(mission_module.description, "xacro_arguments", lambda xacro=None: ("foo", "link_length"))
         m = load_mission("square").replace(robot_parameters={"foo": 1.0})
     with pytest.raises(MissionError) as info:
         m.load_robot()
