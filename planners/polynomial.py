@@ -375,7 +375,8 @@ def via_point_times(trajectory: PiecewisePolynomial, begin: float, duration: flo
     return np.moveaxis(trajectory.evaluate(t, order=4), 1, 0)
 
 
-def with_via_points(trajectory: PiecewisePolynomial, way_times, n_via) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def with_via_points(trajectory: PiecewisePolynomial, way_times,
+                    n_via) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The same motion cut at evenly spaced via times (3.2.1): the new points are the motion's own
     value and derivatives there, so the motion does not change.
 

@@ -9,8 +9,10 @@ import fpr.model.inverse_dynamics as idyn
 from fpr.model import jets
 from fpr.model.errors import MissionError
 from fpr.model.jets import Jet
-from fpr.model.kinematics import prototype_workspace_margins
-from planners import crossing
+from fpr.robots import prototype_singularity as singularity
+from fpr.robots import prototype_thrust
+from fpr.robots.prototype import prototype_workspace_margins
+from planners import crossing, crossing_problem
 from planners.mission import load_mission, mission_from_dict, mission_from_toml
 from planners.polynomial import PiecewisePolynomial
 
@@ -26,12 +28,12 @@ def _crossing_motion(robot, q1=0.2, velocity=(-1.0, -2.5), times=(1.0, 1.2), mu=
     point = np.zeros((5, 2))
     point[0] = [q1, 0.0]
     point[1] = v
-    point[2] = crossing.criterion_acceleration(robot, q1, v, mu)
+    point[2] = singularity.criterion_acceleration(robot, q1, v, mu)
     if not satisfied:
-        point[2] += 2.0 * crossing.NULL_VECTOR  # criterion residual 2 n^T M n
+        point[2] += 2.0 * singularity.NULL_VECTOR  # criterion residual 2 n^T M n
     point[3] = [1.0, -2.0]
     point[4] = [3.0, 5.0]
-    return crossing.crossing_motion(crossing.SEED_START, crossing.SEED_END, point, times)
+    return crossing_problem.crossing_motion(singularity.SEED_START, singularity.SEED_END, point, times)
 
 
 # ------------------------------------------------------------------------ inverse dynamics at q2 = 0
@@ -62,12 +64,12 @@ def test_thrust_is_continuous_through_a_crossing_that_meets_the_criterion(proto)
 
 def _plain(proto, m):
     """inverse_dynamics with the deflation switched off (the plain quotient everywhere)."""
-    old = idyn.SINGULAR_TIME
+    old = prototype_thrust.SINGULAR_TIME
     try:
-        idyn.SINGULAR_TIME = 0.0
+        prototype_thrust.SINGULAR_TIME = 0.0
         return idyn.inverse_dynamics(proto, m)
     finally:
-        idyn.SINGULAR_TIME = old
+        prototype_thrust.SINGULAR_TIME = old
 
 
 @pytest.mark.parametrize("speed", [-2.5, -0.2])
@@ -127,22 +129,22 @@ def test_criterion_acceleration_meets_the_criterion(proto):
     rng = np.random.default_rng(0)
     for _ in range(5):
         q1, v, mu = rng.uniform(-1.2, 1.2), rng.normal(size=2) * 2, rng.normal() * 5
-        a = crossing.criterion_acceleration(proto, q1, v, mu)
+        a = singularity.criterion_acceleration(proto, q1, v, mu)
         b = proto.planar("point").inverse_dynamics(np.array([q1, 0.0]), v, a)
-        assert abs(crossing.NULL_VECTOR @ b) < 1e-10
-        assert abs(crossing.criterion(proto, [q1, 0.0], v, a)) < 1e-10
+        assert abs(singularity.NULL_VECTOR @ b) < 1e-10
+        assert abs(singularity.criterion(proto, [q1, 0.0], v, a)) < 1e-10
 
 
 def test_null_vector_is_the_jacobians_at_the_singularity(proto):
     for q1 in (-1.0, 0.0, 0.7):
         jac = proto.planar("point").hinge_jacobian(np.array([q1, 0.0]))
-        np.testing.assert_allclose(jac @ crossing.NULL_VECTOR, 0.0, atol=1e-14)
+        np.testing.assert_allclose(jac @ singularity.NULL_VECTOR, 0.0, atol=1e-14)
 
 
 def test_moving_onto_the_criterion_keeps_the_drones_acceleration(proto):
     q1, v, a = 0.4, np.array([0.8, -2.0]), np.array([1.0, -3.0])
-    moved, _ = crossing.nearest_criterion_acceleration(proto, q1, v, a)
-    assert abs(crossing.criterion(proto, [q1, 0.0], v, moved)) < 1e-10
+    moved, _ = singularity.nearest_criterion_acceleration(proto, q1, v, a)
+    assert abs(singularity.criterion(proto, [q1, 0.0], v, moved)) < 1e-10
     jac = proto.planar("point").hinge_jacobian(np.array([q1, 0.0]))
     np.testing.assert_allclose(jac @ moved, jac @ a, atol=1e-12)
 
@@ -151,7 +153,7 @@ def test_across_the_straight_chain_only_gravity_acts(proto):
     """n^T c at q2 = 0 does not depend on the velocity; it is minus the derivative of the potential
     energy along n (a finite difference of the model's energy, an independent formulation)."""
     point = proto.planar("point")
-    n = crossing.NULL_VECTOR
+    n = singularity.NULL_VECTOR
     rng = np.random.default_rng(1)
     for q1 in (-0.9, 0.0, 1.1):
         xi = np.array([q1, 0.0])
@@ -165,9 +167,9 @@ def test_across_the_straight_chain_only_gravity_acts(proto):
 
 def test_chain_force_acceleration_meets_the_criterion_and_gives_the_force_across_the_link(proto):
     xi, v, f_p = np.array([1e-4, 0.0]), np.array([-3.0, 3.0]), np.array([0.0, 5.0])
-    a = crossing.acceleration_from_chain_force(proto, xi, v, f_p)
-    assert abs(crossing.criterion(proto, xi, v, a)) < 1e-9
-    thrust = crossing.thrust_at(proto, xi, v, a, f_p)
+    a = singularity.acceleration_from_chain_force(proto, xi, v, f_p)
+    assert abs(singularity.criterion(proto, xi, v, a)) < 1e-9
+    thrust = singularity.thrust_at(proto, xi, v, a, f_p)
     # J^T F = M_pt a + c_pt: the component of F across the link is what the point model needs
     point = proto.planar("point")
     b = point.inverse_dynamics(xi, v, a)
@@ -181,9 +183,9 @@ def test_crossing_problem_derivatives_match_central_differences(proto, smooth):
     """Every column (crossing state, mu, 3rd/4th derivatives, via points, travel times) against central
     differences: the objective, the windowed motion rows (where the window's active node is stable) and,
     exactly, the extra rows (time bounds, crossing speed, 5th-derivative continuity)."""
-    guess = crossing.first_guess(proto, crossing.SEED_START, crossing.SEED_END, 8.0, (1, 1))
-    problem = crossing.CrossingProblem(proto, guess.points, crossing.travel_times(guess, (1, 1)), (1, 1),
-                                       crossing.GROUPS, 0.5, (30.0, 0.05), samples_per_segment=9,
+    guess = crossing.first_guess(proto, singularity.SEED_START, singularity.SEED_END, 8.0, (1, 1))
+    problem = crossing_problem.CrossingProblem(proto, guess.points, crossing_problem.travel_times(guess, (1, 1)), (1, 1),
+                                       crossing_problem.GROUPS, 0.5, (30.0, 0.05), samples_per_segment=9,
                                        windows_per_segment=2, smooth_crossing=smooth)
     x = problem.x0() * (1 + 0.01 * np.random.default_rng(2).normal(size=problem.n_x))  # off the template
     ev = problem.evaluate(x, True)
@@ -227,7 +229,7 @@ def test_the_planned_crossing_holds_every_limit_on_a_dense_grid(crossing_plan, p
     limit = proto.rotor_constants.max_speed - proto.margins.rotor_speed
     assert inputs.rotor_speed.min() >= 0.0 and inputs.rotor_speed.max() <= limit + 1e-3
     assert np.abs(inputs.roll).max() <= np.pi / 2 - proto.margins.angle
-    assert inputs.thrust.min() >= crossing.min_thrust(proto) - 1e-6
+    assert inputs.thrust.min() >= singularity.min_thrust(proto) - 1e-6
     margins = prototype_workspace_margins(m[0], proto.link_length, proto.margins)
     for name in ("ground_2", "ground_3", "fixed_point_2", "fixed_point_3", "q1_low", "q1_high"):
         assert margins[name].min() >= -1e-9, name
@@ -251,8 +253,8 @@ def test_the_crossing_does_better_than_its_first_guess_and_starts_and_ends_at_re
     res = crossing_plan
     assert res.J < 1.0  # J = 1 at the first guess (the normalisation)
     points = res.trajectory.points
-    np.testing.assert_allclose(points[0, 0], crossing.SEED_START)
-    np.testing.assert_allclose(points[-1, 0], crossing.SEED_END)
+    np.testing.assert_allclose(points[0, 0], singularity.SEED_START)
+    np.testing.assert_allclose(points[-1, 0], singularity.SEED_END)
     assert np.all(points[[0, -1], 1:] == 0.0)
 
 
@@ -385,10 +387,10 @@ def test_the_planned_crossing_is_c5_there_so_the_rotor_speeds_do_not_step(crossi
     segments = res.trajectory.segments
     left = segments[i - 1].evaluate(segments[i - 1].duration, order=5)[5, 0]
     right = segments[i].evaluate(0.0, order=5)[5, 0]
-    np.testing.assert_allclose(crossing.fifth_derivative_jump(res.trajectory, i), left - right, rtol=1e-9,
+    np.testing.assert_allclose(crossing_problem.fifth_derivative_jump(res.trajectory, i), left - right, rtol=1e-9,
                                atol=1e-9)
     dt = res.trajectory.durations[i - 1:i + 1].mean()  # the optimiser scales by the grid's first durations
-    assert np.abs(left - right).max() * dt**5 / 120 <= 1.5 * crossing.JUMP_TOLERANCE  # in Taylor units
+    assert np.abs(left - right).max() * dt**5 / 120 <= 1.5 * crossing_problem.JUMP_TOLERANCE  # in Taylor units
     inputs = idyn.inverse_dynamics(proto, res.trajectory.evaluate(np.array([ts - 1e-9, ts + 1e-9]), order=6))
     assert abs(inputs.roll_acceleration[0, 0] - inputs.roll_acceleration[1, 0]) < 0.5  # rad/s^2
     assert np.abs(inputs.rotor_speed[0] - inputs.rotor_speed[1]).max() < 5.0  # rad/s

@@ -15,11 +15,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fpr.model.errors import MissionError, UnknownMethodError
 from fpr.model.inverse_dynamics import inverse_dynamics
-from fpr.model.kinematics import fpr_workspace_margins, prototype_workspace_margins
+from fpr.robots.fpr import fpr_workspace_margins
+from fpr.robots.prototype import prototype_workspace_margins
+from planners.methods import METHODS, method_for
+from planners.methods import crossing as crossing_method
 from planners.mission import load_mission, mission_from_dict
-from planners.optimize import _with_via_points, evaluate_motion, plan
-from planners.polynomial import PiecewisePolynomial, stop_points
+from planners.optimize import evaluate_motion, plan
+from planners.options import PlanOptions
+from planners.polynomial import PiecewisePolynomial, stop_points, with_via_points
 from planners.problem import POWER_SMOOTHING, MotionProblem, constraint_kind, constraint_rows
 
 P0, Q0 = 5 * np.pi / 4, np.pi / 2  # phi, q21 of s0: both drones above the end-effector
@@ -76,9 +81,9 @@ def fpr_step1(robot, mission, alpha=0.5):
 
 
 def proto_travel(robot, mission, alpha=0.5, travel=2):
-    """plan()'s step-2 NLP of one travel: free = every entry of its via points (optimize._with_via_points)."""
+    """plan()'s step-2 NLP of one travel: free = every entry of its via points (with_via_points)."""
     stop = PiecewisePolynomial(stop_points(mission.positions(robot)), mission.times)
-    points, durations, is_way = _with_via_points(stop, mission.times, mission.via_points)
+    points, durations, is_way = with_via_points(stop, mission.times, mission.via_points)
     a, b = np.flatnonzero(is_way)[[travel, travel + 1]]
     free = np.zeros(points[a:b + 1].shape, dtype=bool)
     free[1:-1] = True
@@ -459,3 +464,32 @@ def test_infeasible_request_with_the_default_solver_ends(square, fpr_robot):
     assert not result.feasible and result.report.violations
     assert all(stage.iterations < 60 for stage in result.stages)
     assert any("infeasible" in stage.message for stage in result.stages)
+
+
+# ---------------------------------------------------------------------------------------- 8. the registry
+def test_plan_looks_the_method_up_in_the_registry(square, fpr_robot, monkeypatch):
+    """A method is a function (mission, robot, options) -> PlanResult registered by name: one defined
+    here (outside the library) is found by plan(), given the options, and timed; unknown names are
+    refused before anything is planned, and the crossing method refuses a way-point mission."""
+    with pytest.raises(UnknownMethodError, match="three-step") as error:
+        plan(square, "three-step", robot=fpr_robot)
+    assert error.value.known == tuple(METHODS)
+    seen = []
+
+    def stop_twice(mission, robot, options: PlanOptions):
+        seen.append(options)
+        return METHODS["none"](mission, robot, options)
+
+    monkeypatch.setitem(METHODS, "stop-twice", stop_twice)
+    result = plan(square, "stop-twice", robot=fpr_robot, dense_rate=100.0, max_iterations=7)
+    assert seen == [PlanOptions(dense_rate=100.0, max_iterations=7)]
+    assert result.method == "none" and result.J == pytest.approx(1.0) and result.wall_time > 0
+    with pytest.raises(MissionError, match="cross_singularity"):
+        plan(square, "crossing", robot=fpr_robot)
+
+
+def test_a_crossing_mission_is_planned_by_the_crossing_methods():
+    mission = load_mission("cross-singularity")
+    assert method_for(mission, "two-step") is METHODS["crossing"]
+    assert method_for(mission, "none") is crossing_method.first_guess
+    assert method_for(load_mission("square"), "none") is METHODS["none"]

@@ -1,0 +1,78 @@
+"""Method ``"two-step"`` (seed 3.2.4): way points first, then the via points travel by travel.
+
+Step 1 optimises the derivatives 1..4 at the interior way points (S_d1, 3.20) of the motion through
+the way points only (:func:`step1_problem`); step 2 then optimises, travel by travel, the via points
+(S_d2, 3.22) between the way points fixed by step 1 (:func:`travel_problem`). Each step-2 problem
+starts from the step-1 motion itself (its value and derivatives at the via times), so step 2 never
+ends worse than step 1. The first and last way points keep zero derivatives (the robot starts and
+ends at rest). A motion that fails the dense check but holds on the grid is solved again, both
+steps, on a finer grid (:func:`planners.solving.solve_refining`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planners.methods.way_points import WayPointTask
+from planners.options import PlanOptions
+from planners.polynomial import PiecewisePolynomial
+from planners.problem import MotionProblem
+from planners.report import evaluate_motion
+from planners.result import PlanResult
+from planners.solving import Grid, solve_refining, solve_stage
+
+
+def step1_problem(task: WayPointTask, grid: Grid, normalisation) -> MotionProblem:
+    """Step 1: the motion through the way points only, their derivatives 1..4 free (ends at rest)."""
+    free = np.zeros(task.stop.points.shape, dtype=bool)
+    free[1:-1, 1:] = True
+    return task.problem(task.stop.points, task.way_times, free, normalisation, grid)
+
+
+def travel_problem(task: WayPointTask, points, durations, begin: int, end: int, normalisation,
+                   grid: Grid) -> MotionProblem:
+    """Step 2 on one travel: the motion through ``points[begin:end + 1]`` (way point, via points, way
+    point; ``durations[begin:end]``), every entry of its via points free."""
+    free = np.zeros(points[begin:end + 1].shape, dtype=bool)
+    free[1:-1] = True
+    return task.problem(points[begin:end + 1], durations[begin:end], free, normalisation, grid)
+
+
+def plan(mission, robot, options: PlanOptions) -> PlanResult:
+    """``mission`` planned by the 2-step optimisation (see the module docstring)."""
+    task = WayPointTask.of(mission, robot)
+    reference = evaluate_motion(robot, task.stop, options.dense_rate)
+    is_way = task.via_layout[2]
+
+    def attempt(grid: Grid, previous: PiecewisePolynomial | None):
+        normalisation = task.normalisation(grid)
+        step1 = step1_problem(task, grid, normalisation)
+        start = task.stop.points if previous is None else previous.points[_way_mask(task, previous)]
+        x, stage = solve_stage(step1, step1.x_of(start), "step 1" + grid.suffix, **options.solve_arguments)
+        stages = [stage]
+        points, durations, _ = task.with_via_points(PiecewisePolynomial(step1.points_of(x), task.way_times))
+        way_index = np.flatnonzero(is_way)
+        for j in range(len(task.way_times)):
+            if task.n_via[j] == 0:
+                continue
+            a, b = way_index[j], way_index[j + 1]
+            if previous is not None:  # a refinement restarts from the earlier via points
+                points[a + 1:b] = previous.points[a + 1:b]
+            travel = travel_problem(task, points, durations, a, b, normalisation, grid)
+            x, stage = solve_stage(travel, travel.x_of(points[a:b + 1]), f"step 2, travel {j + 1}{grid.suffix}",
+                                   **options.solve_arguments)
+            stages.append(stage)
+            points[a:b + 1] = travel.points_of(x)
+        return PiecewisePolynomial(points, durations), stages
+
+    trajectory, report, stages = solve_refining(
+        attempt, lambda motion: evaluate_motion(robot, motion, options.dense_rate), options.grid,
+        options.max_refinements)
+    return task.result("two-step", trajectory, is_way, report, reference, stages)
+
+
+def _way_mask(task: WayPointTask, motion: PiecewisePolynomial) -> np.ndarray:
+    """Which points of ``motion`` are way points: all, or those of the via-point layout."""
+    if len(motion.points) != len(task.stop.points):
+        return task.via_layout[2]
+    return np.ones(len(motion.points), dtype=bool)

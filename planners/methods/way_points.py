@@ -1,0 +1,86 @@
+"""What the way-point methods share (seed 3.2.4): the mission's travels, the stop-at-every-way-point
+motion, and the NLPs built on them.
+
+A way-point mission goes through k+1 way points in k travels, each with n_vp via points. Its
+*stop-at-every-way-point* motion (every derivative 1..4 zero at every way point) is the reference of
+the objective (J_e0, J_phi0 of 3.26) and the first guess of the optimisations. A :class:`WayPointTask`
+holds these and builds the :class:`~planners.problem.MotionProblem` s of the methods.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from planners.polynomial import PiecewisePolynomial, stop_points, with_via_points
+from planners.problem import MotionProblem
+from planners.report import MotionReport
+from planners.result import PlanResult
+from planners.solving import Grid
+
+
+@dataclass(frozen=True, eq=False)
+class WayPointTask:
+    """A way-point mission made ready for planning.
+
+    Attributes:
+        mission: the :class:`planners.mission.Mission`.
+        robot: the robot it is planned for.
+        way_times: travel times (k,) [s].
+        n_via: via points per travel (k,).
+        stop: the stop-at-every-way-point motion, one segment per travel.
+    """
+
+    mission: object
+    robot: object
+    way_times: np.ndarray
+    n_via: np.ndarray
+    stop: PiecewisePolynomial
+
+    @classmethod
+    def of(cls, mission, robot) -> WayPointTask:
+        """The task of ``mission`` for ``robot``.
+
+        Raises:
+            MissionError, WorkspaceError, SingularityError: from ``mission.positions(robot)``.
+        """
+        way_times = np.asarray(mission.times, dtype=float)
+        n_via = np.broadcast_to(np.asarray(mission.via_points, dtype=int), way_times.shape)
+        stop = PiecewisePolynomial(stop_points(mission.positions(robot)), way_times)
+        return cls(mission, robot, way_times, n_via, stop)
+
+    @property
+    def alpha(self) -> float:
+        """The energy weight of the objective (3.26)."""
+        return float(self.mission.alpha)
+
+    @cached_property
+    def via_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(points, durations, is_way) of the stop motion cut at the via times
+        (:func:`planners.polynomial.with_via_points`): the layout of every motion with via points."""
+        return with_via_points(self.stop, self.way_times, self.n_via)
+
+    def with_via_points(self, trajectory: PiecewisePolynomial) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(points, durations, is_way) of ``trajectory`` (one segment per travel) cut at the via times."""
+        return with_via_points(trajectory, self.way_times, self.n_via)
+
+    def problem(self, points, durations, free, normalisation, grid: Grid) -> MotionProblem:
+        """The NLP of the motion through ``points`` (mask ``free`` of the unknown entries) on ``grid``."""
+        return MotionProblem(self.robot, points, durations, free, self.alpha, normalisation,
+                             samples_per_segment=grid.samples_per_segment,
+                             windows_per_segment=grid.windows_per_segment)
+
+    def normalisation(self, grid: Grid) -> tuple[float, float]:
+        """(J_e0, J_phi0) of the stop motion on ``grid`` (smoothed |.|, as the optimiser sees them, 3.26)."""
+        free_way = np.zeros(self.stop.points.shape, dtype=bool)
+        free_way[1:-1, 1:] = True
+        problem = self.problem(self.stop.points, self.way_times, free_way, (1.0, 1.0), grid)
+        return tuple(problem.objective_terms(self.stop.points))
+
+    def result(self, method: str, trajectory: PiecewisePolynomial, is_way, report: MotionReport,
+               reference: MotionReport, stages: list) -> PlanResult:
+        """The :class:`PlanResult` of a motion planned for this task (``wall_time`` left to ``plan``)."""
+        return PlanResult(self.mission, method, self.alpha, trajectory, is_way, report, reference, stages,
+                          robot=self.robot)

@@ -1,0 +1,122 @@
+"""What a planning method returns: :class:`PlanResult`, and its motion sampled for plots and files.
+
+Every method of :data:`planners.methods.METHODS` returns a :class:`PlanResult`: the motion (a
+:class:`~planners.polynomial.PiecewisePolynomial`), its dense-grid :class:`~planners.report.MotionReport`,
+the reference that normalises J (3.26), and the NLP solves (:class:`~planners.solving.StageReport`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
+from planners.polynomial import PiecewisePolynomial
+from planners.report import MotionReport
+
+#: How tables and figures name a motion by its method; any other method ``m`` is "optimised (m)".
+METHOD_LABELS = {"none": "stop at way points", "crossing": "optimised crossing",
+                 "first guess": "first guess (crossing)"}
+
+
+def method_label(method: str) -> str:
+    """How tables and figures name a motion planned with ``method`` (:data:`METHOD_LABELS`)."""
+    return METHOD_LABELS.get(method, f"optimised ({method})")
+
+
+@dataclass(frozen=True)
+class SampledPlan:
+    """A motion sampled for plots and files (the attributes :mod:`fpr.views.figures` reads)."""
+
+    label: str
+    t: np.ndarray
+    motion: np.ndarray
+    inputs: MotionInputs
+    knots: np.ndarray
+    is_way: np.ndarray
+    points: np.ndarray
+
+
+@dataclass(eq=False)
+class PlanResult:
+    """An optimised (or reference) motion and everything known about it.
+
+    Attributes:
+        mission: the :class:`planners.mission.Mission`.
+        method: the method that planned it (a name of :data:`planners.methods.METHODS`; ``"first guess"``
+            for a crossing mission's reference).
+        alpha: the weight used.
+        trajectory: the motion, a :class:`~planners.polynomial.PiecewisePolynomial`.
+        is_way: (m+1,) True for way points, False for via points.
+        report: dense-grid :class:`~planners.report.MotionReport` of ``trajectory``.
+        reference: dense-grid report of the stop-at-every-way-point motion (J_e0, J_phi0).
+        stages: the NLP solves, in order.
+        wall_time: total planning time [s] (set by :func:`planners.optimize.plan`).
+        robot: the robot it was planned for.
+        crossing: for a singularity-crossing mission, the
+            :class:`planners.crossing.CrossingOutcome` (``reference`` is then its first guess, the
+            motion the optimisation started from); else None.
+    """
+
+    mission: object
+    method: str
+    alpha: float
+    trajectory: PiecewisePolynomial
+    is_way: np.ndarray
+    report: MotionReport
+    reference: MotionReport
+    stages: list = field(default_factory=list)
+    wall_time: float = 0.0
+    robot: object = field(default=None, repr=False)
+    crossing: object = field(default=None, repr=False)
+
+    @property
+    def feasible(self) -> bool:
+        """Every constraint holds on the dense grid (and a crossing crosses exactly once)."""
+        return self.report.feasible if self.crossing is None else self.crossing.feasible
+
+    @property
+    def J(self) -> float:
+        """alpha J_e / J_e0 + (1 - alpha) J_phi / J_phi0 (3.26), dense grid."""
+        return self.alpha * self.report.J_e / self.reference.J_e \
+            + (1 - self.alpha) * self.report.J_phi / self.reference.J_phi
+
+    @property
+    def label(self) -> str:
+        """How tables and figures name this motion ("stop at way points", "optimised (two-step)"...)."""
+        return method_label(self.method)
+
+    @property
+    def solver_success(self) -> bool:
+        """Every NLP solve ended with the solver reporting success."""
+        return all(s.success for s in self.stages)
+
+    def sampled(self, rate: float = 200.0, label: str | None = None, robot=None) -> SampledPlan:
+        """The motion sampled at ``rate`` [Hz] (end time included) with its inputs."""
+        robot = robot or self.robot
+        t, motion = self.trajectory.sample(rate, order=MOTION_ORDER)
+        return SampledPlan(label or method_label(self.method), t, motion[:5], inverse_dynamics(robot, motion),
+                           self.trajectory.knots, self.is_way, self.trajectory.points)
+
+    def summary(self, robot=None) -> dict:
+        """JSON-friendly summary: objective terms, peaks, constraints, solver stages."""
+        robot = robot or self.robot
+        return {
+            "method": self.method,
+            "alpha": self.alpha,
+            "feasible": self.feasible,
+            "solver_success": self.solver_success,
+            "J": self.J,
+            "J_e": self.report.J_e,
+            "J_phi": self.report.J_phi,
+            "J_e0": self.reference.J_e,
+            "J_phi0": self.reference.J_phi,
+            **self.report.peaks(robot),
+            "wall_time_s": self.wall_time,
+            "constraints": {n: {"margin": c.margin, "unit": c.unit, "time_s": c.time, "detail": c.detail,
+                                "satisfied": c.satisfied} for n, c in self.report.constraints.items()},
+            "violated": [c.name for c in self.report.violations],
+            "stages": [vars(s) for s in self.stages],
+            **({"crossing": self.crossing.summary(robot)} if self.crossing is not None else {}),
+        }
