@@ -1,4 +1,4 @@
-"""The thesis' studies (fpr.cli.studies): reference ratios, the trends the maths guarantees, tables, files.
+"""The thesis' studies (planners.studies, fpr.cli.studies): reference ratios, the trends the maths guarantees, tables, files.
 
 Small settings (n_vp in {0, 1}, alpha in {0, 1}) on the single-travel ``study`` mission.
 
@@ -17,6 +17,7 @@ Tolerances:
   we allow ``OPTIMUM_RTOL`` = 1e-3 relative (the observed gaps are factors of 3 to 5).
 """
 
+import dataclasses
 import json
 import math
 
@@ -24,17 +25,17 @@ import numpy as np
 import pytest
 
 from fpr.cli import studies
+from fpr.cli.studies import format_table, format_value, write_study_figures
+from fpr.model.errors import PlannerArgumentError, UnknownMethodError
+from planners.methods import METHODS
 from planners.mission import load_mission
-from fpr.cli.studies import (
+from planners.studies import (
     AlphaStudy,
     Case,
     ViaPointStudy,
     alpha_study,
-    format_table,
-    format_value,
     method_comparison,
     via_point_study,
-    write_study_figures,
 )
 
 DENSE_RTOL = 1e-3
@@ -116,14 +117,22 @@ def test_alpha_references_planned_when_not_asked(robot):
 
 
 def test_bad_arguments():
-    with pytest.raises(ValueError, match="counts"):
+    with pytest.raises(PlannerArgumentError, match="counts"):
         via_point_study(counts=(1, 1))
-    with pytest.raises(ValueError, match="counts"):
+    with pytest.raises(PlannerArgumentError, match="counts"):
         via_point_study(counts=(-1,))
-    with pytest.raises(ValueError, match="alphas"):
+    with pytest.raises(PlannerArgumentError, match="alphas"):
         alpha_study(alphas=(0.5, 1.5))
-    with pytest.raises(ValueError, match="methods"):
+    with pytest.raises(PlannerArgumentError, match="methods"):
         method_comparison(methods=())
+    with pytest.raises(UnknownMethodError, match="three-step") as error:  # before anything is planned
+        method_comparison(methods=("none", "three-step"))
+    assert error.value.known == tuple(METHODS)
+
+
+def test_compared_methods_come_from_the_registry():
+    assert studies.COMPARED_METHODS == ("none", "two-step", "one-step")
+    assert set(studies.COMPARED_METHODS) <= set(METHODS)
 
 
 def test_method_comparison_on_one_travel(robot, via: ViaPointStudy):
@@ -181,7 +190,7 @@ def test_case_to_dict_is_json(via: ViaPointStudy):
     back = json.loads(text)
     assert back["via_points"]["counts"] == [0, 1]
     assert back["via_points"]["energy_ratio"][0] == 1.0
-    assert set(back["via_points"]["cases"][0]) == {f.name for f in studies.dataclasses.fields(Case)}
+    assert set(back["via_points"]["cases"][0]) == {f.name for f in dataclasses.fields(Case)}
     assert studies._json_safe({"a": [math.nan]}) == {"a": [None]}
 
 
