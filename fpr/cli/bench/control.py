@@ -1,0 +1,291 @@
+"""Control section of the benchmark (``python -m fpr.bench --section control``), side by side in one run
+for the FPR (8 rotor variables) and the prototype (4), at states near hover (q and v perturbed by 0.01,
+small wanted attitude accelerations u_a), in two cases: hover thrusts (no rotor bound active) and 3 times
+the hover thrusts (bounds active):
+
+1. ProxQP warm-started: the full :meth:`controllers.allocation.Allocator.solve` call (building H and g,
+   the solve, the result), and the QP solve alone (``allocator.qp.solve()`` after ``qp.update``, only
+   the solve timed), with ``qp.update`` and the building of H, g on their own rows;
+2. ProxQP cold: ``proxsuite.proxqp.dense.solve`` from scratch on the same scaled problem;
+3. the closed-form pseudo-inverse law (:func:`controllers.allocation.pseudo_inverse_law`) and the rotor
+   map, which ignores the bounds;
+4. quadprog (Goldfarb-Idnani, cold) on the same scaled problem: the optional extra ``bench``
+   (``pip install -e '.[bench]'``); the row is skipped with a note when it is not installed.
+
+The largest difference of each solution's w^2 from the warm ProxQP's is printed (the pseudo-inverse
+law differs when a bound is active, by design). Then the closed-loop simulation of the ``square``
+mission's two-step plan (:func:`fpr.sim.closed_loop.simulate`, default settings: plant 1 kHz, inner loop
+500 Hz, outer loop 100 Hz): simulated time, wall time and real-time factor (median of 3 runs, 1 with
+``--quick``), and one more run with timers around the simulator's parts (measure, logged kinematics,
+outer loop, attitude model, allocation, the rest of the inner loop, plant steps; the remainder is the
+loop itself and the logging) for the per-tick breakdown. Targets: warm QP solve <= 20 us, RTF >= 20.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import os
+import sys
+import time
+from importlib.metadata import PackageNotFoundError, version
+
+import numpy as np
+import proxsuite
+
+import fpr
+from controllers.allocation import Allocator, pseudo_inverse_law
+from controllers.ctc import CascadedController
+from fpr.cli.bench.model import REFERENCE, SEED
+from fpr.cli.bench.timing import Bench, cycling, fmt, time_part
+from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.model.robot import Robot
+from fpr.sim.closed_loop import SimulationSettings, simulate
+from fpr.sim.plant import Plant, hover_configuration
+from planners.mission import load_mission
+from planners.optimize import plan
+
+CONTROL_MISSION = "square"
+CONTROL_SETTINGS = {True: {"states": 32, "runs": 1}, False: {"states": 64, "runs": 3}}  # quick / full
+CONTROL_TARGETS = {"warm_qp_solve_s": 20e-6, "real_time_factor": 20.0}
+#: thrust of the "bounds active" allocation case, in hover thrusts
+SATURATING_THRUST = 3.0
+
+
+
+def _allocation_states(robot, rng, count: int):
+    """Attitude models near hover (q, v perturbed by 0.01), the hover thrusts, small u_a (0.1 rad/s^2)."""
+    chain = REFERENCE[robot.name]
+    q0 = hover_configuration(robot, chain)
+    motion = np.zeros((5, 1, len(chain)))
+    motion[0, 0] = chain
+    hover = inverse_dynamics(robot, motion).thrust[0]
+    n_a = len(robot.layout.attitude)
+    states = [(robot.attitude_model(q0 + 0.01 * rng.normal(size=robot.nq), 0.01 * rng.normal(size=robot.nq)),
+               0.1 * rng.normal(size=n_a)) for _ in range(count)]
+    return states, hover
+
+
+
+def _allocation_rows(bench: Bench, robot, case: str, states, thrust, quadprog) -> dict:
+    """The timed allocation rows of one robot and case, and the agreement of the solvers' w^2."""
+    label = f"{robot.name} {case}"
+    allocator = Allocator(robot)
+    scale, n = allocator.scale, allocator.n
+    lower, upper = allocator.lower / scale, allocator.upper / scale
+    problems = []  # the scaled QPs of the allocator (H w_max^4, g w_max^2), on zeta = w^2 / w_max^2
+    for attitude, u_a in states:
+        h, g = allocator.build(attitude, thrust, u_a)
+        problems.append((h * scale**2, g * scale))
+    # warm: the allocator along the states, in order (each warm-started from the previous one's result)
+    warm = np.array([allocator.solve(attitude, thrust, u_a).speeds_squared.reshape(-1)
+                     for attitude, u_a in states])
+    saturated = sum(bool(allocator.solve(attitude, thrust, u_a).any_saturated) for attitude, u_a in states)
+    iterations = []
+    for h, g in problems:
+        allocator.qp.update(H=h, g=g, update_preconditioner=False)
+        allocator.qp.solve()
+        iterations.append(int(allocator.qp.results.info.iter))
+    rows = [bench.time(f"{label}: (1) ProxQP warm, full call (Allocator.solve)",
+                       cycling(allocator.solve, [(a, thrust, u) for a, u in states]))]
+    pool = itertools.cycle(problems)
+    current = [None]
+
+    def update():
+        current[0] = next(pool)
+        allocator.qp.update(H=current[0][0], g=current[0][1], update_preconditioner=False)
+
+    rows.append(time_part(bench, f"{label}: (1) ProxQP warm, QP solve alone (qp.solve after update)", update,
+                           allocator.qp.solve))
+    rows.append(time_part(bench, f"{label}:     ProxQP warm, qp.update(H, g) alone", lambda: None, update))
+    rows.append(bench.time(f"{label}:     building H, g (Allocator.build)",
+                           cycling(allocator.build, [(a, thrust, u) for a, u in states])))
+
+    def cold(h, g):
+        return proxsuite.proxqp.dense.solve(h, g, l_box=lower, u_box=upper, eps_abs=1e-9, eps_rel=0.0,
+                                            verbose=False)
+
+    rows.append(bench.time(f"{label}: (2) ProxQP cold (proxqp.dense.solve)", cycling(cold, problems)))
+
+    def law(attitude, u_a):
+        tau = pseudo_inverse_law(attitude, thrust, u_a)
+        rotors = zip(thrust, tau, robot.rotors, strict=True)
+        return np.concatenate([rotor.speeds_squared(f, t) for f, t, rotor in rotors])
+
+    rows.append(bench.time(f"{label}: (3) pseudo-inverse law + rotor map (no bounds)", cycling(law, states)))
+    solutions = {"ProxQP cold": np.array([np.asarray(cold(h, g).x) * scale for h, g in problems]),
+                 "pseudo-inverse law": np.array([law(a, u) for a, u in states])}
+    note = None
+    if quadprog is None:
+        note = "quadprog not installed (pip install -e '.[bench]'): row (4) skipped"
+    else:
+        box = np.hstack([np.eye(n), -np.eye(n)])  # C^T zeta >= b: zeta >= 0 and -zeta >= -1
+        bound = np.concatenate([lower, -upper])
+
+        def other(h, g):
+            return quadprog.solve_qp(h, -g, box, bound, 0)
+
+        try:
+            solutions["quadprog"] = np.array([other(h, g)[0] * scale for h, g in problems])
+            rows.append(bench.time(f"{label}: (4) quadprog.solve_qp (Goldfarb-Idnani, cold)",
+                                   cycling(other, problems)))
+        except ValueError as error:  # quadprog needs H positive definite
+            note = f"quadprog failed: {error}"
+    agreement = {k: float(np.abs(s - warm).max()) for k, s in solutions.items()}
+    return dict(robot=robot.name, case=case, rows=rows, thrust=thrust.tolist(), states=len(states),
+                states_with_a_bound_active=saturated, warm_iterations_mean=float(np.mean(iterations)),
+                max_abs_w2_difference_to_warm=agreement, w_max2=float(scale), note=note)
+
+
+
+@contextlib.contextmanager
+def _tick_timers(acc: dict):
+    """Adds the time spent in the simulator's parts to ``acc`` (seconds by part) while active."""
+    patched = []
+    for cls, method, key in ((Plant, "measure", "measure"),
+                             (Plant, "drone_positions_and_closure_error", "logged kinematics"),
+                             (Plant, "step", "plant steps"),
+                             (CascadedController, "update", "controller"),
+                             (CascadedController, "outer", "outer loop"),
+                             (Robot, "attitude_model", "attitude model"),
+                             (Allocator, "solve", "allocation")):
+        original = cls.__dict__[method]
+
+        def timed(*args, _f=original, _key=key, **kwargs):
+            start = time.perf_counter()
+            try:
+                return _f(*args, **kwargs)
+            finally:
+                acc[_key] = acc.get(_key, 0.0) + time.perf_counter() - start
+
+        setattr(cls, method, timed)
+        patched.append((cls, method, original))
+    try:
+        yield acc
+    finally:
+        for cls, method, original in patched:
+            setattr(cls, method, original)
+
+
+
+def _simulation(runs: int, progress: bool) -> dict:
+    """RTF of the closed-loop simulation of the square mission (two-step plan), and its per-tick breakdown."""
+    say = (lambda text: print(text, file=sys.stderr, flush=True)) if progress else (lambda text: None)
+    result = plan(load_mission(CONTROL_MISSION), "two-step")
+    settings = SimulationSettings()
+    logs, cpu = [], []
+    for k in range(runs):
+        start = time.process_time()  # CPU time: less sensitive than the wall time to other processes' load
+        logs.append(simulate(result, settings))
+        cpu.append(time.process_time() - start)
+        say(f"bench control: simulation {k + 1}/{runs}: {logs[-1].wall_time:.2f} s wall, "
+            f"RTF {logs[-1].real_time_factor:.2f}")
+    acc = {}
+    with _tick_timers(acc):
+        timed = simulate(result, settings)
+    ticks = timed.t.size
+    steps = ticks - 1
+    controller = acc.get("controller", 0.0)
+    inner = controller - sum(acc.get(k, 0.0) for k in ("outer loop", "attitude model", "allocation"))
+    parts = {
+        "measure (Plant.measure: to_minimal)": acc.get("measure", 0.0),
+        "logged kinematics (drone heights, closure error)": acc.get("logged kinematics", 0.0),
+        "controller: outer loop (100 Hz)": acc.get("outer loop", 0.0),
+        "controller: inner loop (attitude model)": acc.get("attitude model", 0.0),
+        "controller: inner loop (the rest)": inner,
+        "controller: allocation (Allocator.solve)": acc.get("allocation", 0.0),
+        "plant steps (2 per tick, RKMK4)": acc.get("plant steps", 0.0),
+    }
+    parts["loop, reference, logging, the rest"] = timed.wall_time - sum(parts.values())
+    walls = [log.wall_time for log in logs]
+    simulated = float(logs[0].t[-1] - logs[0].t[0])
+    st = settings.controller
+    return dict(mission=CONTROL_MISSION, method="two-step", plant_rate_hz=settings.plant_rate,
+                inner_rate_hz=st.inner_rate, outer_rate_hz=st.outer_rate, runs=runs, simulated_s=simulated,
+                wall_s=float(np.median(walls)), wall_min_s=float(min(walls)), wall_runs_s=walls,
+                real_time_factor=simulated / float(np.median(walls)), cpu_s=float(np.median(cpu)),
+                cpu_real_time_factor=simulated / float(np.median(cpu)), ticks=ticks, plant_steps=steps * 2,
+                breakdown_wall_s=timed.wall_time, breakdown_real_time_factor=timed.real_time_factor,
+                breakdown_per_tick_s={k: v / ticks for k, v in parts.items()},
+                breakdown_fraction={k: v / timed.wall_time for k, v in parts.items()},
+                per_plant_step_s=acc.get("plant steps", 0.0) / max(1, 2 * steps))
+
+
+
+def run_control(bench: Bench, quick: bool, progress: bool) -> dict:
+    """The control section: allocation solvers side by side, then the closed-loop simulation's RTF."""
+    try:
+        import quadprog
+    except ImportError:
+        quadprog = None
+    settings = CONTROL_SETTINGS[quick]
+    load_before = os.getloadavg()
+    rng = np.random.default_rng(SEED + 2)
+    cases = []
+    for name in fpr.ROBOTS:
+        robot = fpr.load(name)
+        states, hover = _allocation_states(robot, rng, settings["states"])
+        for case, thrust in (("no bound active", hover), ("bounds active", SATURATING_THRUST * hover)):
+            cases.append(_allocation_rows(bench, robot, case, states, thrust, quadprog))
+    simulation = _simulation(settings["runs"], progress)
+    targets = []
+    for case in cases:
+        solve = next(r for r in case["rows"] if "QP solve alone" in r["name"])
+        value = solve["median_s"]
+        targets.append(dict(target=f"warm ProxQP solve <= 20 us ({case['robot']}, {case['case']})",
+                            value=value, met=value <= CONTROL_TARGETS["warm_qp_solve_s"]))
+    targets += [
+        dict(target="closed-loop simulation RTF >= 20", value=simulation["real_time_factor"],
+             met=simulation["real_time_factor"] >= CONTROL_TARGETS["real_time_factor"]),
+    ]
+    return dict(settings=settings, allocation=cases, simulation=simulation, targets=targets,
+                quadprog=_version("quadprog") if quadprog is not None else None,
+                proxsuite=_version("proxsuite"), load_average_before=load_before,
+                load_average_after=os.getloadavg())
+
+
+
+def _version(package: str) -> str | None:
+    """Installed version of a distribution, or None."""
+    try:
+        return version(package)
+    except PackageNotFoundError:
+        return None
+
+
+
+def control_table(control: dict) -> str:
+    """The control section as text: allocation rows by robot and case, agreement, the simulation's RTF."""
+    rows = [r for c in control["allocation"] for r in c["rows"]]
+    width = max(len(r["name"]) for r in rows)
+    lines = [f"control (load average {control['load_average_before'][0]:.2f} -> "
+             f"{control['load_average_after'][0]:.2f}; proxsuite {control['proxsuite']}, "
+             f"quadprog {control['quadprog'] or 'not installed'})",
+             f"allocation: {control['settings']['states']} states near hover (q, v + 0.01 N(0, 1), "
+             f"u_a 0.1 N(0, 1) rad/s^2), cycled; bounds active: thrust {SATURATING_THRUST:g} x hover",
+             f"{'name':<{width}}  {'median':>10}  {'min':>10}"]
+    for case in control["allocation"]:
+        for r in case["rows"]:
+            lines.append(f"{r['name']:<{width}}  {fmt(r['median_s'])}  {fmt(r['min_s'])}")
+        diffs = ", ".join(f"{k} {v:.2e}" for k, v in case["max_abs_w2_difference_to_warm"].items())
+        lines.append(f"  {case['robot']} {case['case']}: {case['states_with_a_bound_active']}/"
+                     f"{case['states']} states with a rotor at a bound; warm ProxQP "
+                     f"{case['warm_iterations_mean']:.1f} iterations on average; max |w^2 - w^2 warm ProxQP| "
+                     f"[(rad/s)^2, w_max^2 = {case['w_max2']:.3g}]: {diffs}")
+        if case["note"]:
+            lines.append(f"  note: {case['note']}")
+    sim = control["simulation"]
+    lines.append(f"\nclosed-loop simulation, mission {sim['mission']!r} ({sim['method']} plan), plant "
+                 f"{sim['plant_rate_hz']:g} Hz, inner {sim['inner_rate_hz']:g} Hz, outer "
+                 f"{sim['outer_rate_hz']:g} Hz: simulated {sim['simulated_s']:.2f} s, wall "
+                 f"{sim['wall_s']:.2f} s (median of {sim['runs']}; min {sim['wall_min_s']:.2f} s) -> RTF "
+                 f"{sim['real_time_factor']:.2f} (by CPU time: {sim['cpu_s']:.2f} s, RTF "
+                 f"{sim['cpu_real_time_factor']:.2f})")
+    lines.append(f"per-tick breakdown ({sim['ticks']} ticks; timed run: wall "
+                 f"{sim['breakdown_wall_s']:.2f} s, RTF {sim['breakdown_real_time_factor']:.2f}, timers "
+                 f"included; {fmt(sim['per_plant_step_s'])} per plant step)")
+    for k, v in sim["breakdown_per_tick_s"].items():
+        lines.append(f"  {k:<50}  {fmt(v)}  {100 * sim['breakdown_fraction'][k]:5.1f} %")
+    for t in control["targets"]:
+        lines.append(f"target {t['target']}: {t['value']:.4g} -> {'met' if t['met'] else 'NOT met'}")
+    return "\n".join(lines)
