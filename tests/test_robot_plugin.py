@@ -12,6 +12,8 @@ tests/test_constrained.py); hover 1e-4 m over 1 s (as tests/test_plant.py); trac
 (as the square mission in tests/test_simulate.py).
 """
 
+import importlib.metadata
+
 import numpy as np
 import pytest
 
@@ -30,6 +32,17 @@ SEED = 5
 S0 = np.array([0.0, 0.0, 5 * np.pi / 4, np.pi / 2])
 XACRO = {"link_1_length": 0.9, "link_2_length": 0.6, "link_2_mass": 0.08, "drone_2_mass": 1.3,
          "drone_2_hinge_offset": 0.05}  # the defaults of unequal_fpr.urdf.xacro
+
+
+def test_an_installed_package_registers_by_entry_point(monkeypatch):
+    """A package that declares the robot in the entry-point group fpr.robots needs no register() line: the
+    registry loads it on the first look-up (so ``python -m fpr.plan`` knows it too)."""
+    entry = importlib.metadata.EntryPoint("unequal_fpr", "robots.unequal_fpr.robot:UnequalFpr", "fpr.robots")
+    monkeypatch.setattr(importlib.metadata, "entry_points",
+                        lambda group=None: [entry] if group == fpr.robots.ENTRY_POINT_GROUP else [])
+    monkeypatch.setattr(fpr.robots, "_entry_points_loaded", False)
+    assert fpr.robots.get("unequal_fpr") is UnequalFpr and "unequal_fpr" in fpr.robots.names()
+    fpr.robots.unregister("unequal_fpr")
 
 
 @pytest.fixture(scope="module")

@@ -11,10 +11,15 @@ adds it under its ``name`` and :func:`load` builds a :class:`~fpr.model.robot.Ro
     fpr.robots.register(Tripod)                              # one line, then load("tripod")
 
 The built-in robots: ``"fpr"`` (:mod:`fpr.robots.fpr`) and ``"prototype"`` (:mod:`fpr.robots.prototype`).
+An installed package can also declare its robots as entry points of the group ``fpr.robots``
+(``tripod = "my_lab.tripod:Tripod"`` under ``[project.entry-points."fpr.robots"]`` of its pyproject):
+they are registered on the first look-up, so that the command lines know them too.
 """
 
 from __future__ import annotations
 
+import importlib.metadata
+import logging
 from pathlib import Path
 
 from fpr.model import description
@@ -25,7 +30,28 @@ from fpr.robots.base import RobotKind
 from fpr.robots.fpr import Fpr
 from fpr.robots.prototype import Prototype
 
+logger = logging.getLogger(__name__)
+
+ENTRY_POINT_GROUP = "fpr.robots"
+"""The entry-point group in which installed packages declare robot kinds."""
+
 _REGISTRY: dict[str, type[RobotKind]] = {}
+_entry_points_loaded = False
+
+
+def _load_entry_points() -> None:
+    """Register the robot kinds that installed packages declare (once; a broken one is logged and skipped)."""
+    global _entry_points_loaded
+    if _entry_points_loaded:
+        return
+    _entry_points_loaded = True
+    for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        if entry.name in _REGISTRY:
+            continue
+        try:
+            register(entry.load())
+        except Exception as error:  # a third party's bug must not break the built-in robots
+            logger.warning("robot %r of entry point %s not registered: %s", entry.name, entry.value, error)
 
 
 def register(kind: type[RobotKind], replace: bool = False) -> type[RobotKind]:
@@ -66,14 +92,18 @@ def get(name: str) -> type[RobotKind]:
     Raises:
         UnknownRobotError: no robot of that name (the message lists the registered ones).
     """
-    try:
-        return _REGISTRY[name]
-    except (KeyError, TypeError):
-        raise UnknownRobotError(str(name), names()) from None
+    for attempt in range(2):
+        try:
+            return _REGISTRY[name]
+        except (KeyError, TypeError):
+            if attempt:
+                raise UnknownRobotError(str(name), names()) from None
+            _load_entry_points()
 
 
 def names() -> tuple[str, ...]:
-    """The registered robot names, in registration order (the built-in ones first)."""
+    """The registered robot names, in registration order (the built-in ones first, then the entry points')."""
+    _load_entry_points()
     return tuple(_REGISTRY)
 
 
@@ -114,7 +144,7 @@ def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Rob
 register(Fpr)
 register(Prototype)
 
-BUILTIN: tuple[str, ...] = names()
+BUILTIN: tuple[str, ...] = tuple(_REGISTRY)
 """The names of the robots that come with the library: ("fpr", "prototype")."""
 
-__all__ = ["BUILTIN", "RobotKind", "get", "load", "names", "register", "unregister"]
+__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "RobotKind", "get", "load", "names", "register", "unregister"]
