@@ -18,6 +18,8 @@ import math
 
 import numpy as np
 
+from fpr.model.errors import ModelArgumentError
+
 _MAXK = 16
 _B = np.array([[math.comb(n, k) for k in range(_MAXK + 1)] for n in range(_MAXK + 1)], float)
 
@@ -91,7 +93,8 @@ class Jet:
     def __init__(self, d):
         d = np.asarray(d)
         if d.ndim == 0 or not 1 <= d.shape[0] <= _MAXK + 1:
-            raise ValueError(f"Jet needs 1..{_MAXK + 1} derivatives along axis 0, got {d.shape}")
+            raise ModelArgumentError("d", d.shape, f"Jet needs 1..{_MAXK + 1} derivatives along axis 0, got an "
+                                                   f"array of shape {d.shape}")
         self.d = d if np.issubdtype(d.dtype, np.inexact) else d.astype(float)
 
     @classmethod
@@ -131,7 +134,8 @@ class Jet:
     def truncate(self, order):
         """Keep derivatives ``0..order`` only."""
         if not 0 <= order <= self.order:
-            raise ValueError(f"cannot truncate order {self.order} to {order}")
+            raise ModelArgumentError("order", order, f"cannot truncate a Jet of order {self.order} to order {order}: "
+                                                     f"give 0 <= order <= {self.order}")
         return Jet(self.d[:order + 1])
 
     def derivative(self):

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fpr.model import jets
+from fpr.model.errors import RobotDefinitionError
 from fpr.model.jets import Jet
 
 
@@ -170,7 +171,8 @@ class PlanarModel:
             rot = placement.rotation
             t = placement.translation
             if abs(t[0]) > 1e-12 or not np.allclose(rot[0], [1, 0, 0], atol=1e-12):
-                raise ValueError(f"joint {model.names[j]} is not placed in the plane x = 0 about x")
+                raise RobotDefinitionError(robot.name, f"joint {model.names[j]} is not placed in the plane x = 0 about x: "
+                                                       "the planar model needs the chain in the (y, z) plane")
             terms = list(terms)
             if np.any(np.abs(t[1:]) > 0):
                 terms.append((row.copy(), off, t[1:].copy()))
@@ -185,7 +187,8 @@ class PlanarModel:
             elif kind == "JointModelRX":
                 row[iq] = 1.0
             elif kind not in ("JointModelRY", "JointModelRZ", "JointModelPX"):
-                raise ValueError(f"joint {model.names[j]} of kind {kind} is not handled by the planar model")
+                raise RobotDefinitionError(robot.name, f"joint {model.names[j]} of kind {kind} is not handled by the "
+                                                       "planar model: use revolute joints about x (and the Euler root)")
             frames[j] = (sel, terms, row, off)
 
         keep = robot.planar_indices(rolls=drones == "rigid")
@@ -198,7 +201,8 @@ class PlanarModel:
             rows = np.array([r for r, _, _ in items]).reshape(-1, n_pin)
             for a in (sel, rows):
                 if np.any(np.abs(a @ robot.T[:, others]) > 1e-12):
-                    raise ValueError("the planar model depends on a coordinate outside the plane")
+                    raise RobotDefinitionError(robot.name, "the planar model depends on a coordinate outside the plane: "
+                                                           "check the layout's chain and rolls")
             return PlanarPoint(
                 selector=sel @ to_planar,
                 rows=rows @ to_planar,
