@@ -13,7 +13,7 @@ import pytest
 
 import fpr
 from fpr.views import figures
-from fpr.views.figures import per_robot, planning, simulation, studies
+from fpr.views.figures import planning, robot_info, simulation, studies
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.robots.prototype import prototype_joints
 from planners.optimize import SampledPlan
@@ -224,8 +224,8 @@ def test_fpr_path_figure(fpr_case):
     assert len(ground) == 1 and ground[0].get_ydata()[0] == pytest.approx(-length)
     lines = {line.get_gid(): line for line in ax.get_lines() if line.get_label().startswith("optimised")}
     np.testing.assert_array_equal(lines["main"].get_xydata(), plan.motion[0, :, :2])
-    r2 = next(line for line in ax.get_lines() if line.get_label() == "r2 (drone 2 joint)")
-    np.testing.assert_array_equal(r2.get_xydata(), plan.inputs.joint_position[:, 1])
+    r2 = next(line for line in ax.get_lines() if line.get_label() == f"{plan.label}: r2 (drone 2 joint)")
+    np.testing.assert_allclose(r2.get_xydata(), plan.inputs.joint_position[:, 1], atol=1e-12)
     way = next(line for line in ax.get_lines() if line.get_gid() == "way")
     via = next(line for line in ax.get_lines() if line.get_gid() == "via")
     assert len(way.get_xdata()) == plan.is_way.sum() == 5 and len(via.get_xdata()) == 4
@@ -269,15 +269,15 @@ def test_plan_figures_rejects_bad_plans(fpr_case, tmp_path):
     with pytest.raises(ValueError, match=r"plan\.inputs has no attribute 'rotor_speed'"):
         figures.plan_figures(tmp_path, robot, replace(plan, inputs=SimpleNamespace(**{
             k: v for k, v in vars(plan.inputs).items() if k != "rotor_speed"})))
-    with pytest.raises(ValueError, match="'fpr' and 'prototype'"):
-        figures.plan_figures(tmp_path, replace_name(robot), plan)
+    with pytest.raises(ValueError, match=r"is not a robot: pass fpr\.load"):
+        figures.plan_figures(tmp_path, not_a_robot(), plan)
 
 
-def replace_name(robot):
-    """An object that looks like a robot of unknown name."""
+def not_a_robot():
+    """An object with a robot's name but no kind: the figures ask the kind, never the name."""
 
     class Other:
-        name = "hexacopter"
+        name = "fpr"
 
     return Other()
 
@@ -440,7 +440,7 @@ def test_sim_path_overlays_plan_and_simulation(fpr_case, fpr_log, prototype_case
 def test_sim_coordinates_have_bounds_and_errors(case, log, request):
     robot, plan, _ = request.getfixturevalue(case)
     fig = simulation._sim_coordinates(robot, request.getfixturevalue(log))
-    specs = per_robot._coordinate_axes(robot)
+    specs = robot_info._coordinate_axes(robot)
     assert len(fig.axes) == 2 * len(specs)
     for j, (label, bounds) in enumerate(specs):
         ax, ax_err = fig.axes[2 * j], fig.axes[2 * j + 1]

@@ -233,12 +233,16 @@ def test_a_configuration_shows_a_still_robot():
     np.testing.assert_allclose(hinge[:3, 3] + robot.hinge_offset * hinge[:3, 2], placement.translation,
                                atol=1e-12)
 
-    prototype = view(fpr.load("prototype"))  # default: xi = [0, pi/2], arm down
+    proto = fpr.load("prototype")
+    prototype = view(proto)  # default: the kind's reference chain, arm down
     base = _children(prototype.object("robot/base"))
     assert {"base_0", "base_1"} <= set(base)  # the fixed pivot and its post
     assert {"/meshcat/robot/q1", "/meshcat/robot/q2", "/meshcat/robot/drone_1_hinge"} <= set(prototype.paths)
+    q1, q2 = proto.kind.reference_chain
+    length = proto.link_length  # drone joint L u(q1) + L u(q1 + q2), by hand (x = 0: the plane y, z)
     np.testing.assert_allclose(prototype.transform("robot/drone_1_hinge")[:3, 3],
-                               [0.0, 0.75, 0.75], atol=1e-12)
+                               [0.0, length * (np.cos(q1) + np.cos(q1 + q2)), length * (np.sin(q1) + np.sin(q1 + q2))],
+                               atol=1e-12)
 
 
 def test_prototype_way_points_are_the_drone_joint():

@@ -165,6 +165,22 @@ class RobotKind:
         s = last_axis(s, len(self.layout.chain), "s")
         return s[..., :2], self.drone_joints(s)
 
+    def joint_legends(self) -> tuple[tuple[str, str], ...]:
+        """(legend, figure id) of each of the other joints of :meth:`task_points`, for path figures.
+
+        Default: the drone joints, ("r1 (drone 1 joint)", "r1"), ...
+        """
+        return tuple((f"r{i + 1} (drone {i + 1} joint)", f"r{i + 1}") for i in range(self.robot.n_drones))
+
+    def height_panels(self) -> tuple[tuple[str, str, str, int, int | None], ...]:
+        """The panels of the heights figure (seed Fig. 3.29-3.30, 3.46-3.47), one per point whose z is drawn.
+
+        Each is (axis label, legend, "main" or "joint", index among the other joints of :meth:`task_points`
+        (0 for "main"), the drone whose centre of mass is drawn beside it or None). Default: z of each drone
+        joint r_i, with drone i.
+        """
+        return tuple((rf"$z_{i + 1}$ [m]", f"drone {i + 1} joint", "joint", i, i) for i in range(self.robot.n_drones))
+
     # ------------------------------------------------------------------ workspace and assembly modes
     def workspace_margins(self, s, mode: str | None = None) -> dict[str, np.ndarray]:
         """Signed margins of the geometric constraints (>= 0 where satisfied), each of shape (...) (required).

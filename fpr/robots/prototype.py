@@ -247,6 +247,14 @@ class Prototype(RobotKind):
         joints = prototype_joints(s, self._length)
         return joints[..., 1, :], joints[..., :1, :]
 
+    def joint_legends(self) -> tuple[tuple[str, str], ...]:
+        """The elbow (joint 2): ("elbow joint", "elbow")."""
+        return (("elbow joint", "elbow"),)
+
+    def height_panels(self) -> tuple[tuple[str, str, str, int, int | None], ...]:
+        """Joint 2 (the elbow) and joint 3 (the drone joint, with the drone's centre of mass) (Fig. 3.46-3.47)."""
+        return ((r"$z_{j2}$ [m]", "joint 2", "joint", 0, None), (r"$z_{j3}$ [m]", "joint 3 (drone joint)", "main", 0, 0))
+
     # ------------------------------------------------------------------ workspace and assembly modes
     def workspace_margins(self, s, mode: str | None = None) -> dict[str, np.ndarray]:
         """:func:`prototype_workspace_margins` in ``mode``; None: the mode of the first sample (seed 3.46)."""

@@ -10,7 +10,7 @@ One module per family of figures:
 :mod:`~fpr.views.figures.all_figures`        :func:`figure_set`, every figure of a motion at once
 :mod:`~fpr.views.figures.style`              :data:`STYLE`, styling context, saving, limit lines, markers
 :mod:`~fpr.views.figures.sampled`            checks of a sampled plan, :func:`cumulative_integral`
-:mod:`~fpr.views.figures.per_robot`          per-robot sizes, titles, task-space points, coordinate bounds
+:mod:`~fpr.views.figures.robot_info`         what the figures ask of ``robot.kind``: titles, points, bounds
 ============================================ ========================================================
 
 Entry points (all importable from here):

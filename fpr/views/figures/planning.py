@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fpr.views.figures.per_robot import _TITLES, _coordinate_axes, _robot_sizes, _task_space_joints
+from fpr.views.figures.robot_info import _coordinate_axes, _robot_sizes, _task_space_joints, _title
 from fpr.views.figures.sampled import _Trace, _traces
 from fpr.views.figures.style import STYLE, _finish, _limit, _new_figure, _point_markers, _save, _styled
 from planners.optimize import SampledPlan
@@ -46,10 +46,11 @@ def _path_axes(robot) -> tuple[Figure, Axes]:
     ax.axhline(-length, color=STYLE["ground_color"], linewidth=STYLE["line_width"],
                label="ground z = -L", gid="ground", zorder=1)
     _limit(ax, -length + margins.ground)
-    if robot.name == "prototype":
-        ax.plot([0.0], [0.0], linestyle="none", marker="^", color="black", markersize=8,
+    fixed = robot.kind.fixed_point
+    if fixed is not None:
+        ax.plot([fixed[0]], [fixed[1]], linestyle="none", marker="^", color="black", markersize=8,
                 label="fixed point", gid="fixed point", zorder=5)
-        _limit(ax, margins.ground, vertical=True)
+        _limit(ax, fixed[0] + margins.ground, vertical=True)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("y [m]")
     ax.set_ylabel("z [m]")
@@ -62,28 +63,21 @@ def _path_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None)
     thin = STYLE["thin_width"]
     with _styled():
         fig, ax = _path_axes(robot)
+        what, other = robot.kind.task_point_labels
+        legends = robot.kind.joint_legends()
         for tr in traces:
-            if robot.name == "fpr":
-                ax.plot(tr.s[:, 0], tr.s[:, 1], label=f"{tr.label}: end-effector", gid="main", **tr.line)
-                for i in range(tr.joints.shape[1]):
-                    kw = dict(tr.line, linewidth=thin)
-                    if not tr.is_reference:
-                        kw["color"] = STYLE["drone_colors"][i]
-                    label = (f"{tr.label}: drone joints" if tr.is_reference
-                             else f"r{i + 1} (drone {i + 1} joint)")
-                    ax.plot(tr.joints[:, i, 0], tr.joints[:, i, 1], label=label, gid=f"r{i + 1}", **kw)
-            else:
-                elbow = _task_space_joints(robot, tr.s)[1][:, 0]
-                ax.plot(tr.joints[:, 0, 0], tr.joints[:, 0, 1], label=f"{tr.label}: drone joint",
-                        gid="main", **tr.line)
+            main, joints = _task_space_joints(robot, tr.s)
+            ax.plot(main[:, 0], main[:, 1], label=f"{tr.label}: {what}", gid="main", **tr.line)
+            for i, (legend, gid) in enumerate(legends):
                 kw = dict(tr.line, linewidth=thin)
                 if not tr.is_reference:
-                    kw["color"] = STYLE["drone_colors"][0]
-                ax.plot(elbow[:, 0], elbow[:, 1], label=f"{tr.label}: elbow joint", gid="elbow", **kw)
+                    kw["color"] = STYLE["drone_colors"][i % len(STYLE["drone_colors"])]
+                label = f"{tr.label}: {other if tr.is_reference else legend}"
+                ax.plot(joints[:, i, 0], joints[:, i, 1], label=label, gid=gid, **kw)
             if not tr.is_reference:
                 markers = _task_space_joints(robot, tr.point_positions)[0]
                 _point_markers(ax, markers[:, 0], markers[:, 1], tr.is_way)
-        return _finish(fig, _TITLES[robot.name]["path"], [ax], legend_below=True)
+        return _finish(fig, _title(robot, "path"), [ax], legend_below=True)
 
 
 def _coordinates_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:
@@ -103,7 +97,7 @@ def _coordinates_figure(robot, plan: SampledPlan, reference: SampledPlan | None 
                     _limit(ax, b)
             ax.set_ylabel(ylabel)
         axes[-1].set_xlabel("t [s]")
-        return _finish(fig, _TITLES[robot.name]["coordinates"], axes)
+        return _finish(fig, _title(robot, "coordinates"), axes)
 
 
 def _index_figure(robot, plan: SampledPlan, reference: SampledPlan | None, which: str) -> Figure:
@@ -121,7 +115,7 @@ def _index_figure(robot, plan: SampledPlan, reference: SampledPlan | None, which
             ax.plot(tr.t, curve, label=label, gid=tr.label, **tr.line)
         ax.set_xlabel("t [s]")
         ax.set_ylabel(ylabel)
-        return _finish(fig, _TITLES[robot.name][which], [ax])
+        return _finish(fig, _title(robot, which), [ax])
 
 
 def _energy_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:
@@ -161,7 +155,7 @@ def _per_drone_figure(robot, traces: list[_Trace], which: str, ylabel: Callable[
             if n_d > 1:
                 ax.set_title(f"drone {i + 1}")
         axes[-1].set_xlabel("t [s]")
-        return _finish(fig, _TITLES[robot.name][which], axes)
+        return _finish(fig, _title(robot, which), axes)
 
 
 def _thrust_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:

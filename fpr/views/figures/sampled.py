@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from fpr.model.errors import FigureError, ShapeError
-from fpr.views.figures.per_robot import _robot_sizes
+from fpr.views.figures.robot_info import _robot_sizes
 from fpr.views.figures.style import STYLE
 from planners.optimize import SampledPlan
 

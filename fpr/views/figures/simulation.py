@@ -15,12 +15,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fpr.model.errors import FigureError
-from fpr.views.figures.per_robot import (
-    _SIM_TITLES,
+from fpr.views.figures.robot_info import (
     _coordinate_axes,
     _drone_joint_velocities,
     _robot_sizes,
     _task_space_joints,
+    _title,
 )
 from fpr.views.figures.planning import _path_axes
 from fpr.views.figures.sampled import _field, _trace, cumulative_integral
@@ -120,7 +120,8 @@ def _sim_path(robot, log, plan: SampledPlan | None = None) -> Figure:
     """Fig. 3.19 / 3.42: the task-space path, planned and simulated, with the way / via points of ``plan``."""
     sim = _simulated(robot, log)
     thin = STYLE["thin_width"]
-    what, other = ("end-effector", "drone joints") if robot.name == "fpr" else ("drone joint", "elbow joint")
+    what, other = robot.kind.task_point_labels
+    legends = robot.kind.joint_legends()
     with _styled():
         fig, ax = _path_axes(robot)
         planned_main, planned_joints = _task_space_joints(robot, sim.planned)
@@ -130,15 +131,14 @@ def _sim_path(robot, log, plan: SampledPlan | None = None) -> Figure:
         for k in range(joints.shape[1]):
             ax.plot(*planned_joints[:, k].T, label=f"planned: {other}", gid=f"planned joint {k + 1}",
                     **_planned_line(thin))
-            label = (f"simulated: r{k + 1} (drone {k + 1} joint)" if robot.name == "fpr"
-                     else f"simulated: {other}")
+            label = f"simulated: {legends[k][0]}"
             ax.plot(*joints[:, k].T, label=label, gid=f"simulated joint {k + 1}",
                     **dict(_simulated_line(thin), color=STYLE["drone_colors"][k]))
         if plan is not None:
             tr = _trace(robot, plan, "plan", False)
             markers = _task_space_joints(robot, tr.point_positions)[0]
             _point_markers(ax, markers[:, 0], markers[:, 1], tr.is_way)
-        return _finish(fig, _SIM_TITLES[robot.name]["sim_path"], [ax], legend_below=True)
+        return _finish(fig, _title(robot, "sim_path"), [ax], legend_below=True)
 
 
 def _sim_coordinates(robot, log, plan: SampledPlan | None = None) -> Figure:
@@ -164,7 +164,7 @@ def _sim_coordinates(robot, log, plan: SampledPlan | None = None) -> Figure:
             ax_err.set_ylabel(f"{symbol} error [{unit}")
         for ax in axes[-2:]:
             ax.set_xlabel("t [s]")
-        return _finish(fig, _SIM_TITLES[robot.name]["sim_coordinates"], axes)
+        return _finish(fig, _title(robot, "sim_coordinates"), axes)
 
 
 def _sim_out_of_plane(robot, log, plan: SampledPlan | None = None) -> Figure:
@@ -181,7 +181,7 @@ def _sim_out_of_plane(robot, log, plan: SampledPlan | None = None) -> Figure:
             ax.plot(sim.t, sim.out_of_plane[name], label="simulated", gid="simulated", **_simulated_line())
             ax.set_ylabel(ylabel)
         axes[-1].set_xlabel("t [s]")
-        return _finish(fig, _SIM_TITLES[robot.name]["sim_out_of_plane"], axes)
+        return _finish(fig, _title(robot, "sim_out_of_plane"), axes)
 
 
 def _sim_roll(robot, log, plan: SampledPlan | None = None) -> Figure:
@@ -205,7 +205,7 @@ def _sim_roll(robot, log, plan: SampledPlan | None = None) -> Figure:
             if n_d > 1:
                 ax.set_title(f"drone {i + 1}")
         axes[-1].set_xlabel("t [s]")
-        return _finish(fig, _SIM_TITLES[robot.name]["sim_roll"], axes)
+        return _finish(fig, _title(robot, "sim_roll"), axes)
 
 
 def _sim_heights(robot, log, plan: SampledPlan | None = None) -> Figure:
@@ -217,12 +217,9 @@ def _sim_heights(robot, log, plan: SampledPlan | None = None) -> Figure:
     sim = _simulated(robot, log)
     planned_main, planned_joints = _task_space_joints(robot, sim.planned)
     main, joints = _task_space_joints(robot, sim.simulated)
-    if robot.name == "fpr":
-        panels = [(rf"$z_{i + 1}$ [m]", f"drone {i + 1} joint", planned_joints[:, i, 1], joints[:, i, 1], i)
-                  for i in range(joints.shape[1])]
-    else:
-        panels = [(r"$z_{j2}$ [m]", "joint 2", planned_joints[:, 0, 1], joints[:, 0, 1], None),
-                  (r"$z_{j3}$ [m]", "joint 3 (drone joint)", planned_main[:, 1], main[:, 1], 0)]
+    points = {"main": (planned_main[:, None], main[:, None]), "joint": (planned_joints, joints)}
+    panels = [(ylabel, what, points[which][0][:, k, 1], points[which][1][:, k, 1], drone)
+              for ylabel, what, which, k, drone in robot.kind.height_panels()]
     ground = -robot.link_length + robot.margins.ground
     with _styled():
         fig, axes = _new_figure(len(panels))
@@ -235,7 +232,7 @@ def _sim_heights(robot, log, plan: SampledPlan | None = None) -> Figure:
             _limit(ax, ground)
             ax.set_ylabel(ylabel)
         axes[-1].set_xlabel("t [s]")
-        return _finish(fig, _SIM_TITLES[robot.name]["sim_heights"], axes)
+        return _finish(fig, _title(robot, "sim_heights"), axes)
 
 
 def _sim_rotors(robot, log, plan: SampledPlan | None, which: str) -> Figure:
@@ -281,7 +278,7 @@ def _sim_rotors(robot, log, plan: SampledPlan | None, which: str) -> Figure:
             if n_d > 1:
                 ax.set_title(f"drone {i + 1}")
         axes[-1].set_xlabel("t [s]")
-        return _finish(fig, _SIM_TITLES[robot.name][which], axes)
+        return _finish(fig, _title(robot, which), axes)
 
 
 def _sim_rotor_speeds(robot, log, plan: SampledPlan | None = None) -> Figure:
@@ -336,7 +333,7 @@ def _sim_energy(robot, log, plan: SampledPlan | None = None) -> Figure:
                     gid="simulated", **_simulated_line())
             ax.set_ylabel(ylabel)
         axes[-1].set_xlabel("t [s]")
-        return _finish(fig, _SIM_TITLES[robot.name]["sim_energy"], axes)
+        return _finish(fig, _title(robot, "sim_energy"), axes)
 
 
 _SIM_BUILDERS: dict[str, Callable[..., Figure]] = {

@@ -62,10 +62,8 @@ class _Poses:
 
 
 def _default_configuration(robot) -> np.ndarray:
-    """What :func:`fpr.views.scene.view` shows with nothing given: FPR s0, prototype xi = [0 pi/2]."""
-    if robot.name == "fpr":
-        return robot.configuration(phi=5 * np.pi / 4, q21=np.pi / 2)
-    return robot.configuration(q1=0.0, q2=np.pi / 2)
+    """What :func:`fpr.views.scene.view` shows with nothing given: the kind's ``reference_chain``, drones level."""
+    return robot.configuration(**dict(zip(robot.layout.chain, robot.kind.reference_chain, strict=True)))
 
 
 def _frame_times(duration: float, fps: float) -> np.ndarray:
@@ -125,6 +123,10 @@ class _Scene:
         if self.end_effector_frame >= model.nframes:
             raise SceneError("robot", f"the {robot.name} URDF has no 'end_effector' link: name the link "
                                       "that carries the end-effector (or the task point) 'end_effector'")
+        self.task_frame = model.getFrameId(robot.kind.task_frame)
+        if self.task_frame >= model.nframes:
+            raise SceneError("robot", f"the {robot.name} model has no frame {robot.kind.task_frame!r}, its kind's "
+                                      "task_frame: name the frame (link or joint) of the mission's task point")
         self.camera = (np.array([3.0, 0.0, 1.0]), np.zeros(3))
 
     def poses(self, q: np.ndarray) -> _Poses:
@@ -141,8 +143,7 @@ class _Scene:
             for i, f in enumerate(robot.drone_frame_ids):
                 drones[k, i] = data.oMf[f].homogeneous
             end_effector[k] = data.oMf[self.end_effector_frame].translation
-            task[k] = data.oMi[robot.hinge_joint_ids[0]].translation if robot.name == "prototype" \
-                else end_effector[k]
+            task[k] = data.oMf[self.task_frame].translation
         return _Poses(joints, drones, end_effector, task)
 
     def view(self, title: str, duration: float | None, legend: tuple) -> SceneView:
@@ -233,7 +234,7 @@ class _Scene:
             for n, point in enumerate(points[flags]):
                 self.vis[f"markers/{kind}/{n}"].set_object(shape, mg.MeshPhongMaterial(color=color))
                 self.vis[f"markers/{kind}/{n}"].set_transform(_translation(point))
-        where = "drone joint" if self.robot.name == "prototype" else "end-effector"
+        where = self.robot.kind.task_point_labels[0]
         via = "; purple cubes: via points" if (~is_way).any() else ""
         return f"green spheres: way points ({where}){via}"
 
