@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 import fpr
-from fpr.cli.plan import csv_columns, main
+from fpr.cli.plan import csv_columns, main, parser
+from planners.methods import METHODS
 from planners.mission import builtin_mission_text
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -143,6 +144,16 @@ def test_negative_time_option_and_unknown_mission(tmp_path, capsys):
     assert code == 2 and "square" in err  # the message lists the built-ins
     code, _, err = _run(capsys, "--robot", "prototype", "--out", str(tmp_path))
     assert code == 2 and "'fpr'" in err
+
+
+def test_method_choices_are_the_registry(tmp_path, capsys):
+    for name in METHODS:
+        assert parser().parse_args(["--method", name]).method == name
+    with pytest.raises(SystemExit):
+        parser().parse_args(["--method", "three-step"])
+    assert "invalid choice" in capsys.readouterr().err
+    code, _, err = _run(capsys, "--method", "crossing", "--out", str(tmp_path))  # square: no crossing
+    assert code == 2 and "cross_singularity" in err and not (tmp_path / "plan.json").exists()
 
 
 def test_unreachable_and_singular_way_points(tmp_path, capsys):

@@ -39,8 +39,9 @@ import numpy as np
 from fpr.model.errors import FprError
 from fpr.views.figures import plan_figures, simulation_figures
 from fpr.views.scene import view
+from planners.methods import METHODS, method_for
 from planners.mission import BUILTIN_MISSIONS, load_mission
-from planners.optimize import METHODS, PlanResult, plan
+from planners.optimize import PlanResult, plan
 
 
 def _floats(text: str, option: str) -> list[float]:
@@ -86,7 +87,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--times", type=lambda t: _floats(t, "--times"), default=None, metavar="T[,T...]",
                    help="travel times [s], one for all or one per travel (default: the mission's)")
     p.add_argument("--method", default="two-step", choices=list(METHODS),
-                   help="two-step / one-step optimisation (seed 3.2.4), or none (stop at every way point)")
+                   help="planning method (registry planners.methods.METHODS): two-step / one-step optimisation "
+                        "(seed 3.2.4), none (stop at every way point), crossing (seed ch. 4; a singularity-"
+                        "crossing mission gets it whatever is asked, and its first guess with none)")
     p.add_argument("--solver", default="sqp", choices=["sqp", "slsqp"],
                    help="NLP solver: Gauss-Newton SQP (ProxQP) or scipy SLSQP, both with exact gradients")
     p.add_argument("--out", type=Path, default=None, help="output folder (default fpr-out/<mission>)")
@@ -363,6 +366,7 @@ def main(argv=None) -> int:
         mission = _mission(args)
         robot = mission.load_robot()
         mission.positions(robot)  # every way point reachable and away from singularities
+        method_for(mission, args.method)  # a method that can plan this mission
     except (FprError, ValueError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

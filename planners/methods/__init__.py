@@ -10,7 +10,7 @@ returns a :class:`~planners.result.PlanResult` (the shared pieces: :mod:`planner
 
 from __future__ import annotations
 
-from fpr.model.errors import UnknownMethodError
+from fpr.model.errors import MissionError, UnknownMethodError
 from planners.methods import crossing, none, one_step, two_step
 from planners.options import PlanningMethod
 
@@ -36,9 +36,15 @@ def method_for(mission, method: str) -> PlanningMethod:
 
     Raises:
         UnknownMethodError: ``method`` is not in :data:`METHODS`.
+        MissionError: a crossing method asked for a mission that does not cross a singularity.
     """
     if method not in METHODS:
         raise UnknownMethodError(method, tuple(METHODS))
-    if getattr(mission, "cross_singularity", False) and method not in CROSSING_METHODS:
+    crossing_mission = bool(getattr(mission, "cross_singularity", False))
+    if crossing_mission and method not in CROSSING_METHODS:
         return crossing.first_guess if method == "none" else METHODS[CROSSING_METHODS[0]]
+    if method in CROSSING_METHODS and not crossing_mission:
+        raise MissionError("cross_singularity", f"method {method!r} plans singularity-crossing missions only "
+                           "(cross_singularity = true): use "
+                           + ", ".join(m for m in METHODS if m not in CROSSING_METHODS), mission.name)
     return METHODS[method]
