@@ -10,7 +10,8 @@ acts along it, so a motion can only pass q2 = 0 with a finite force if, there,
 the *crossing criterion* (:func:`criterion`). It is one linear equation in xi_s'': its solutions
 form a line (:func:`criterion_acceleration`, :func:`nearest_criterion_acceleration`). The force is
 then finite: across the second link it is regular everywhere, along it (the link's tension) it is
-the 0/0 limit that :func:`fpr.model.inverse_dynamics.prototype_thrust_vectors` computes exactly.
+the 0/0 limit that :func:`fpr.robots.prototype_thrust.thrust_vector` computes exactly (the split of F along
+and across the link, shared with the controller's regularised tension, is in :mod:`fpr.robots.prototype_thrust`).
 Away from the planning model, :func:`acceleration_from_chain_force` gives the chain's direct
 dynamics for a given push of the drone (seed 4.11) and :func:`thrust_at` the thrust that push needs.
 
