@@ -138,14 +138,13 @@ def check_shape(argument: str, x, expected: tuple[int | None, ...]) -> np.ndarra
     return a
 
 
-class TrajectoryError(FprError, ValueError):
-    """A wrong argument of a polynomial trajectory (:mod:`planners.polynomial`): points, durations,
-    query times, derivative orders, via-point counts.
+class ArgumentError(FprError, ValueError):
+    """A wrong argument of a library function; the subclasses say which layer.
 
     Attributes:
-        argument: the offending argument (``points``, ``durations``, ``t``, ``order``...).
+        argument: the offending argument's name.
         value: what was given (as given, possibly an array).
-        reason: what is wrong with it and what to give instead.
+        reason: what is wrong with it and what to give instead (the message).
     """
 
     def __init__(self, argument: str, value, reason: str):
@@ -155,20 +154,15 @@ class TrajectoryError(FprError, ValueError):
         super().__init__(reason)
 
 
-class PlannerArgumentError(FprError, ValueError):
-    """A wrong argument of a planner, a planning NLP or a study (:mod:`planners`).
+class TrajectoryError(ArgumentError):
+    """A wrong argument of a polynomial trajectory (:mod:`planners.polynomial`): points, durations,
+    query times, derivative orders, via-point counts (``argument``: ``points``, ``durations``, ``t``,
+    ``order``...; ``value``, ``reason`` as in :class:`ArgumentError`)."""
 
-    Attributes:
-        argument: the offending argument (``solver``, ``free``, ``counts``...).
-        value: what was given.
-        reason: what is wrong with it and what to give instead.
-    """
 
-    def __init__(self, argument: str, value, reason: str):
-        self.argument = argument
-        self.value = value
-        self.reason = reason
-        super().__init__(reason)
+class PlannerArgumentError(ArgumentError):
+    """A wrong argument of a planner, a planning NLP or a study (:mod:`planners`) (``argument``:
+    ``solver``, ``free``, ``counts``...; ``value``, ``reason`` as in :class:`ArgumentError`)."""
 
 
 class UnknownMethodError(FprError, ValueError):
