@@ -13,6 +13,7 @@ tests/test_constrained.py); hover 1e-4 m over 1 s (as tests/test_plant.py); trac
 """
 
 import importlib.metadata
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -181,11 +182,28 @@ def test_plan_is_feasible_on_the_dense_grid(robot, planned):
                                np.broadcast_to([0.9, 0.6], joints.shape[:2]), atol=1e-12)
 
 
-def test_closed_loop_tracks_the_plan(robot, planned):
-    log = simulate(planned, SimulationSettings(hold=0.5))
+@pytest.fixture(scope="module")
+def log(planned):
+    return simulate(planned, SimulationSettings(hold=0.5))
+
+
+def test_closed_loop_tracks_the_plan(robot, planned, log):
     err = np.abs(log.tracking_error)
     assert log.robot_name == "unequal_fpr"
     assert err[:, :2].max() < 0.01 and err[:, 2:].max() < 0.01, err.max(axis=0)
     summary = log.summary()
     assert summary["max_closure_error_m"] < 1e-9 and summary["saturated_ticks"] == 0
     assert summary["peak_rotor_speed_rad_s"] < summary["planning_speed_limit_rad_s"]
+
+
+def test_the_views_draw_it(robot, planned, log, tmp_path):
+    """Every figure of the plan and of the simulation, with the kind's titles; the ground at z = -L1."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from fpr.views.figures import FIGURE_SET, figure_set
+
+    paths = figure_set(tmp_path, planned, log=log)
+    assert tuple(paths) == FIGURE_SET and all(Path(p).stat().st_size > 0 for p in paths.values())
+    assert all(title.endswith("(unequal FPR)") for title in robot.kind.titles.values())
+    assert robot.kind.ground_height == pytest.approx(-0.9)
