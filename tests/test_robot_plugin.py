@@ -23,6 +23,7 @@ import fpr.robots
 from fpr.model.constrained import build_closed_chain
 from fpr.model.errors import NotUniformError
 from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.robots.base import RobotKind
 from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.sim.plant import Plant, hover_configuration, hover_speeds
 from planners.mission import Mission
@@ -131,6 +132,18 @@ def test_mass_matrix_against_the_hand_derivation(robot):
         np.testing.assert_allclose(robot.mass_matrix(q)[np.ix_(planar, planar)], m_hand, atol=1e-12)
         np.testing.assert_allclose(robot.gravity_terms(q)[planar], g_hand, atol=1e-12)
         np.testing.assert_allclose(robot.planar("rigid").mass_matrix(q[planar]), m_hand, atol=1e-12)
+
+
+def test_closed_forms_equal_the_generic_defaults(robot):
+    """The FPR's closed-form kinematics with L1 != L2 against RobotKind's defaults, read off the planar model."""
+    rng = np.random.default_rng(SEED + 2)
+    s = S0 + 0.3 * rng.normal(size=(20, 4))
+    s_dot = rng.normal(size=(20, 4))
+    kind = robot.kind
+    np.testing.assert_allclose(kind.drone_joints(s), RobotKind.drone_joints(kind, s), atol=1e-12)
+    np.testing.assert_allclose(kind.chain_jacobian(s), RobotKind.chain_jacobian(kind, s), atol=1e-12)
+    np.testing.assert_allclose(kind.drone_joint_velocities(s, s_dot), RobotKind.drone_joint_velocities(kind, s, s_dot),
+                               atol=1e-12)
 
 
 def test_closed_chain_is_the_minimal_model(robot):
