@@ -212,21 +212,10 @@ class RobotDefinitionError(FprError, ValueError):
         super().__init__(f"{self.robot}: {reason}")
 
 
-class ModelArgumentError(FprError, ValueError):
+class ModelArgumentError(ArgumentError):
     """A wrong argument of a model, robot, simulation or controller function (:mod:`fpr.model`,
-    :mod:`fpr.robots`, :mod:`fpr.sim`, :mod:`controllers`).
-
-    Attributes:
-        argument: the offending argument (``mode``, ``arm``, ``dt``, ``q``...).
-        value: what was given.
-        reason: what is wrong with it and what to give instead.
-    """
-
-    def __init__(self, argument: str, value, reason: str):
-        self.argument = argument
-        self.value = value
-        self.reason = reason
-        super().__init__(reason)
+    :mod:`fpr.robots`, :mod:`fpr.sim`, :mod:`controllers`) (``argument``: ``mode``, ``arm``, ``dt``, ``q``...;
+    ``value``, ``reason`` as in :class:`ArgumentError`)."""
 
 
 class NotUniformError(FprError, ValueError):
