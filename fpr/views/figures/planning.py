@@ -41,11 +41,11 @@ def _path_axes(robot) -> tuple[Figure, Axes]:
 
     For the prototype also the fixed point and the margin y = m_gd (3.44). Call inside ``_styled()``.
     """
-    length, margins = robot.link_length, robot.margins
+    ground, margins = robot.kind.ground_height, robot.margins
     fig, (ax,) = _new_figure(1, height=6.0, sharex=False)
-    ax.axhline(-length, color=STYLE["ground_color"], linewidth=STYLE["line_width"],
+    ax.axhline(ground, color=STYLE["ground_color"], linewidth=STYLE["line_width"],
                label="ground z = -L", gid="ground", zorder=1)
-    _limit(ax, -length + margins.ground)
+    _limit(ax, ground + margins.ground)
     fixed = robot.kind.fixed_point
     if fixed is not None:
         ax.plot([fixed[0]], [fixed[1]], linestyle="none", marker="^", color="black", markersize=8,

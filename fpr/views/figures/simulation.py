@@ -220,7 +220,7 @@ def _sim_heights(robot, log, plan: SampledPlan | None = None) -> Figure:
     points = {"main": (planned_main[:, None], main[:, None]), "joint": (planned_joints, joints)}
     panels = [(ylabel, what, points[which][0][:, k, 1], points[which][1][:, k, 1], drone)
               for ylabel, what, which, k, drone in robot.kind.height_panels()]
-    ground = -robot.link_length + robot.margins.ground
+    ground = robot.kind.ground_height + robot.margins.ground
     with _styled():
         fig, axes = _new_figure(len(panels))
         for ax, (ylabel, what, planned, simulated, drone) in zip(axes, panels, strict=True):

@@ -242,7 +242,7 @@ class _Scene:
         """The ground plane z = -L (meshcat's grid, at z = 0, hidden), the background, the camera."""
         mg = self.mg
         points = np.concatenate([_visible_points(p, m, self.thrust_scale) for p, m in shown])
-        ground = -self.robot.link_length
+        ground = self.robot.kind.ground_height
         lo, hi = points.min(axis=0), points.max(axis=0)
         thickness, margin = 0.01, 1.0
         size = [hi[0] - lo[0] + 2 * margin, hi[1] - lo[1] + 2 * margin, thickness]
