@@ -29,7 +29,6 @@ from fpr.model import jets
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.jets import Jet
 from fpr.robots.prototype_singularity import (
-    NULL_VECTOR,  # noqa: F401 - re-exported: the crossing's direction n, next to the methods that use it
     SEED_END,
     SEED_START,
     acceleration_from_chain_force,

@@ -34,7 +34,11 @@ from __future__ import annotations
 import numpy as np
 
 from fpr.model.errors import PlannerArgumentError, ShapeError
-from fpr.robots.prototype_singularity import criterion_acceleration, min_thrust, nearest_criterion_acceleration
+from fpr.robots.prototype_singularity import (
+    criterion_acceleration,
+    min_thrust,
+    nearest_criterion_acceleration,
+)
 from planners.polynomial import N_DERIVS, PiecewisePolynomial, Segment, with_via_points
 from planners.problem import (
     CONSTRAINT_BACKOFF,

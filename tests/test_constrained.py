@@ -3,9 +3,9 @@
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import random_state
 
 import fpr
-from helpers import random_state
 from fpr.model.constrained import build_closed_chain
 
 SEED = 11

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 import fpr
-from fpr.views import figures
-from fpr.views.figures import planning, robot_info, simulation, studies
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.robots.prototype import prototype_joints
+from fpr.views import figures
+from fpr.views.figures import planning, robot_info, simulation, studies
 from planners.optimize import SampledPlan
 from planners.polynomial import PiecewisePolynomial, stop_points
 

@@ -6,8 +6,8 @@ import pytest
 import fpr
 from fpr.model.inverse_dynamics import inverse_dynamics, thrust_vectors
 from fpr.model.jets import Jet
-from fpr.robots.prototype import prototype_jacobian
 from fpr.model.parameters import load_parameters
+from fpr.robots.prototype import prototype_jacobian
 
 SEED = 7
 

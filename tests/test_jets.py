@@ -20,8 +20,25 @@ import numpy as np
 import pytest
 from numpy.polynomial import polynomial as P
 
-from fpr.model.jets import (Jet, atan2, concatenate, cos, dot, exp, hypot, log, matmul, matvec,
-                      norm, sin, sincos, solve, sqrt, square, stack)
+from fpr.model.jets import (
+    Jet,
+    atan2,
+    concatenate,
+    cos,
+    dot,
+    exp,
+    hypot,
+    log,
+    matmul,
+    matvec,
+    norm,
+    sin,
+    sincos,
+    solve,
+    sqrt,
+    square,
+    stack,
+)
 
 K = 4
 T = np.linspace(-1.0, 1.0, 201)

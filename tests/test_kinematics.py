@@ -10,6 +10,7 @@ import pytest
 
 from fpr.model.errors import SingularityError, WorkspaceError
 from fpr.model.kinematics import check_margins, singularity_margin
+from fpr.model.parameters import load_parameters, margins
 from fpr.robots.fpr import (
     fpr_chain_jacobian,
     fpr_direct_kinematics,
@@ -23,7 +24,6 @@ from fpr.robots.prototype import (
     prototype_joints,
     prototype_workspace_margins,
 )
-from fpr.model.parameters import load_parameters, margins
 
 SEED = 20240611
 L = float(load_parameters()["link_length"])

@@ -11,7 +11,6 @@ Tolerances, and why:
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 

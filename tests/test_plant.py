@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from helpers import random_state
 
 import fpr
-from helpers import random_state
 from fpr.model.errors import ModelArgumentError
-from fpr.sim.plant import (Plant, PlantDivergedError, hover_configuration, hover_speeds,
-                       plant_step_time)
+from fpr.sim.plant import Plant, PlantDivergedError, hover_configuration, hover_speeds, plant_step_time
 
 SEED = 23
 DT = 1e-3

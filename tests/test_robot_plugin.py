@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from robots.unequal_fpr.robot import UnequalFpr
 
 import fpr
 import fpr.robots
@@ -28,7 +29,6 @@ from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.sim.plant import Plant, hover_configuration, hover_speeds
 from planners.mission import Mission
 from planners.optimize import plan
-from robots.unequal_fpr.robot import UnequalFpr
 
 SEED = 5
 S0 = np.array([0.0, 0.0, 5 * np.pi / 4, np.pi / 2])

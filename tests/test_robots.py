@@ -4,10 +4,10 @@ compute themselves."""
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import random_state
 
 import fpr
 import fpr.robots
-from helpers import random_state
 from fpr.model.errors import RobotDefinitionError, ShapeError, UnknownRobotError
 from fpr.robots.fpr import Fpr
 from fpr.robots.prototype import Prototype

@@ -24,11 +24,11 @@ import pytest
 
 import fpr
 import fpr.cli.plan
-from fpr.views import scene as scene_module
 from fpr.model.errors import FprError, SceneError, ShapeError
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
-from fpr.views.scene import THRUST_SCALE, SceneView, view, write_scene
 from fpr.sim.closed_loop import SimulationLog
+from fpr.views import scene as scene_module
+from fpr.views.scene import THRUST_SCALE, SceneView, view, write_scene
 from planners.mission import load_mission
 from planners.optimize import plan
 from planners.polynomial import PiecewisePolynomial

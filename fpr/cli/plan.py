@@ -36,7 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
+from fpr import robots
 from fpr.model.errors import FprError
+from fpr.sim.closed_loop import SimulationSettings, simulate
+from fpr.sim.plant import PlantDivergedError
 from fpr.views.figures import plan_figures, simulation_figures
 from fpr.views.scene import view
 from planners.methods import METHODS, method_for
@@ -77,7 +80,7 @@ def parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--mission", default="square",
                    help=f"built-in mission ({', '.join(BUILTIN_MISSIONS)}) or a mission TOML file")
-    p.add_argument("--robot", choices=["fpr", "prototype"], default=None,
+    p.add_argument("--robot", choices=robots.names(), default=None,
                    help="robot the mission must be for (checked; the mission file names its robot)")
     p.add_argument("--set", dest="robot_parameters", type=_assignment, action="append", default=[],
                    metavar="NAME=VALUE", help="override a robot parameter (xacro argument), e.g. link_length=1.0")
@@ -274,9 +277,6 @@ class _Progress:
 
 def _simulate(args, robot, final, out, sampled, written, say):
     """Run the closed-loop simulation, write its files; returns the log (None if it diverged)."""
-    from fpr.sim.plant import PlantDivergedError
-    from fpr.sim.closed_loop import SimulationSettings, simulate
-
     if args.wind is not None and len(args.wind) != 3:
         raise FprError(f"--wind {args.wind}: give three numbers FX,FY,FZ [N]")
     if args.noise is not None and len(args.noise) != 2:

@@ -179,21 +179,10 @@ class UnknownMethodError(FprError, ValueError):
         super().__init__(f"method={name!r}: use one of {', '.join(self.known)}")
 
 
-class FigureError(FprError, ValueError):
+class FigureError(ArgumentError):
     """A wrong argument of a figure (:mod:`fpr.views.figures`): a sampled plan, a simulation log, a robot,
-    a study's numbers or a file name that the figures cannot draw or write.
-
-    Attributes:
-        argument: the offending argument (``plan.t``, ``log``, ``robot.name``, ``rate``, ``n_via``...).
-        value: what was given (as given, possibly an array or None).
-        reason: what is wrong with it and what to give instead (the message).
-    """
-
-    def __init__(self, argument: str, value, reason: str):
-        self.argument = argument
-        self.value = value
-        self.reason = reason
-        super().__init__(reason)
+    a study's numbers or a file name that the figures cannot draw or write (``argument``: ``plan.t``,
+    ``log``, ``robot``, ``rate``, ``n_via``...; ``value``, ``reason`` as in :class:`ArgumentError`)."""
 
 
 class RobotDefinitionError(FprError, ValueError):

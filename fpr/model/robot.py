@@ -36,6 +36,7 @@ from scipy.linalg import lapack
 
 from fpr.model.errors import ModelArgumentError, NotUniformError, RobotDefinitionError, check_shape
 from fpr.model.parameters import Margins, RotorConstants, load_parameters, margins, rotor_constants
+from fpr.model.planar import PlanarModel
 from fpr.model.rotors import RotorModel
 
 logger = logging.getLogger(__name__)
@@ -406,8 +407,6 @@ class Robot:
         Args:
             drones: "rigid", "point" (the seed's planning model) or "none" (the passive chain alone).
         """
-        from fpr.model.planar import PlanarModel
-
         cache = self.__dict__.setdefault("_planar_cache", {})
         if drones not in cache:
             cache[drones] = PlanarModel.from_robot(self, drones)

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from fpr.model.errors import MissionError
-from planners.crossing import CrossingOutcome, crossing_report, first_guess as designed_first_guess, \
-    optimise_crossing
+from planners.crossing import CrossingOutcome, crossing_report, optimise_crossing
+from planners.crossing import first_guess as designed_first_guess
 from planners.crossing_problem import crossing_layout
 from planners.options import PlanOptions
 from planners.result import PlanResult

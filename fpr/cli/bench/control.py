@@ -36,7 +36,7 @@ import proxsuite
 import fpr
 from controllers.allocation import Allocator, pseudo_inverse_law
 from controllers.ctc import CascadedController
-from fpr.cli.bench.model import REFERENCE, SEED
+from fpr.cli.bench.model import SEED
 from fpr.cli.bench.timing import Bench, cycling, fmt, time_part
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.model.robot import Robot
@@ -55,7 +55,7 @@ SATURATING_THRUST = 3.0
 
 def _allocation_states(robot, rng, count: int):
     """Attitude models near hover (q, v perturbed by 0.01), the hover thrusts, small u_a (0.1 rad/s^2)."""
-    chain = REFERENCE[robot.name]
+    chain = robot.kind.reference_chain
     q0 = hover_configuration(robot, chain)
     motion = np.zeros((5, 1, len(chain)))
     motion[0, 0] = chain

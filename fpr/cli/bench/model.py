@@ -36,21 +36,20 @@ from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.model.planar import planar_configuration
 
 SEED = 2024
-REFERENCE = {  # the chain's reference pose: FPR (y, z, phi, q21), prototype (q1, q2)
-    "fpr": (0.0, 0.0, 5 * np.pi / 4, np.pi / 2), "prototype": (0.3, 1.2)}
 
 
 def random_states(robot, rng, count: int) -> list[tuple]:
     """Random (q, v, thrust, torque) near the reference pose (as in tests/test_constrained.py)."""
-    centre = robot.configuration(**dict(zip(robot.layout.chain, REFERENCE[robot.name])))
+    centre = robot.configuration(**dict(zip(robot.layout.chain, robot.kind.reference_chain, strict=True)))
     return [(centre + 0.3 * rng.normal(size=robot.nq), rng.normal(size=robot.nq),
              rng.uniform(3.0, 15.0, robot.n_drones), 0.3 * rng.normal(size=(robot.n_drones, 3)))
             for _ in range(count)]
 
 
-def smooth_motion(name: str, samples: int, duration: float = 3.0) -> np.ndarray:
-    """s(t) = s_0 + 0.2 sin(w t + p) and its derivatives 0..4, shape (5, N, n_s) (tests' smooth_motion)."""
-    s0 = np.array(REFERENCE[name])
+def smooth_motion(robot, samples: int, duration: float = 3.0) -> np.ndarray:
+    """s(t) = s_0 + 0.2 sin(w t + p) and its derivatives 0..4, shape (5, N, n_s) (tests' smooth_motion), s_0 the
+    kind's reference chain."""
+    s0 = np.array(robot.kind.reference_chain)
     omega, phase = np.linspace(1.0, 2.0, len(s0)), np.linspace(0.0, 1.0, len(s0))
     arg = omega * np.linspace(0.0, duration, samples)[:, None] + phase
     return np.array([s0 * (k == 0) + 0.2 * omega**k * np.sin(arg + k * np.pi / 2) for k in range(5)])
@@ -96,7 +95,7 @@ def run_timings(bench: Bench) -> None:
     proto = fpr.load("prototype")
     bench.time("prototype r.forward_dynamics", cycling(proto.forward_dynamics, random_states(proto, rng, 64)))
     for robot in (r, proto):
-        motion = smooth_motion(robot.name, 2000)
+        motion = smooth_motion(robot, 2000)
         bench.time(f"{robot.name} inverse_dynamics, N=2000", lambda: inverse_dynamics(robot, motion), n=2000,
                    ref=(f"{robot.name} r.forward_dynamics",))
     for robot in (r, proto):
@@ -129,7 +128,7 @@ def run_residuals() -> list[dict]:
                         max_abs_acceleration=float(scale)))
         for d in (0.0, robot.hinge_offset):
             model = fpr.load(name, hinge_offset=0.0) if d == 0.0 else robot
-            inputs = inverse_dynamics(model, smooth_motion(name, 50))
+            inputs = inverse_dynamics(model, smooth_motion(model, 50))
             q, v, a = inputs.full_state(model)
             err = np.abs([model.forward_dynamics(q[k], v[k], inputs.thrust[k], inputs.torque[k]) - a[k]
                           for k in range(len(q))])

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fpr.model.errors import FigureError
+from fpr.views.figures.planning import _path_axes
 from fpr.views.figures.robot_info import (
     _coordinate_axes,
     _drone_joint_velocities,
@@ -22,7 +23,6 @@ from fpr.views.figures.robot_info import (
     _task_space_joints,
     _title,
 )
-from fpr.views.figures.planning import _path_axes
 from fpr.views.figures.sampled import _field, _trace, cumulative_integral
 from fpr.views.figures.style import STYLE, _finish, _limit, _new_figure, _point_markers, _save, _styled
 from planners.optimize import SampledPlan
