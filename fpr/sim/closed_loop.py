@@ -8,6 +8,12 @@ measured from the plant (minimal coordinates, optional Gaussian noise) and the p
 its ticks. Optional: an initial state error, a controller model with other masses than the plant,
 rotor constants off by a factor, a constant wind force on each drone.
 
+A lost robot is a result: at every inner-loop tick :class:`fpr.sim.watch.Watch` checks the state (a drone
+below the ground, the closure broken, a diverging or non-finite state, a tracking error past a bound, all
+bounds in :class:`SimulationSettings`). When one fires the simulation stops there and returns the log of
+what was simulated, its ``failure`` saying what happened and when; a state that turns non-finite
+(:class:`fpr.sim.plant.PlantDivergedError`) ends the same way.
+
 The :class:`SimulationLog` holds, at every inner-loop tick, what the thesis plots (Fig 3.19-3.32,
 3.42-3.51): the full state, the reference, the rotor speeds commanded and obtained, thrusts,
 torques, desired rolls, saturation flags and the closure error; :meth:`SimulationLog.summary`
@@ -16,6 +22,7 @@ condenses it and :meth:`SimulationLog.save` writes it (``.npz``).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -25,7 +32,8 @@ from controllers.ctc import CascadedController, ControllerSettings, Reference
 from fpr.model.errors import ModelArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from fpr.robots import load
-from fpr.sim.plant import Plant
+from fpr.sim.plant import Plant, PlantDivergedError
+from fpr.sim.watch import Watch
 
 
 @dataclass
@@ -39,12 +47,26 @@ class SimulationSettings:
         initial_error: offsets added to the initial state, by coordinate name, e.g. {"y": 0.05} [m, rad].
         model_mass_scale: the controller's model has every mass (drones, links, end-effector)
             multiplied by this (1.1: the controller believes the robot 10 % heavier than it is).
-        rotor_constant_scale: the plant's rotors produce this times the nominal force and drag
-            (emulated by running the plant's nominal rotors sqrt(scale) times faster; the log shows
-            the real rotors' speeds).
+        rotor_constant_scale: the plant's rotors produce this times the nominal force and drag, >= 0
+            (0: no thrust); the controller does not know it. The rotors start at the planned speeds.
         measurement_noise: standard deviations of the noise on the measured (q, v) [m or rad, per s].
         wind: constant force on each drone's centre, world frame (x, y, z) [N].
         seed: noise seed.
+
+    Bounds of the watch for a lost robot (:mod:`fpr.sim.watch`); the reference missions (square,
+    prototype tour, singularity crossing) stay far inside them:
+
+    Attributes:
+        ground_tolerance: a drone's hinge or centre of mass lower than ``robot.kind.ground_height`` by more
+            than this is below the ground [m] (default 0.05; the plans keep the hinges m_gd = 0.1 m above).
+        max_closure_error: loop-closure error of the plant that means the chain broke [m] (default 1e-3;
+            the reference missions stay below 1e-6).
+        max_drone_speed: speed of a drone's hinge past which the state diverged [m/s] (default 30).
+        max_drone_rate: angular speed of a drone past which the state diverged [rad/s] (default 60).
+        max_tilt: angle of a drone's thrust axis from the vertical past which it is lost [rad] (default pi/2:
+            the thrust pushes it down).
+        max_tracking_error: |measured - planned| of each planning coordinate past which tracking is lost
+            [m or rad, the coordinate's unit] (default 1; the reference missions stay below 0.01).
     """
 
     plant_rate: float = 1000.0
@@ -56,6 +78,12 @@ class SimulationSettings:
     measurement_noise: tuple[float, float] = (0.0, 0.0)
     wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
     seed: int = 0
+    ground_tolerance: float = 0.05
+    max_closure_error: float = 1e-3
+    max_drone_speed: float = 30.0
+    max_drone_rate: float = 60.0
+    max_tilt: float = math.pi / 2
+    max_tracking_error: float = 1.0
 
 
 @dataclass(eq=False)
@@ -79,6 +107,12 @@ class SimulationLog:
         closure_error: loop-closure error of the plant (N,) [m].
         max_speed: w_max [rad/s]; speed_limit: w_max - m_gr, the planning limit [rad/s].
         wall_time: simulation wall time [s].
+        failure: None when the simulation ran to its end; else one line saying how the robot was lost, which
+            drone or coordinate, the value, the bound and when (:mod:`fpr.sim.watch`), e.g. "drone 1 hinge
+            below the ground (z = -0.801 m < -0.800 m: ground -0.75 m, tolerance 0.05 m) at t = 0.520 s".
+            The arrays then stop at that tick (their last sample is at ``failure_time``), or, when the state
+            turned non-finite, at the last finite sample, just before ``failure_time``.
+        failure_time: simulated time of the failure [s], or None.
     """
 
     robot_name: str
@@ -100,6 +134,8 @@ class SimulationLog:
     max_speed: float
     speed_limit: float
     wall_time: float
+    failure: str | None = None
+    failure_time: float | None = None
 
     def column(self, name: str) -> np.ndarray:
         """The measured coordinate ``name`` over time."""
@@ -118,7 +154,8 @@ class SimulationLog:
 
     def summary(self) -> dict:
         """Tracking errors (RMS and max per planning coordinate), out-of-plane motion, rotor speeds
-        against the limits, allocation saturations, closure error, real-time factor."""
+        against the limits, allocation saturations, closure error, real-time factor, and the failure (None
+        for a run that reached its end) with its time."""
         err = self.tracking_error
         out = {
             "tracking_rms": {c: float(np.sqrt(np.mean(err[:, i] ** 2))) for i, c in enumerate(self.chain)},
@@ -137,21 +174,28 @@ class SimulationLog:
             "simulated_s": float(self.t[-1] - self.t[0]),
             "wall_time_s": self.wall_time,
             "real_time_factor": self.real_time_factor,
+            "failure": self.failure,
+            "failure_time_s": self.failure_time,
         }
         return out
 
     def save(self, path) -> None:
-        """Write every array and the scalars to a NumPy ``.npz`` file."""
+        """Write every array and the scalars to a NumPy ``.npz`` file (no failure: ``failure`` is stored as
+        an empty string and ``failure_time`` as NaN)."""
         arrays = {k: v for k, v in vars(self).items() if isinstance(v, np.ndarray)}
         np.savez_compressed(path, robot_name=self.robot_name, coordinates=np.array(self.coordinates),
                             chain=np.array(self.chain), max_speed=self.max_speed, speed_limit=self.speed_limit,
-                            wall_time=self.wall_time, **arrays)
+                            wall_time=self.wall_time, failure=np.array(self.failure or ""),
+                            failure_time=np.nan if self.failure_time is None else self.failure_time, **arrays)
 
     @classmethod
     def load(cls, path) -> "SimulationLog":
-        """Read a log written by :meth:`save`."""
+        """Read a log written by :meth:`save` (one written before the failure fields: no failure)."""
         with np.load(path) as data:
             values = {k: data[k] for k in data.files}
+        failure = str(values.pop("failure", "")) or None
+        failure_time = float(values.pop("failure_time", np.nan))
+        values["failure"], values["failure_time"] = failure, None if np.isnan(failure_time) else failure_time
         return cls(robot_name=str(values.pop("robot_name")), coordinates=tuple(values.pop("coordinates").tolist()),
                    chain=tuple(values.pop("chain").tolist()), max_speed=float(values.pop("max_speed")),
                    speed_limit=float(values.pop("speed_limit")), wall_time=float(values.pop("wall_time")), **values)
@@ -166,8 +210,47 @@ def _scaled_robot(robot, scale: float):
     return load(robot.name, **overrides)
 
 
+def _positive(name, value, zero_ok=False) -> None:
+    """Refuse a setting that is not a finite number > 0 (>= 0 with ``zero_ok``)."""
+    try:
+        ok = bool(np.isfinite(value) and (value >= 0 if zero_ok else value > 0))
+    except TypeError:
+        ok = False
+    if not ok:
+        raise ModelArgumentError(name, value, f"{name} = {value!r}: give a finite number "
+                                              f"{'>= 0' if zero_ok else '> 0'}")
+
+
+def _check_settings(st: SimulationSettings, robot) -> None:
+    """Refuse settings that cannot describe a simulation (the message names the field and what to give)."""
+    _positive("plant_rate", st.plant_rate)
+    _positive("hold", st.hold, zero_ok=True)
+    _positive("model_mass_scale", st.model_mass_scale)
+    _positive("rotor_constant_scale", st.rotor_constant_scale, zero_ok=True)
+    for name in ("ground_tolerance", "max_closure_error", "max_drone_speed", "max_drone_rate", "max_tilt",
+                 "max_tracking_error"):
+        _positive(name, getattr(st, name))
+    noise = np.asarray(st.measurement_noise, dtype=object)
+    if noise.shape != (2,):
+        raise ModelArgumentError("measurement_noise", st.measurement_noise,
+                                 f"measurement_noise = {st.measurement_noise!r}: give two standard deviations "
+                                 "(q [m or rad], v [m/s or rad/s]), each >= 0")
+    for value in noise:
+        _positive("measurement_noise", value, zero_ok=True)
+    wind = np.asarray(st.wind, dtype=object)
+    if wind.shape != (3,) or not all(isinstance(f, (int, float, np.number)) and np.isfinite(f) for f in wind):
+        raise ModelArgumentError("wind", st.wind, f"wind = {st.wind!r}: give three finite forces (x, y, z) [N]")
+    for name, offset in st.initial_error.items():
+        if name not in robot.index:
+            raise ModelArgumentError("initial_error", name,
+                                     f"initial_error: unknown coordinate {name!r}; use one of {', '.join(robot.index)}")
+        if not isinstance(offset, (int, float, np.number)) or not np.isfinite(offset):
+            raise ModelArgumentError("initial_error", offset,
+                                     f"initial_error {name} = {offset!r}: give a finite number [m or rad]")
+
+
 def simulate(result, settings: SimulationSettings | None = None, progress=None) -> SimulationLog:
-    """Track the planned motion of ``result`` in closed loop.
+    """Track the planned motion of ``result`` in closed loop, until its end or until the robot is lost.
 
     Args:
         result: a :class:`planners.optimize.PlanResult` (its ``trajectory`` and ``robot``).
@@ -175,15 +258,17 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
         progress: called as ``progress(simulated_time, total_time)`` about every simulated second.
 
     Returns:
-        the :class:`SimulationLog`.
+        the :class:`SimulationLog`; when the robot is lost (:mod:`fpr.sim.watch`, or a state that turns
+        non-finite) it stops there, with ``failure`` and ``failure_time`` set.
 
     Raises:
-        fpr.sim.plant.PlantDivergedError: the plant's state became non-finite.
-        ModelArgumentError: rates that are not integer multiples of each other, or an initial error on
-            an unknown coordinate.
+        ModelArgumentError: rates that are not integer multiples of each other, an initial error on
+            an unknown coordinate, a setting that is not a finite number in its range (a scale or a bound
+            <= 0, a negative noise or hold, a wind that is not three forces).
     """
     st = settings or SimulationSettings()
     robot = result.robot
+    _check_settings(st, robot)
     ctrl_settings = st.controller
     steps_per_tick = st.plant_rate / ctrl_settings.inner_rate
     if abs(steps_per_tick - round(steps_per_tick)) > 1e-9 or steps_per_tick < 1:
@@ -203,17 +288,14 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
     controller = CascadedController(_scaled_robot(robot, st.model_mass_scale), ctrl_settings)
     q0 = q_plan[0].copy()
     for name, offset in st.initial_error.items():
-        if name not in robot.index:
-            raise ModelArgumentError("initial_error", name,
-                                     f"initial_error: unknown coordinate {name!r}; use one of {', '.join(robot.index)}")
         q0[robot.index[name]] += offset
-    w0 = planned.rotor_speed[0] / np.sqrt(st.rotor_constant_scale)
-    plant = Plant.from_minimal(robot, q0, np.zeros(robot.nq), w0)
+    plant = Plant.from_minimal(robot, q0, np.zeros(robot.nq), planned.rotor_speed[0],
+                               rotor_constant_scale=st.rotor_constant_scale)
+    watch = Watch(robot, st)
     rng = np.random.default_rng(st.seed)
     noise_q, noise_v = st.measurement_noise
     wind = np.asarray(st.wind, dtype=float)
     wind = None if not wind.any() else wind
-    speed_gain = np.sqrt(st.rotor_constant_scale)  # c_T w^2 scaled <=> w scaled by sqrt
 
     n, n_d, n_t = robot.nq, robot.n_drones, ticks.size
     log = {k: np.zeros(s) for k, s in {
@@ -222,11 +304,18 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
         "drone_height": (n_t, n_d), "closure_error": (n_t,)}.items()}
     start = time.perf_counter()
     next_report = 1.0
+    failure = failure_time = None
+    last = n_t - 1  # index of the last logged tick
     for k, t in enumerate(ticks):
         q, v = plant.measure()
+        positions, closure_error = plant.drone_positions_and_closure_error()  # one kinematics pass
+        failure = watch.check(t, plant, q, v, positions, closure_error, motion[0, k])
+        if failure is not None and not (np.isfinite(q).all() and np.isfinite(v).all()):
+            last, failure_time = k - 1, float(t)  # nothing finite to log at this tick
+            break
         log["q"][k], log["v"][k] = q, v
-        log["speed"][k] = plant.rotor_speeds / speed_gain
-        positions, log["closure_error"][k] = plant.drone_positions_and_closure_error()  # one kinematics pass
+        log["speed"][k] = plant.rotor_speeds
+        log["closure_error"][k] = closure_error
         log["drone_height"][k] = positions[:, 2]
         q_meas = q + noise_q * rng.normal(size=n) if noise_q else q
         v_meas = v + noise_v * rng.normal(size=n) if noise_v else v
@@ -237,17 +326,29 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
         log["speed_command"][k] = out.speeds
         log["thrust"][k], log["torque"][k] = out.allocation.thrust, out.allocation.torque
         log["saturated"][k] = out.allocation.saturated
+        if failure is not None:
+            last, failure_time = k, float(t)
+            break
         if k == n_t - 1:
             break
-        command = np.clip(out.speeds, 0.0, robot.rotor_constants.max_speed) * speed_gain
-        for _ in range(steps_per_tick):
-            plant.step(command, dt, wind)
+        command = np.clip(out.speeds, 0.0, robot.rotor_constants.max_speed)
+        try:
+            for _ in range(steps_per_tick):
+                plant.step(command, dt, wind)
+        except PlantDivergedError as error:  # the plant keeps its last finite state
+            last, failure_time = k, error.time + dt
+            failure = (f"the state diverged (non-finite numbers in the plant state) between t = {error.time:.4f} s "
+                       f"and {failure_time:.4f} s")
+            break
         if progress is not None and t + tick >= next_report:
             progress(t + tick, ticks[-1])
             next_report += 1.0
+    keep = slice(0, last + 1)
+    log = {name: values[keep] for name, values in log.items()}
     speed_limit = robot.rotor_constants.max_speed - robot.margins.rotor_speed
-    return SimulationLog(robot.name, tuple(robot.layout.coordinates), tuple(robot.layout.chain), ticks,
-                         log["q"], log["v"], motion[:3], planned.roll, log["roll_desired"], log["speed_command"],
-                         log["speed"], log["thrust"], log["torque"], log["saturated"].astype(bool),
-                         log["drone_height"], log["closure_error"], robot.rotor_constants.max_speed, speed_limit,
-                         time.perf_counter() - start)
+    return SimulationLog(robot.name, tuple(robot.layout.coordinates), tuple(robot.layout.chain), ticks[keep],
+                         log["q"], log["v"], motion[:3, keep], planned.roll[keep], log["roll_desired"],
+                         log["speed_command"], log["speed"], log["thrust"], log["torque"],
+                         log["saturated"].astype(bool), log["drone_height"], log["closure_error"],
+                         robot.rotor_constants.max_speed, speed_limit, time.perf_counter() - start, failure,
+                         failure_time)

@@ -43,6 +43,10 @@ _gesv = lapack.dgesv
 class PlantDivergedError(FprError, FloatingPointError):
     """The simulated state is no longer finite (the step is too long, or the robot flew apart).
 
+    Raised by :meth:`Plant.step`. The closed loop (:func:`fpr.sim.closed_loop.simulate`) catches it and
+    returns the log simulated so far with ``failure`` set instead; the class stays for callers who step
+    a plant themselves.
+
     Attributes:
         time: simulated time of the last finite state [s].
     """
@@ -193,7 +197,8 @@ class Plant:
         time: simulated time [s].
     """
 
-    def __init__(self, closed: ClosedChainModel, qc, vc=None, w=None, time: float = 0.0, reference=None):
+    def __init__(self, closed: ClosedChainModel, qc, vc=None, w=None, time: float = 0.0, reference=None,
+                 rotor_constant_scale: float = 1.0):
         """
         Args:
             closed: the closed-chain model (:func:`~fpr.model.constrained.build_closed_chain`).
@@ -202,7 +207,16 @@ class Plant:
             w: rotor speeds, shape (n_d, 4) [rad/s]; stopped (zero) by default.
             time: initial time [s].
             reference: thesis configuration for the first :meth:`measure` to unwrap its angles to.
+            rotor_constant_scale: the rotors produce this times the nominal force and drag torque (c_T and
+                c_Q both scaled; 0: no thrust at all), >= 0.
+
+        Raises:
+            ModelArgumentError: a negative or non-finite rotor_constant_scale.
         """
+        if not (np.isfinite(rotor_constant_scale) and rotor_constant_scale >= 0):
+            raise ModelArgumentError("rotor_constant_scale", rotor_constant_scale,
+                                     f"rotor_constant_scale = {rotor_constant_scale!r}: give a finite number >= 0 "
+                                     "(1: the nominal rotors)")
         self.closed = closed
         model = closed.model
         self.qc = check_shape("qc", qc, (model.nq,)).copy()
@@ -213,6 +227,8 @@ class Plant:
         self._reference = (None if reference is None
                            else check_shape("reference", reference, (closed.robot.nq,)).copy())
         self._mixing = np.array([rotor.mixing_matrix for rotor in closed.robot.rotors])  # (n_d, 4, 4)
+        if rotor_constant_scale != 1.0:
+            self._mixing = self._mixing * rotor_constant_scale
         self._rotor_map = _rotor_force_map(closed, self._mixing)
         # constraint and frame data read by drone_positions_and_closure_error (looked up once)
         self._closure_terms = tuple((cm.joint1_id, cm.joint1_placement.translation.copy(), cm.joint2_id,
@@ -220,10 +236,16 @@ class Plant:
         self._closure_is_3d = all(cm.type == pin.ContactType.CONTACT_3D for cm in closed.constraints)
         self._drone_frames = tuple((model.frames[f].parentJoint, model.frames[f].placement.translation.copy())
                                    for f in closed.drone_frame_ids)
+        # each drone's free flyer (its hinge frame, build_closed_chain): where its q and v sit, and its thrust
+        # axis (the centre frame's z) in the free flyer's frame, read by drone_joint_positions / drone_tilts
+        self._freeflyers = tuple((model.joints[j].idx_q, model.joints[j].idx_v,
+                                  model.frames[f].placement.rotation[:, 2].copy())
+                                 for j, f in zip(closed.freeflyer_ids, closed.drone_frame_ids, strict=True))
 
     @classmethod
     def from_minimal(cls, robot, q, v=None, w=None, baumgarte: tuple[float, float] = (400.0, 40.0),
-                     max_iter: int = 3, closed: ClosedChainModel | None = None) -> "Plant":
+                     max_iter: int = 3, closed: ClosedChainModel | None = None,
+                     rotor_constant_scale: float = 1.0) -> "Plant":
         """A plant at a state given in thesis coordinates.
 
         Args:
@@ -238,12 +260,13 @@ class Plant:
                 iterations; the accelerations agree to 1e-15 with a 200-iteration solve from the 2nd
                 iteration on. 3 instead of build_closed_chain's 50 makes a plant step about 1.6 times faster.
             closed: a closed-chain model of ``robot`` to reuse (it is then shared: one plant at a time).
+            rotor_constant_scale: the rotors' force and drag times this (see :class:`Plant`).
         """
         closed = closed or build_closed_chain(robot, baumgarte=baumgarte, max_iter=max_iter)
         q = check_shape("q", q, (robot.nq,))
         v = np.zeros(robot.nq) if v is None else check_shape("v", v, (robot.nq,))
         qc, vc = closed.from_minimal(q, v)
-        return cls(closed, qc, vc, w, reference=q)
+        return cls(closed, qc, vc, w, reference=q, rotor_constant_scale=rotor_constant_scale)
 
     # ------------------------------------------------------------------ state
     @property
@@ -306,6 +329,33 @@ class Plant:
         for j1, p1, j2, p2 in self._closure_terms:
             error = max(error, float(np.linalg.norm(point(j1, p1) - point(j2, p2))))
         return positions, error
+
+    def drone_joint_positions(self) -> np.ndarray:
+        """World positions of the drones' passive joints (hinges), shape (n_d, 3) [m].
+
+        Read from the state: each drone's free flyer is placed at its hinge (:func:`build_closed_chain`).
+        """
+        return np.array([self.qc[iq:iq + 3] for iq, _, _ in self._freeflyers])
+
+    def drone_tilts(self) -> np.ndarray:
+        """Angle between each drone's thrust axis and the world's upward z, shape (n_d,) [rad].
+
+        0: level; pi/2: the thrust is horizontal; beyond pi/2 it pushes the drone down. Read from the free
+        flyers' quaternions, no kinematics pass.
+        """
+        cosines = []
+        for iq, _, axis in self._freeflyers:
+            x, y, z, w = self.qc[iq + 3:iq + 7] / np.linalg.norm(self.qc[iq + 3:iq + 7])
+            third_row = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))  # of the rotation
+            cosines.append(float(np.dot(third_row, axis)))
+        return np.arccos(np.clip(cosines, -1.0, 1.0))
+
+    def drone_speeds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Speed of each drone's hinge [m/s] and its angular speed [rad/s], each shape (n_d,) (norms of the
+        free flyers' twists)."""
+        linear = np.array([np.linalg.norm(self.vc[iv:iv + 3]) for _, iv, _ in self._freeflyers])
+        angular = np.array([np.linalg.norm(self.vc[iv + 3:iv + 6]) for _, iv, _ in self._freeflyers])
+        return linear, angular
 
     def center_of_mass(self) -> tuple[np.ndarray, np.ndarray]:
         """Position [m] and velocity [m/s] of the whole robot's centre of mass, each shape (3,)."""
