@@ -395,15 +395,15 @@ class Mission:
         """The robot to plan for: ``fpr.load(robot, **robot_parameters)`` (a :class:`fpr.model.robot.Robot`).
 
         Raises:
-            MissionError: a robot parameter that the description does not accept
-                (field ``robot_parameters.<key>``).
+            MissionError: a robot parameter that the description does not accept, or out of its physical
+                range (:func:`fpr.robots.check_parameters`) (field ``robot_parameters.<key>``).
         """
         try:
             return robots.load(self.robot, **self.robot_parameters)
         except (ValueError, TypeError) as error:
             known = description.xacro_arguments(self.kind.xacro)
-            bad = next((k for k in self.robot_parameters if k not in known), None)
-            if bad is None:
+            bad = next((k for k in self.robot_parameters if k not in known), getattr(error, "argument", None))
+            if bad not in self.robot_parameters:
                 raise
             raise self._error(f"robot_parameters.{bad}", f"rejected by fpr.load: {error}") from error
 

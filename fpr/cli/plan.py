@@ -19,15 +19,20 @@ solve time, then the worst value of every constraint. Into ``--out`` (default
   with ``--simulate``, the simulated robot and the plan as a ghost), a standalone page; ``--serve``
   also sends it to a live meshcat server, prints its URL and waits for Ctrl-C.
 
-Exit codes: 0 every constraint holds; 1 the planned motion violates a constraint (the files
-are still written and the violated constraints are named); 2 bad input (mission file or
-option, unreachable way point, way point on a singularity).
+Every file goes into a temporary folder beside ``--out``, swapped in when complete with a
+``manifest.json`` (command, fpr version, hash of the inputs, start time, duration, exit code, wall-clock
+timings); a failed or interrupted run leaves the previous folder as it was (:mod:`fpr.cli.output`).
+
+Exit codes (:mod:`fpr.cli.contract`): 0 every constraint holds; 1 the result breaks a limit (the planned
+motion violates a constraint, or the simulation lost the robot; the files are still written and the message
+names what broke); 2 bad input (mission file or option, unreachable way point, way point on a singularity,
+a robot parameter out of its range, work over the size limits of :mod:`fpr.cli.checks`, an ``--out`` that
+cannot be written); 3 internal error (a bug; ``--debug`` shows the traceback); 130 interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import signal
 import sys
@@ -37,7 +42,10 @@ from pathlib import Path
 import numpy as np
 
 from fpr import robots
-from fpr.model.errors import FprError
+from fpr.cli import checks, contract
+from fpr.cli.output import OutputFolder, inputs_hash, manifest, write_manifest
+from fpr.cli.plan_files import csv_columns, plan_document, split_timings, write_csv
+from fpr.model.errors import FprError, MissionError
 from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.sim.plant import PlantDivergedError
 from fpr.views.figures import plan_figures, simulation_figures
@@ -45,6 +53,8 @@ from fpr.views.scene import view
 from planners.methods import METHODS, method_for
 from planners.mission import BUILTIN_MISSIONS, load_mission
 from planners.optimize import PlanResult, plan
+
+__all__ = ["comparison_table", "csv_columns", "main", "parser", "plan_document", "write_csv"]
 
 
 def _floats(text: str, option: str) -> list[float]:
@@ -76,8 +86,8 @@ def _assignment(text: str) -> tuple[str, float]:
 
 def parser() -> argparse.ArgumentParser:
     """The command-line parser."""
-    p = argparse.ArgumentParser(prog="python -m fpr.plan", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = contract.Parser(prog="python -m fpr.plan", description=__doc__.split("\n\n")[0],
+                        formatter_class=contract.HelpFormatter, epilog=contract.EXIT_CODES)
     p.add_argument("--mission", default="square",
                    help=f"built-in mission ({', '.join(BUILTIN_MISSIONS)}) or a mission TOML file")
     p.add_argument("--robot", choices=robots.names(), default=None,
@@ -120,6 +130,7 @@ def parser() -> argparse.ArgumentParser:
                        help="also show the scene on a live meshcat server, print its URL and wait for Ctrl-C "
                             "(implies --meshcat)")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    contract.add_debug(p)
     return p
 
 
@@ -144,78 +155,6 @@ def _mission(args):
 
 
 # ------------------------------------------------------------------------------------------- files
-def csv_columns(robot) -> list[tuple[str, str]]:
-    """(name, unit) of every column of ``trajectory.csv`` for ``robot``."""
-    coords = list(robot.kind.planning_columns())
-    cols = [("t", "s")] + coords + [(n + "_d", u + "/s") for n, u in coords] + [(n + "_dd", u + "/s^2")
-                                                                                 for n, u in coords]
-    for i in range(1, robot.n_drones + 1):
-        cols += [(f"y_j{i}", "m"), (f"z_j{i}", "m"), (f"phi{i}", "rad"), (f"phi{i}_d", "rad/s"), (f"f{i}", "N"),
-                 (f"tau{i}_x", "N m"), (f"tau{i}_y", "N m"), (f"tau{i}_z", "N m")]
-        cols += [(f"w{i}_{m}", "rad/s") for m in range(1, 5)]
-    return cols
-
-
-def _simulated_columns(robot, log, t) -> tuple[list[str], np.ndarray]:
-    """sim_ columns: the simulated counterparts of the planned ones, interpolated at times t."""
-    chain = [log.coordinates.index(c) for c in log.chain]
-    s = log.q[:, chain]
-    joints = robot.kind.drone_joints(s)
-    data = {}
-    for c in log.coordinates:
-        data[c] = log.q[:, log.coordinates.index(c)]
-        data[c + "_d"] = log.v[:, log.coordinates.index(c)]
-    for i in range(robot.n_drones):
-        data[f"y_j{i + 1}"], data[f"z_j{i + 1}"] = joints[:, i, 0], joints[:, i, 1]
-        data[f"f{i + 1}"] = log.thrust[:, i]
-        for k, axis in enumerate("xyz"):
-            data[f"tau{i + 1}_{axis}"] = log.torque[:, i, k]
-        for m in range(4):
-            data[f"w{i + 1}_{m + 1}"] = log.speed[:, i, m]
-    names = ["sim_" + n for n in data]
-    return names, np.stack([np.interp(t, log.t, v) for v in data.values()], axis=1)
-
-
-def write_csv(path: Path, robot, sampled, log=None) -> None:
-    """One row per sample of ``sampled`` (a :class:`planners.optimize.SampledPlan`); units in README.md.
-
-    With a :class:`fpr.sim.closed_loop.SimulationLog`, the simulated columns follow, prefixed ``sim_``.
-    """
-    inputs, motion = sampled.inputs, sampled.motion
-    columns = [sampled.t[:, None], motion[0], motion[1], motion[2]]
-    for i in range(robot.n_drones):
-        columns += [inputs.joint_position[:, i], inputs.roll[:, i:i + 1], inputs.roll_rate[:, i:i + 1],
-                    inputs.thrust[:, i:i + 1], inputs.torque[:, i], inputs.rotor_speed[:, i]]
-    names = [n for n, _ in csv_columns(robot)]
-    if log is not None:
-        sim_names, sim_data = _simulated_columns(robot, log, sampled.t)
-        names += sim_names
-        columns.append(sim_data)
-    data = np.hstack(columns)
-    assert data.shape[1] == len(names)
-    with open(path, "w", newline="", encoding="utf-8") as stream:
-        writer = csv.writer(stream)
-        writer.writerow(names)
-        writer.writerows(np.round(data, 9).tolist())
-
-
-def plan_document(mission, robot, result: PlanResult, reference: PlanResult) -> dict:
-    """The content of ``plan.json``."""
-    trajectory = result.trajectory
-    return {
-        "mission": mission.to_dict(),
-        "method": result.method,
-        "robot": {"name": robot.name, "parameters": robot.parameters},
-        "summary": result.summary(),
-        "reference_summary": reference.summary(),
-        "points": trajectory.points.tolist(),
-        "points_layout": "points[p][k][j]: k-th time derivative (k = 0..4) of coordinate j at point p",
-        "is_way_point": result.is_way.tolist(),
-        "durations_s": trajectory.durations.tolist(),
-        "knots_s": trajectory.knots.tolist(),
-        "coefficients": [seg.coefficients.tolist() for seg in trajectory.segments],
-        "coefficients_layout": "coefficients[i][c][j]: s_j(t) = sum_c a[c] (t - knots[i])^c on segment i, SI units",
-    }
 
 
 _TABLE_ROWS = [("J (3.26)", "J", "", "{:.4f}"), ("J_e (energy index)", "J_e", "J", "{:.3f}"),
@@ -275,12 +214,13 @@ class _Progress:
             self.stream.write("\n")
 
 
-def _simulate(args, robot, final, out, sampled, written, say):
-    """Run the closed-loop simulation, write its files; returns the log (None if it diverged)."""
-    if args.wind is not None and len(args.wind) != 3:
-        raise FprError(f"--wind {args.wind}: give three numbers FX,FY,FZ [N]")
-    if args.noise is not None and len(args.noise) != 2:
-        raise FprError(f"--noise {args.noise}: give two numbers SQ,SV")
+def _simulate(args, robot, final, out, sampled, written):
+    """Run the closed-loop simulation and write its files.
+
+    Returns:
+        (log, lost): the :class:`fpr.sim.closed_loop.SimulationLog` (None if the plant diverged before a log
+        could be made) and one line saying how the robot was lost (None if it was not).
+    """
     settings = SimulationSettings(hold=args.hold, initial_error=dict(args.initial_error),
                                   model_mass_scale=args.model_mass_scale,
                                   rotor_constant_scale=args.rotor_constant_scale,
@@ -295,8 +235,8 @@ def _simulate(args, robot, final, out, sampled, written, say):
     try:
         log = simulate(final, settings, progress)
     except PlantDivergedError as error:
-        print(f"error: the closed-loop simulation diverged: {error}", file=sys.stderr)
-        return None
+        return None, f"the simulation lost the robot: {contract.one_line(error)}"
+    failure = getattr(log, "failure", None)
     log.save(out / "simulation.npz")
     write_csv(out / "trajectory.csv", robot, sampled, log)
     written.append("simulation.npz")
@@ -304,8 +244,8 @@ def _simulate(args, robot, final, out, sampled, written, say):
         try:
             written += [f.name for f in simulation_figures(out, robot, log, sampled)]
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the results
-            print(f"warning: simulation figures not written: {error}", file=sys.stderr)
-    return log
+            print(f"warning: simulation figures not written: {contract.one_line(error)}", file=sys.stderr)
+    return log, (f"the simulation lost the robot: {contract.one_line(failure)}" if failure else None)
 
 
 def _simulation_table(log) -> str:
@@ -354,26 +294,37 @@ def _wait_for_interrupt() -> None:
         signal.signal(signal.SIGTERM, previous)
 
 
-def main(argv=None) -> int:
-    """Command line entry point; returns the exit code."""
-    args = parser().parse_args(argv)
-    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, flush=True))
-    if not np.isfinite(args.rate) or args.rate <= 0:
-        print(f"error: --rate {args.rate}: give a positive number of samples per second", file=sys.stderr)
-        return 2
-    start = time.perf_counter()
+def _inputs(args):
+    """The mission and its robot, every number checked and the size of the work estimated (exit 2 if not)."""
     try:
+        checks.check_options(args)
         mission = _mission(args)
         robot = mission.load_robot()
         mission.positions(robot)  # every way point reachable and away from singularities
         method_for(mission, args.method)  # a method that can plan this mission
-    except (FprError, ValueError, OSError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    out = args.out or Path("fpr-out") / mission.name
-    say(f"mission {mission.name!r} ({mission.robot}): {len(mission.times)} travels, "
-        f"{float(np.sum(mission.times)):g} s, via points {list(map(int, mission.via_points))}, "
-        f"alpha {mission.alpha:g}, method {args.method}")
+        checks.check_work(args, mission, robot, optimised=args.method != "none")
+    except MissionError as error:  # a --set value is the option's fault, not the mission file's
+        key = error.field.removeprefix("robot_parameters.")
+        given = dict(args.robot_parameters)
+        if error.field.startswith("robot_parameters.") and key in given:
+            raise FprError(f"--set {key}={given[key]:g}: {error.reason.removeprefix('rejected by fpr.load: ')}") \
+                from error
+        raise
+    except (ValueError, TypeError, OSError) as error:  # FprError subclasses included: the input's fault
+        if isinstance(error, FprError):
+            raise
+        raise FprError(f"{type(error).__name__}: {error}") from error
+    return mission, robot
+
+
+def _hashed_options(args) -> dict:
+    """The options that change the results (the mission's own are in its TOML text)."""
+    skip = {"out", "quiet", "debug", "serve", "mission", "times", "via_points", "alpha", "robot_parameters"}
+    return {k: v for k, v in sorted(vars(args).items()) if k not in skip}
+
+
+def _work(args, mission, robot, tmp, say):
+    """Plan (and simulate) into the folder ``tmp``; returns (exit code, outcome, timings, visualizer)."""
     progress = None if args.quiet else _Progress(sys.stderr)
     reference = plan(mission, "none", robot=robot)
     result = None
@@ -382,28 +333,28 @@ def main(argv=None) -> int:
         if progress is not None:
             progress.close()
     final = result or reference
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "mission.toml").write_text(mission.to_toml(), encoding="utf-8")
-    (out / "plan.json").write_text(json.dumps(plan_document(mission, robot, final, reference), indent=1),
-                                   encoding="utf-8")
+    (tmp / "mission.toml").write_text(mission.to_toml(), encoding="utf-8")
+    document = plan_document(mission, robot, final, reference)
+    timings = split_timings(document)
+    (tmp / "plan.json").write_text(json.dumps(document, indent=1), encoding="utf-8")
     sampled = final.sampled(args.rate)
-    write_csv(out / "trajectory.csv", robot, sampled)
+    write_csv(tmp / "trajectory.csv", robot, sampled)
     written = ["mission.toml", "plan.json", "trajectory.csv"]
     reference_sampled = None
     if result is not None:
         reference_sampled = reference.sampled(args.rate)
-        write_csv(out / "reference.csv", robot, reference_sampled)
+        write_csv(tmp / "reference.csv", robot, reference_sampled)
         written.append("reference.csv")
     if not args.no_plots:
         try:
-            figures = plan_figures(out, robot, sampled, reference_sampled)
+            figures = plan_figures(tmp, robot, sampled, reference_sampled)
             written += [f.name for f in figures]
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the computed plan
-            print(f"warning: figures not written: {error}", file=sys.stderr)
-    log = None
-    if args.simulate:
-        log = _simulate(args, robot, final, out, sampled, written, say)
-    visualizer = _scene(args, robot, final, log, out, written) if args.meshcat or args.serve else None
+            print(f"warning: figures not written: {contract.one_line(error)}", file=sys.stderr)
+    log, lost = _simulate(args, robot, final, tmp, sampled, written) if args.simulate else (None, None)
+    if log is not None:
+        timings["simulation"] = log.wall_time
+    visualizer = _scene(args, robot, final, log, tmp, written) if args.meshcat or args.serve else None
     say(comparison_table(reference, result))
     say("constraints of the " + ("optimised" if result is not None else "stop-at-way-points") + " motion "
         "(dense grid, margin >= 0 holds):")
@@ -413,18 +364,54 @@ def main(argv=None) -> int:
         say(f"  solver {stage.name}: {stage.message} ({stage.iterations} iterations, {stage.wall_time:.3f} s)")
     if log is not None:
         say(_simulation_table(log))
-    say(f"wrote {', '.join(written)} into {out} ({time.perf_counter() - start:.1f} s)")
-    code = 0
+    problems = []
     if not final.feasible:
         names = ", ".join(f"{c.name} (margin {c.margin:.4g} {c.unit} at t = {c.time:.3f} s)"
                           for c in final.report.violations)
-        print(f"error: the planned motion violates {names}; give more time (--times), more via points "
-              "(--via-points) or move the way points", file=sys.stderr)
-        code = 1
+        problems.append(f"the planned motion violates {names}; give more time (--times), more via points "
+                        "(--via-points) or move the way points")
+    if lost is not None:
+        problems.append(lost)
+    for problem in problems:
+        print(f"error: {problem}", file=sys.stderr)
+    outcome = "; ".join(problems) or "every constraint holds" + (", the robot was not lost" if args.simulate else "")
+    return (contract.LIMIT_BROKEN if problems else contract.OK), outcome, timings, visualizer
+
+
+def _run(args, argv) -> int:
+    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, flush=True))
+    started, start = time.time(), time.perf_counter()
+    mission, robot = _inputs(args)
+    folder = OutputFolder(args.out or Path("fpr-out") / mission.name)
+    tmp = folder.open()
+    say(f"mission {mission.name!r} ({mission.robot}): {len(mission.times)} travels, "
+        f"{float(np.sum(mission.times)):g} s, via points {list(map(int, mission.via_points))}, "
+        f"alpha {mission.alpha:g}, method {args.method}")
+    try:
+        code, outcome, timings, visualizer = _work(args, mission, robot, tmp, say)
+        files = sorted(p.name for p in tmp.iterdir())
+        command = parser().prog.split() + list(argv)
+        write_manifest(tmp, manifest(command, inputs_hash(mission.to_toml(), _hashed_options(args)), started,
+                                     time.perf_counter() - start, code, outcome, files, timings))
+        folder.commit()
+    except BaseException:
+        folder.discard()
+        raise
+    say(f"wrote {', '.join(files)} and manifest.json into {folder.path} ({time.perf_counter() - start:.1f} s)")
     if visualizer is not None:
         print(f"meshcat: open {visualizer.url()} (Ctrl-C to stop the server)", flush=True)
         _wait_for_interrupt()
     return code
+
+
+def main(argv=None) -> int:
+    """Command line entry point; returns the exit code (0, 1, 2, 3 or 130: see ``--help``)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = parser().parse_args(argv)
+    except SystemExit as stop:  # --help (0), or an option argparse refuses (2, one line printed)
+        return stop.code if isinstance(stop.code, int) else contract.BAD_INPUT
+    return contract.run(lambda: _run(args, argv), debug=args.debug)
 
 
 if __name__ == "__main__":

@@ -20,10 +20,12 @@ from __future__ import annotations
 
 import importlib.metadata
 import logging
+import math
+import numbers
 from pathlib import Path
 
 from fpr.model import description
-from fpr.model.errors import RobotDefinitionError, UnknownRobotError
+from fpr.model.errors import ModelArgumentError, RobotDefinitionError, UnknownRobotError
 from fpr.model.parameters import load_parameters
 from fpr.model.robot import Robot
 from fpr.robots.base import RobotKind
@@ -107,6 +109,53 @@ def names() -> tuple[str, ...]:
     return tuple(_REGISTRY)
 
 
+PARAMETER_RANGES: dict[str, tuple[float, float, bool, str]] = {
+    "link_length": (0.05, 10.0, True, "m"),
+    "link_mass": (0.0, 100.0, False, "kg"),
+    "link_radius": (0.0, 0.5, False, "m"),
+    "end_effector_mass": (0.0, 100.0, True, "kg"),
+    "end_effector_radius": (0.0, 1.0, False, "m"),
+    "drone_mass": (0.0, 100.0, False, "kg"),
+    "drone_ixx": (0.0, 10.0, False, "kg m^2"),
+    "drone_iyy": (0.0, 10.0, False, "kg m^2"),
+    "drone_izz": (0.0, 10.0, False, "kg m^2"),
+    "hinge_offset": (0.0, 2.0, True, "m"),
+    "rotor_arm": (0.0, 2.0, False, "m"),
+}
+"""Sane physical range of the xacro arguments of the built-in descriptions: name -> (least, largest,
+whether the least itself is allowed, unit) [SI units]; :func:`check_parameters` applies it."""
+
+
+def check_parameters(overrides: dict, parameters: dict) -> None:
+    """Check xacro overrides before a robot is built from them.
+
+    Each key of :data:`PARAMETER_RANGES` given in ``overrides`` must be a finite number in its range; with
+    every value (``parameters``: the parameter file's, overrides included), the drone's principal inertias
+    must satisfy the triangle inequalities (a physical, positive-definite inertia). Whether the rotors can
+    lift the robot is the planner's to say (a controller's model may well be too heavy to fly).
+
+    Raises:
+        ModelArgumentError: ``argument`` the offending key, ``value`` its value, the message what to give.
+    """
+    for key, value in overrides.items():
+        if key not in PARAMETER_RANGES:
+            continue
+        low, high, low_allowed, unit = PARAMETER_RANGES[key]
+        if not isinstance(value, numbers.Real) or isinstance(value, bool) or not math.isfinite(value):
+            raise ModelArgumentError(key, value, f"{key} = {value!r}: give a finite number [{unit}]")
+        if value < low or value > high or (value == low and not low_allowed):
+            bracket = "[" if low_allowed else "("
+            raise ModelArgumentError(key, value, f"{key} = {value:g} {unit} is outside the sane range "
+                                                 f"{bracket}{low:g}, {high:g}] {unit}: give a value in it")
+    inertia = [parameters.get(f"drone_i{a}{a}") for a in "xyz"]
+    if any(f"drone_i{a}{a}" in overrides for a in "xyz") and all(isinstance(i, numbers.Real) for i in inertia):
+        for i, name in enumerate(("drone_ixx", "drone_iyy", "drone_izz")):
+            if inertia[i] > inertia[i - 1] + inertia[i - 2]:
+                raise ModelArgumentError(name, inertia[i], f"{name} = {inertia[i]:g} kg m^2 is more than the sum "
+                                                           "of the two other principal inertias: no rigid body "
+                                                           "has that inertia; give smaller or consistent values")
+
+
 def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Robot:
     """Load a robot into Pinocchio.
 
@@ -127,17 +176,19 @@ def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Rob
         UnknownRobotError: a name that is not registered.
         RobotDefinitionError: a key that is not a xacro argument (rotor constants, margins: edit the
             parameter file instead), both ``urdf`` and overrides given, or a URDF the kind cannot use.
+        ModelArgumentError: an override out of its physical range (:func:`check_parameters`).
     """
     kind = get(name)
     if urdf is not None and xacro_args:
         raise RobotDefinitionError(name, "give either a URDF file or xacro arguments, not both")
+    params = {**load_parameters(), **xacro_args}
+    check_parameters(xacro_args, params)
     if urdf is not None:
         text = Path(urdf).read_text(encoding="utf-8")
     elif xacro_args or kind.urdf is None:
         text = description.generate_urdf(kind.xacro, **xacro_args)
     else:
         text = Path(kind.urdf).read_text(encoding="utf-8")
-    params = {**load_parameters(), **xacro_args}
     return Robot(kind, text, params)
 
 
@@ -147,4 +198,4 @@ register(Prototype)
 BUILTIN: tuple[str, ...] = tuple(_REGISTRY)
 """The names of the robots that come with the library: ("fpr", "prototype")."""
 
-__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "RobotKind", "get", "load", "names", "register", "unregister"]
+__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "PARAMETER_RANGES", "RobotKind", "check_parameters", "get", "load", "names", "register", "unregister"]

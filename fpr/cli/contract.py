@@ -1,0 +1,93 @@
+"""The contract of a command line: exit codes, one-line messages, tracebacks only under ``--debug``.
+
+:func:`run` calls a command's work and turns what it raises into the documented exit code and one line
+on stderr (:data:`EXIT_CODES` is the text ``--help`` shows):
+
+* :class:`fpr.model.errors.FprError` (raised on purpose, its message says what to do), ``OSError``
+  (a file that cannot be read or written) and ``MemoryError``: bad input, exit 2;
+* ``KeyboardInterrupt`` (Ctrl-C): one line, exit 130;
+* anything else is a bug: one line saying so, the exception's type and message and where to report
+  it, exit 3; the traceback only with ``--debug``.
+
+The work returns 0 (success) or 1 (the result breaks a limit) itself.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import traceback
+
+import fpr
+from fpr.model.errors import FprError
+
+OK, LIMIT_BROKEN, BAD_INPUT, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 130
+
+EXIT_CODES = """exit codes:
+  0    success: every constraint holds (and, with --simulate, the robot was not lost)
+  1    the result breaks a limit: the plan violates a constraint, or the simulation lost the robot
+       (the output folder is still written; the message names the constraint, or what happened and when)
+  2    bad input: an option, the mission file, a robot parameter, a size of work over the limits, or an
+       --out folder that cannot be written (nothing is written; a previous --out folder is left as it was)
+  3    internal error: a bug in fpr (one line says so; --debug shows the traceback)
+  130  interrupted (Ctrl-C): nothing is written, a previous --out folder is left as it was"""
+
+REPORT = "please report it, with the command line and the output of --debug, to the fpr maintainers " \
+         "(the issue tracker of the fpr repository)"
+
+
+def one_line(text) -> str:
+    """``text`` on one line (the lines of a multi-line message joined by ``; ``)."""
+    return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (``error: ... (see --help)``) and exit 2."""
+
+    def error(self, message):
+        self.exit(BAD_INPUT, f"error: {one_line(message)} (see {self.prog} --help)\n")
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Defaults shown in the help, the description and the epilog (exit codes) as written."""
+
+
+def add_debug(parser: argparse.ArgumentParser) -> None:
+    """Add ``--debug``: show the traceback of an internal error or an interruption."""
+    parser.add_argument("--debug", action="store_true",
+                        help="show the traceback of an internal error (exit 3) or of Ctrl-C")
+
+
+def run(work, debug: bool = False) -> int:
+    """Call ``work()`` (it returns 0 or 1) and map what it raises to an exit code and one line on stderr."""
+    try:
+        return work()
+    except KeyboardInterrupt:
+        if debug:
+            traceback.print_exc()
+        print("interrupted (Ctrl-C): nothing written; a previous --out folder is left as it was", file=sys.stderr)
+        return INTERRUPTED
+    except FprError as error:
+        if debug:
+            traceback.print_exc()
+        print(f"error: {one_line(error)}", file=sys.stderr)
+        return BAD_INPUT
+    except MemoryError:
+        if debug:
+            traceback.print_exc()
+        print("error: out of memory: ask for less work (a lower --rate, shorter --times, fewer --via-points)",
+              file=sys.stderr)
+        return BAD_INPUT
+    except OSError as error:
+        if debug:
+            traceback.print_exc()
+        where = f" {error.filename}" if error.filename else ""
+        print(f"error: cannot read or write{where}: {error.strerror or error}: check the path and the free space",
+              file=sys.stderr)
+        return BAD_INPUT
+    except Exception as error:  # noqa: BLE001 - the contract: a bug is one line and exit 3
+        if debug:
+            traceback.print_exc()
+        print(f"internal error (a bug in fpr {fpr.__version__}): {type(error).__name__}: {one_line(error)}; "
+              f"{REPORT}", file=sys.stderr)
+        return INTERNAL_ERROR
