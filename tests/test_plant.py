@@ -147,6 +147,52 @@ def test_plant_accelerations_are_the_minimal_model_s(name):
         np.testing.assert_allclose(plant.acceleration(), expected, rtol=0, atol=tolerance)
 
 
+@pytest.mark.parametrize("name", fpr.ROBOTS)
+def test_rotor_constant_scale_scales_force_and_drag(name):
+    """scale 0.5: half of every thrust and torque at the same speeds; a negative scale is refused."""
+    robot, q, w = hovering(name)
+    nominal = Plant.from_minimal(robot, q, w=w)
+    half = Plant.from_minimal(robot, q, w=w, rotor_constant_scale=0.5)
+    for full, scaled in zip(nominal.rotor_inputs(), half.rotor_inputs(), strict=True):
+        np.testing.assert_allclose(scaled, 0.5 * full, rtol=1e-15, atol=0)
+    with pytest.raises(ModelArgumentError, match="rotor_constant_scale"):
+        Plant.from_minimal(robot, q, w=w, rotor_constant_scale=-1.0)
+
+
+def test_rotors_without_thrust_let_the_fpr_fall_freely():
+    """rotor_constant_scale 0 at hover speeds: no force at all, every drone drops g t^2 / 2 in 0.3 s (1e-6 m),
+    the chain keeps its shape."""
+    robot, q, w = hovering("fpr")
+    plant = Plant.from_minimal(robot, q, w=w, rotor_constant_scale=0.0)
+    start = plant.drone_positions()
+    steps = int(round(0.3 / DT))
+    for _ in range(steps):
+        plant.step(w, DT)
+    drop = start - plant.drone_positions()
+    np.testing.assert_allclose(drop, np.tile([0.0, 0.0, 0.5 * 9.81 * (steps * DT) ** 2], (2, 1)), atol=1e-6)
+
+
+@pytest.mark.parametrize("name", fpr.ROBOTS)
+def test_drone_hinges_tilts_and_speeds(name):
+    """What the simulator's watch reads: the hinges are the minimal model's drone joints; in the plane, a
+    drone's tilt is |its roll|; spinning the whole robot about z at 0.5 rad/s gives each drone that angular
+    speed and its hinge the speed 0.5 |r_y| (r_y its distance to the axis)."""
+    robot, q, w = hovering(name)
+    plant = Plant.from_minimal(robot, q, w=w)
+    joints = robot.kind.drone_joints(q[robot.indices(robot.layout.chain)])
+    np.testing.assert_allclose(plant.drone_joint_positions()[:, 1:], joints, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(plant.drone_joint_positions()[:, 0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(plant.drone_tilts(), np.abs(q[robot.indices(robot.layout.rolls)]), atol=1e-9)
+    np.testing.assert_allclose(plant.drone_speeds(), 0.0, atol=0)
+    q[robot.index["phi1"]] = 2.0  # past pi/2: the thrust points down
+    assert Plant.from_minimal(robot, q).drone_tilts()[0] == pytest.approx(2.0, abs=1e-9)
+    v = robot.configuration(psi=0.5)
+    q[robot.index["phi1"]] = 0.0
+    linear, angular = Plant.from_minimal(robot, q, v).drone_speeds()
+    np.testing.assert_allclose(angular, 0.5, atol=1e-12)
+    np.testing.assert_allclose(linear, 0.5 * np.abs(joints[:, 0]), atol=1e-12)
+
+
 def test_plant_errors():
     robot, q, w = hovering("fpr")
     plant = Plant.from_minimal(robot, q, w=w)

@@ -233,13 +233,14 @@ def _check_settings(st: SimulationSettings, robot) -> None:
     noise = np.asarray(st.measurement_noise, dtype=object)
     if noise.shape != (2,):
         raise ModelArgumentError("measurement_noise", st.measurement_noise,
-                                 f"measurement_noise = {st.measurement_noise!r}: give two standard deviations "
-                                 "(q [m or rad], v [m/s or rad/s]), each >= 0")
+                                 f"measurement_noise = {st.measurement_noise!r}: give two standard "
+                                 "deviations (q [m or rad], v [m/s or rad/s]), each >= 0")
     for value in noise:
         _positive("measurement_noise", value, zero_ok=True)
     wind = np.asarray(st.wind, dtype=object)
     if wind.shape != (3,) or not all(isinstance(f, (int, float, np.number)) and np.isfinite(f) for f in wind):
-        raise ModelArgumentError("wind", st.wind, f"wind = {st.wind!r}: give three finite forces (x, y, z) [N]")
+        raise ModelArgumentError("wind", st.wind,
+                                 f"wind = {st.wind!r}: give three finite forces (x, y, z) [N]")
     for name, offset in st.initial_error.items():
         if name not in robot.index:
             raise ModelArgumentError("initial_error", name,
@@ -337,7 +338,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
                 plant.step(command, dt, wind)
         except PlantDivergedError as error:  # the plant keeps its last finite state
             last, failure_time = k, error.time + dt
-            failure = (f"the state diverged (non-finite numbers in the plant state) between t = {error.time:.4f} s "
+            failure = (f"the state diverged ({error.what}) between t = {error.time:.4f} s "
                        f"and {failure_time:.4f} s")
             break
         if progress is not None and t + tick >= next_report:

@@ -49,11 +49,13 @@ class PlantDivergedError(FprError, FloatingPointError):
 
     Attributes:
         time: simulated time of the last finite state [s].
+        what: what happened, e.g. "the plant state became non-finite".
     """
 
-    def __init__(self, time: float, dt: float):
+    def __init__(self, time: float, dt: float, what: str = "the plant state became non-finite"):
         self.time = float(time)
-        super().__init__(f"the plant state became non-finite in the step of {dt:g} s after t = {time:.6g} s: "
+        self.what = what
+        super().__init__(f"{what} in the step of {dt:g} s after t = {time:.6g} s: "
                          "reduce the time step, or check the inputs")
 
 
@@ -215,8 +217,8 @@ class Plant:
         """
         if not (np.isfinite(rotor_constant_scale) and rotor_constant_scale >= 0):
             raise ModelArgumentError("rotor_constant_scale", rotor_constant_scale,
-                                     f"rotor_constant_scale = {rotor_constant_scale!r}: give a finite number >= 0 "
-                                     "(1: the nominal rotors)")
+                                     f"rotor_constant_scale = {rotor_constant_scale!r}: give a finite "
+                                     "number >= 0 (1: the nominal rotors)")
         self.closed = closed
         model = closed.model
         self.qc = check_shape("qc", qc, (model.nq,)).copy()
@@ -437,7 +439,7 @@ class Plant:
 
         Raises:
             ModelArgumentError: dt <= 0.
-            PlantDivergedError: the state became non-finite.
+            PlantDivergedError: the state became non-finite (or so fast that the integrator failed).
         """
         if not dt > 0:
             raise ModelArgumentError("dt", dt, f"dt = {dt!r}: the time step must be positive [s]")
@@ -466,7 +468,10 @@ class Plant:
             def acceleration(qc, vc, t):
                 return closed.forward_dynamics(qc, vc, self.generalized_force(qc, speeds(t), wind_forces))
 
-        qc, vc = rkmk4_step(closed.model, self.qc, self.vc, dt, acceleration)
+        try:
+            qc, vc = rkmk4_step(closed.model, self.qc, self.vc, dt, acceleration)
+        except np.linalg.LinAlgError as error:  # a rotation of ~2 pi within one step: the state blew up
+            raise PlantDivergedError(self.time, dt, f"the plant's integrator failed ({error})") from error
         if not (np.isfinite(qc).all() and np.isfinite(vc).all()):
             raise PlantDivergedError(self.time, dt)
         self.qc, self.vc, self._w = qc, vc, speeds(dt)
