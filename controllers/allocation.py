@@ -34,8 +34,12 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-import proxsuite
 from scipy.linalg import lapack
+
+from fpr.model.qp import proxsuite_module
+
+# the portable build, whose results do not depend on memory alignment (fpr.model.qp)
+proxsuite = proxsuite_module()
 
 _posv = lapack.dposv
 

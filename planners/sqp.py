@@ -22,7 +22,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import proxsuite
+
+from fpr.model.qp import proxsuite_module
+
+# the portable build: its results do not depend on memory alignment (fpr.model.qp), so plans repeat bit for bit
+proxsuite = proxsuite_module()
 
 
 @dataclass
