@@ -149,7 +149,7 @@ def test_plant_accelerations_are_the_minimal_model_s(name):
 
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_rotor_constant_scale_scales_force_and_drag(name):
-    """scale 0.5: half of every thrust and torque at the same speeds; a negative scale is refused."""
+    """A scale of 0.5: half of every thrust and torque at the same speeds; a negative scale is refused."""
     robot, q, w = hovering(name)
     nominal = Plant.from_minimal(robot, q, w=w)
     half = Plant.from_minimal(robot, q, w=w, rotor_constant_scale=0.5)

@@ -108,8 +108,8 @@ class SimulationLog:
         max_speed: w_max [rad/s]; speed_limit: w_max - m_gr, the planning limit [rad/s].
         wall_time: simulation wall time [s].
         failure: None when the simulation ran to its end; else one line saying how the robot was lost, which
-            drone or coordinate, the value, the bound and when (:mod:`fpr.sim.watch`), e.g. "drone 1 hinge
-            below the ground (z = -0.801 m < -0.800 m: ground -0.75 m, tolerance 0.05 m) at t = 0.520 s".
+            drone or coordinate, the value, the bound and when (:mod:`fpr.sim.watch`), e.g. "drone 2 hinge
+            below the ground (z = -0.8061 m < -0.8 m: ground -0.75 m, tolerance 0.05 m) at t = 0.522 s".
             The arrays then stop at that tick (their last sample is at ``failure_time``), or, when the state
             turned non-finite, at the last finite sample, just before ``failure_time``.
         failure_time: simulated time of the failure [s], or None.

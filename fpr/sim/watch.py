@@ -14,13 +14,22 @@ robot is lost, in this order (the first that fires is reported):
 The bounds are :class:`fpr.sim.closed_loop.SimulationSettings` fields; their defaults are far from
 what the reference missions reach (square: tracking errors < 1 cm, closure error < 1e-6 m, drones
 > 0.5 m above the ground). A failure is one line: what happened, to which drone or coordinate, the
-value and the bound, and when, e.g. "drone 1 hinge below the ground (z = -0.801 m < -0.800 m:
-ground -0.75 m, tolerance 0.05 m) at t = 0.520 s".
+value and the bound, and when, e.g. "drone 2 hinge below the ground (z = -0.8061 m < -0.8 m:
+ground -0.75 m, tolerance 0.05 m) at t = 0.522 s".
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+
+def _past(value: float, bound: float) -> str:
+    """``value`` with enough significant digits (4 at least) to read as past ``bound`` (0.2001, not 0.2)."""
+    for digits in range(4, 17):
+        text = f"{value:.{digits}g}"
+        if float(text) != bound:
+            return text
+    return repr(value)
 
 
 class Watch:
@@ -67,11 +76,12 @@ class Watch:
                                ("centre of mass", np.asarray(positions)[:, 2])):
             i = int(np.argmin(heights))
             if heights[i] < floor:
-                return (f"drone {i + 1} {label} below the ground (z = {heights[i]:.3f} m < {floor:.3f} m: "
+                z = _past(heights[i], floor)
+                return (f"drone {i + 1} {label} below the ground (z = {z} m < {floor:.4g} m: "
                         f"ground {self.ground:g} m, tolerance {self.ground_tolerance:g} m) {at}")
         if not closure_error <= self.max_closure_error:
-            return (f"the chain's closure broke (closure error {closure_error:.4g} m > "
-                    f"{self.max_closure_error:g} m) {at}")
+            value = _past(closure_error, self.max_closure_error)
+            return f"the chain's closure broke (closure error {value} m > {self.max_closure_error:g} m) {at}"
         linear, angular = plant.drone_speeds()
         tilts = plant.drone_tilts()
         for values, bound, what, unit in ((linear, self.max_drone_speed, "speed", "m/s"),
@@ -79,12 +89,14 @@ class Watch:
                                           (tilts, self.max_tilt, "tilt from the vertical", "rad")):
             i = int(np.argmax(values))
             if values[i] > bound:
-                return f"drone {i + 1} diverged ({what} {values[i]:.4g} {unit} > {bound:g} {unit}) {at}"
+                value = _past(values[i], bound)
+                return f"drone {i + 1} diverged ({what} {value} {unit} > {bound:g} {unit}) {at}"
         error = np.abs(np.asarray(q)[self.chain_index] - planned)
-        j = int(np.argmax(error / self.max_tracking_error))
-        if error[j] > self.max_tracking_error:
-            return (f"tracking lost on {self.chain[j]} (error {error[j]:.4g} {self.units[j]} > "
-                    f"{self.max_tracking_error:g} {self.units[j]}) {at}")
+        bound = self.max_tracking_error
+        j = int(np.argmax(error))
+        if error[j] > bound:
+            value, unit = _past(error[j], bound), self.units[j]
+            return f"tracking lost on {self.chain[j]} (error {value} {unit} > {bound:g} {unit}) {at}"
         return None
 
 
