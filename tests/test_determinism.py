@@ -1,0 +1,56 @@
+"""The same plan, bit for bit, in fresh interpreters with different hash seeds and heap layouts (issue 12).
+
+The singularity crossing is the planner's most sensitive NLP: a last-bit difference in one QP step
+(ProxQP's vectorised builds sum in an order that depends on the alignment of the memory they get,
+see :mod:`fpr.model.qp`) grew into plans whose J differed in the 4th digit. The crossing here runs
+with one start and no grid refinement, which is enough to show that difference (with the vectorised
+ProxQP, two such runs differ in their points) and takes about a third of the full mission's time.
+"""
+
+import json
+import os
+import subprocess
+import sys
+
+#: Plan the crossing mission, print its points, durations and J as exact hex floats (one JSON line).
+#: ``sys.argv[1]`` is padding whose length moves what the heap holds before the plan.
+SCRIPT = """
+import json, sys
+padding = [bytearray(n) for n in range(1, len(sys.argv[1]) + 1)]
+from planners.crossing import CROSSING_STARTS
+from planners.mission import load_mission
+from planners.methods import crossing
+from fpr.model import qp
+mission = load_mission("cross-singularity")
+robot = mission.load_robot()
+start, end, duration, n_via = crossing._task(mission, robot)
+from planners.crossing import optimise_crossing
+outcome = optimise_crossing(robot, start, end, duration, n_via, alpha=mission.alpha, starts=CROSSING_STARTS[:1],
+                            max_refinements=0)
+trajectory = outcome.trajectory
+print(json.dumps({
+    "points": [float(v).hex() for v in trajectory.points.reshape(-1)],
+    "durations": [float(v).hex() for v in trajectory.durations],
+    "J": [float(outcome.report.J_e).hex(), float(outcome.report.J_phi).hex()],
+    "deterministic_qp": qp.DETERMINISTIC,
+}))
+"""
+
+
+def _plan(hash_seed: str, padding: str) -> dict:
+    env = dict(os.environ, PYTHONHASHSEED=hash_seed)
+    done = subprocess.run([sys.executable, "-c", SCRIPT, padding], env=env, capture_output=True, text=True,
+                          timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_crossing_plan_is_identical_under_two_hash_seeds():
+    first = _plan("1", "x")
+    second = _plan("2", "x" * 37)
+    assert first["deterministic_qp"] and second["deterministic_qp"]
+    assert first["durations"] == second["durations"]
+    differing = [i for i, (a, b) in enumerate(zip(first["points"], second["points"])) if a != b]
+    assert not differing, f"{len(differing)} of {len(first['points'])} point entries differ, e.g. " \
+                          f"{[(first['points'][i], second['points'][i]) for i in differing[:3]]}"
+    assert first["J"] == second["J"]
