@@ -72,14 +72,15 @@ def _duration(seconds: float) -> str:
 
 
 def _number(option: str, value, *, low: float | None = None, low_open: bool = False,
-            high: float | None = None, meaning: str) -> None:
-    """A finite number within [low, high] (``low_open``: > low)."""
+            high: float | None = None, meaning: str, shown=None) -> None:
+    """A finite number within [low, high] (``low_open``: > low); ``shown``: the value as the message shows it."""
+    shown = value if shown is None else shown
     if not math.isfinite(value):
-        raise CommandLineError(option, value, f"give a finite number ({meaning})")
+        raise CommandLineError(option, shown, f"give a finite number ({meaning})")
     if low is not None and (value < low or (low_open and value == low)):
-        raise CommandLineError(option, value, f"give a number {'>' if low_open else '>='} {low:g} ({meaning})")
+        raise CommandLineError(option, shown, f"give a number {'>' if low_open else '>='} {low:g} ({meaning})")
     if high is not None and value > high:
-        raise CommandLineError(option, value, f"give a number <= {high:g} ({meaning})")
+        raise CommandLineError(option, shown, f"give a number <= {high:g} ({meaning})")
 
 
 def check_options(args) -> None:
@@ -99,7 +100,7 @@ def check_options(args) -> None:
             raise CommandLineError("--via-points", args.via_points, f"via_points[{i}] = {n}: give integers >= 0 "
                                                                     "(via points inside each travel)")
     for key, value in args.robot_parameters:
-        _number(f"--set {key}", value, low=0.0, meaning="robot parameter [SI units]")
+        _number("--set", value, low=0.0, meaning=f"robot parameter {key} [SI units]", shown=f"{key}={value:g}")
     _number("--model-mass-scale", args.model_mass_scale, low=0.0, low_open=True, high=MAX_SCALE,
             meaning="the controller's masses are the robot's times this")
     _number("--rotor-constant-scale", args.rotor_constant_scale, low=0.0, low_open=True, high=MAX_SCALE,
@@ -117,7 +118,7 @@ def check_options(args) -> None:
             _number("--noise", s, low=0.0, meaning="a standard deviation is >= 0")
     _number("--hold", args.hold, low=0.0, meaning="time simulated after the plan's end [s]")
     for name, offset in args.initial_error:
-        _number(f"--initial-error {name}", offset, low=-MAX_OFFSET, high=MAX_OFFSET,
+        _number("--initial-error", offset, low=-MAX_OFFSET, high=MAX_OFFSET, shown=f"{name}={offset:g}",
                 meaning="offset of a coordinate at the start [m or rad]")
 
 

@@ -11,6 +11,8 @@ solve time, then the worst value of every constraint. Into ``--out`` (default
   points, durations and monomial coefficients of every segment;
 * ``trajectory.csv``: one row per sample at ``--rate`` (columns and units in README.md);
 * ``reference.csv``: the same for the stop-at-every-way-point motion;
+* ``manifest.json``: the command line, fpr's version, a hash of the inputs (the mission as planned and
+  the options), the start time, the duration, the exit code and the wall-clock timings;
 * PNG figures of the thesis' planning chapter (``fpr.views.figures``);
 * with ``--simulate``: ``simulation.npz`` (the :class:`fpr.sim.closed_loop.SimulationLog`), ``sim_*``
   columns in ``trajectory.csv`` and the simulation figures; the summary adds tracking errors,
@@ -382,7 +384,8 @@ def _run(args, argv) -> int:
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, flush=True))
     started, start = time.time(), time.perf_counter()
     mission, robot = _inputs(args)
-    folder = OutputFolder(args.out or Path("fpr-out") / mission.name)
+    safe_name = "".join(c if c.isalnum() or c in "-_." else "_" for c in mission.name).lstrip(".") or "mission"
+    folder = OutputFolder(args.out or Path("fpr-out") / safe_name[:100])
     tmp = folder.open()
     say(f"mission {mission.name!r} ({mission.robot}): {len(mission.times)} travels, "
         f"{float(np.sum(mission.times)):g} s, via points {list(map(int, mission.via_points))}, "
