@@ -320,3 +320,25 @@ def test_ctrl_c_prints_one_line_and_exits_130(tmp_path):
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted")
     assert os.listdir(out) == ["manifest.json"] and (out / "manifest.json").read_text() == "{}"
     assert not _leftovers(tmp_path)
+
+
+def test_a_failed_swap_puts_the_previous_folder_back(previous, monkeypatch):
+    """fpr.cli.output.OutputFolder.commit: if the new folder cannot be renamed in, the old one returns."""
+    from fpr.cli import output
+
+    out, before = previous
+    folder = output.OutputFolder(out)
+    tmp = folder.open()
+    (tmp / "plan.json").write_text("new")
+    real_rename, calls = os.rename, []
+
+    def rename(src, dst):
+        calls.append((src, dst))
+        if len(calls) == 2:  # the new folder into place
+            raise OSError(errno.EXDEV, "Invalid cross-device link")
+        real_rename(src, dst)
+
+    monkeypatch.setattr(output.os, "rename", rename)
+    with pytest.raises(output.OutputError, match="previous one is left as it was"):
+        folder.commit()
+    assert _snapshot(out) == before and not _leftovers(out.parent)

@@ -386,11 +386,11 @@ def _run(args, argv) -> int:
     mission, robot = _inputs(args)
     safe_name = "".join(c if c.isalnum() or c in "-_." else "_" for c in mission.name).lstrip(".") or "mission"
     folder = OutputFolder(args.out or Path("fpr-out") / safe_name[:100])
-    tmp = folder.open()
     say(f"mission {mission.name!r} ({mission.robot}): {len(mission.times)} travels, "
         f"{float(np.sum(mission.times)):g} s, via points {list(map(int, mission.via_points))}, "
         f"alpha {mission.alpha:g}, method {args.method}")
     try:
+        tmp = folder.open()
         code, outcome, timings, visualizer = _work(args, mission, robot, tmp, say)
         files = sorted(p.name for p in tmp.iterdir())
         command = parser().prog.split() + list(argv)
