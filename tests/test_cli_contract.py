@@ -342,3 +342,16 @@ def test_a_failed_swap_puts_the_previous_folder_back(previous, monkeypatch):
     with pytest.raises(output.OutputError, match="previous one is left as it was"):
         folder.commit()
     assert _snapshot(out) == before and not _leftovers(out.parent)
+
+
+def test_same_bytes_whatever_the_hash_seed(tmp_path):
+    """The real command under two PYTHONHASHSEED values: plan.json and trajectory.csv identical."""
+    files = []
+    for seed in ("1", "2"):
+        out = tmp_path / seed
+        proc = subprocess.run([sys.executable, "-m", "fpr.plan", "--mission", "square", "--no-plots", "--quiet",
+                               "--rate", "20", "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
+                              env={**os.environ, "PYTHONHASHSEED": seed}, timeout=300)
+        assert proc.returncode == 0, proc.stderr
+        files.append({n: (out / n).read_bytes() for n in ("plan.json", "trajectory.csv")})
+    assert files[0] == files[1]
