@@ -304,7 +304,8 @@ def test_infeasible_plan_exits_1_and_writes_its_folder(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------------------- Ctrl-C on the real command
-def test_ctrl_c_prints_one_line_and_exits_130(tmp_path):
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_prints_one_line_and_exits_130(tmp_path, signum):
     out = tmp_path / "out"
     out.mkdir()
     (out / "manifest.json").write_text("{}")  # a previous run
@@ -314,7 +315,7 @@ def test_ctrl_c_prints_one_line_and_exits_130(tmp_path):
     while not _leftovers(tmp_path) and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.05)  # the temporary folder exists: the work has started
     time.sleep(0.5)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(signum)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted")

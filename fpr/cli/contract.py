@@ -5,7 +5,7 @@ on stderr (:data:`EXIT_CODES` is the text ``--help`` shows):
 
 * :class:`fpr.model.errors.FprError` (raised on purpose, its message says what to do), ``OSError``
   (a file that cannot be read or written) and ``MemoryError``: bad input, exit 2;
-* ``KeyboardInterrupt`` (Ctrl-C): one line, exit 130;
+* ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM, turned into one while the work runs): one line, exit 130;
 * anything else is a bug: one line saying so, the exception's type and message and where to report
   it, exit 3; the traceback only with ``--debug``.
 
@@ -15,7 +15,10 @@ The work returns 0 (success) or 1 (the result breaks a limit) itself.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
+import threading
 import traceback
 
 import fpr
@@ -30,7 +33,7 @@ EXIT_CODES = """exit codes:
   2    bad input: an option, the mission file, a robot parameter, a size of work over the limits, or an
        --out folder that cannot be written (nothing is written; a previous --out folder is left as it was)
   3    internal error: a bug in fpr (one line says so; --debug shows the traceback)
-  130  interrupted (Ctrl-C): nothing is written, a previous --out folder is left as it was"""
+  130  interrupted (Ctrl-C, SIGTERM): nothing is written, a previous --out folder is left as it was"""
 
 REPORT = "please report it, with the command line and the output of --debug, to the fpr maintainers " \
          "(the issue tracker of the fpr repository)"
@@ -58,14 +61,33 @@ def add_debug(parser: argparse.ArgumentParser) -> None:
                         help="show the traceback of an internal error (exit 3) or of Ctrl-C")
 
 
+@contextlib.contextmanager
+def _terminate_as_interrupt():
+    """SIGTERM (a ``kill``, a job scheduler) raises KeyboardInterrupt, so that the work cleans up (main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(*_):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def run(work, debug: bool = False) -> int:
     """Call ``work()`` (it returns 0 or 1) and map what it raises to an exit code and one line on stderr."""
     try:
-        return work()
+        with _terminate_as_interrupt():
+            return work()
     except KeyboardInterrupt:
         if debug:
             traceback.print_exc()
-        print("interrupted (Ctrl-C): nothing written; a previous --out folder is left as it was", file=sys.stderr)
+        print("interrupted (Ctrl-C or SIGTERM): nothing written; a previous --out folder is left as it was",
+              file=sys.stderr)
         return INTERRUPTED
     except FprError as error:
         if debug:
