@@ -128,16 +128,16 @@ def _field(args, option: str, field: str, mission) -> str:
     return option if given else f"{mission.source}: field {field!r} ="
 
 
-def _check_lift(args, robot) -> None:
+def _check_lift(args, mission, robot) -> None:
     """Each drone's rotors lift at least its own weight at full speed (4 c_T w_max^2 >= m_d g)."""
     rotors = robot.rotor_constants
     lift = 4 * rotors.thrust_coefficient * rotors.max_speed ** 2
     gravity = float(robot.parameters["gravity"])
     for i, mass in enumerate(robot.drone_masses):
         if mass * gravity > lift:
-            given = "--set drone_mass" if any(k == "drone_mass" for k, _ in args.robot_parameters) else \
-                "robot_parameters.drone_mass"
-            raise CommandLineError(given, float(mass), f"drone {i + 1} weighs {mass * gravity:.3g} N, more than its 4 "
+            by_option = any(k == "drone_mass" for k, _ in args.robot_parameters)
+            given = "--set" if by_option else f"{mission.source}: field 'robot_parameters.drone_mass' ="
+            raise CommandLineError(given, f"drone_mass={mass:g}" if by_option else f"{mass:g}", f"drone {i + 1} weighs {mass * gravity:.3g} N, more than its 4 "
                                                        f"rotors lift at full speed ({lift:.3g} N): give a drone of "
                                                        f"at most {lift / gravity:.3g} kg, or edit the rotor "
                                                        "constants in urdf/parameters.yaml")
@@ -161,7 +161,7 @@ def check_work(args, mission, robot, optimised: bool) -> None:
         if name not in known:
             raise CommandLineError("--initial-error", f"{name}=...", f"unknown coordinate {name!r}: use one of "
                                                                      f"{', '.join(known)}")
-    _check_lift(args, robot)
+    _check_lift(args, mission, robot)
     duration = mission.duration
     dense = duration * DENSE_RATE + 1
     if dense > MAX_SAMPLES:
