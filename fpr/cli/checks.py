@@ -18,7 +18,9 @@ import math
 from fpr.model.errors import FprError
 
 MAX_SAMPLES = 200_000
-"""Largest number of samples of one grid: a CSV file's rows (``--rate``) or the planner's dense check (500 Hz)."""
+"""Largest number of samples of the planner's dense check (500 Hz): a 400 s mission, about 20 s and 0.6 GB."""
+MAX_ROWS = 100_000
+"""Largest number of rows of a CSV file (``--rate`` times the duration): about 30 s and 0.3 GB a file."""
 DENSE_RATE = 500.0
 """Rate of the planner's dense-grid check [Hz] (:class:`planners.options.PlanOptions`)."""
 MAX_SEGMENTS = 64
@@ -172,11 +174,11 @@ def check_work(args, mission, robot, optimised: bool) -> None:
                                f"limit is {MAX_SAMPLES:,} samples ({MAX_SAMPLES / DENSE_RATE:g} s): give shorter "
                                "travel times")
     rows = math.floor(duration * args.rate) + 1
-    if rows > MAX_SAMPLES:
+    if rows > MAX_ROWS:
         raise CommandLineError("--rate", args.rate,
                                f"trajectory.csv would have {rows:.3g} rows ({duration:g} s at {args.rate:g} Hz, about "
-                               f"{_bytes(rows * BYTES_PER_SAMPLE)} of memory); the limit is {MAX_SAMPLES:,} rows: "
-                               f"give --rate {math.floor((MAX_SAMPLES - 1) / duration):d} or less")
+                               f"{_bytes(rows * BYTES_PER_SAMPLE)} of memory); the limit is {MAX_ROWS:,} rows: "
+                               f"give --rate {math.floor((MAX_ROWS - 1) / duration):d} or less")
     segments = int(sum(int(n) + 1 for n in mission.via_points))
     if optimised and segments > MAX_SEGMENTS:
         where = _field(args, "--via-points", "via_points", mission)
