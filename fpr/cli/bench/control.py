@@ -31,7 +31,6 @@ import time
 from importlib.metadata import PackageNotFoundError, version
 
 import numpy as np
-import proxsuite
 
 import fpr
 from controllers.allocation import Allocator, pseudo_inverse_law
@@ -39,6 +38,7 @@ from controllers.ctc import CascadedController
 from fpr.cli.bench.model import SEED
 from fpr.cli.bench.timing import Bench, cycling, fmt, time_part
 from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.model.qp import proxsuite_module
 from fpr.model.robot import Robot
 from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.sim.plant import Plant, hover_configuration
@@ -51,6 +51,8 @@ CONTROL_TARGETS = {"warm_qp_solve_s": 20e-6, "real_time_factor": 20.0}
 #: thrust of the "bounds active" allocation case, in hover thrusts
 SATURATING_THRUST = 3.0
 
+
+proxsuite = proxsuite_module()  # the build the planner and the allocator use (fpr.model.qp)
 
 
 def _allocation_states(robot, rng, count: int):
