@@ -64,3 +64,27 @@ def test_the_first_failure_in_the_documented_order_is_reported():
 def test_values_are_printed_past_their_bound():
     assert _past(0.20003, 0.2) == "0.20003"
     assert _past(1.0042, 1.0) == "1.004" and _past(-0.8061, -0.8) == "-0.8061"
+
+
+@pytest.mark.parametrize("name", fpr.ROBOTS)
+def test_the_cheap_screen_never_hides_a_failure(name):
+    """The screen (plain Python, every tick) against the full check alone, on states scattered across every bound:
+    whenever the full check finds a failure, the screen lets the state through to it."""
+    robot, plant, q, positions, closure, planned = state(name)
+    rng = np.random.default_rng(7)
+    bounds = dict(max_drone_speed=0.5, max_drone_rate=0.5, max_tilt=0.3, max_tracking_error=0.2, ground_tolerance=0.0)
+    screened, full = Watch(robot, SimulationSettings(**bounds)), Watch(robot, SimulationSettings(**bounds))
+    full._may_be_lost = lambda *args: True  # the full check on every state
+    qc0, vc0 = plant.qc.copy(), plant.vc.copy()
+    fired = 0
+    for _ in range(300):
+        plant.qc = qc0 + rng.normal(scale=0.3, size=qc0.shape) * (rng.random(qc0.shape) < 0.3)
+        plant.vc = vc0 + rng.normal(scale=0.4, size=vc0.shape)
+        offset = rng.normal(scale=0.15, size=planned.shape)
+        low = positions.copy()
+        low[:, 2] += rng.normal(scale=0.8)
+        args = (0.0, plant, q, np.zeros(robot.nq), low, closure, planned + offset)
+        expected = full.check(*args)
+        fired += expected is not None
+        assert screened.check(*args) == expected
+    assert 50 < fired < 300  # the cases reach both sides of the bounds

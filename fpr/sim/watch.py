@@ -20,6 +20,8 @@ ground -0.75 m, tolerance 0.05 m) at t = 0.522 s".
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -51,6 +53,55 @@ class Watch:
         self.chain = tuple(robot.layout.chain)
         self.units = tuple(robot.kind.chain_units)
         self.chain_index = robot.indices(robot.layout.chain)
+        self._screen = None  # index arrays of the plant's state, built at the first check
+
+    def _build_screen(self, plant) -> None:
+        """Indices into the plant's state for :meth:`_may_be_lost`, as tuples of ints."""
+        flyers = plant._freeflyers
+        self._screen = (
+            tuple(iq + 2 for iq, _, _ in flyers),  # hinge heights z
+            tuple((iv, iv + 1, iv + 2) for _, iv, _ in flyers),  # linear velocities
+            tuple((iv + 3, iv + 4, iv + 5) for _, iv, _ in flyers),  # angular velocities
+            tuple((iq + 3, iq + 4, iq + 5, iq + 6, tuple(float(a) for a in axis)) for iq, _, axis in flyers),
+            tuple(int(i) for i in self.chain_index),
+        )
+
+    def _may_be_lost(self, plant, q, v, positions, closure_error: float, planned) -> bool:
+        """A cheap screen with every bound moved 1e-9 (relative) towards the safe side: False means
+        :meth:`check` finds nothing; True sends the state to the full check, which decides and words the
+        failure.
+
+        It runs at every inner-loop tick (500 Hz) on a few dozen numbers, where each numpy call costs
+        microseconds: plain Python on the state as lists (~15 us) instead of the full check (~140 us).
+        """
+        if self._screen is None:
+            self._build_screen(plant)
+        hinge_z, linear, angular, quaternions, chain = self._screen
+        qc, vc, ql = plant.qc.tolist(), plant.vc.tolist(), q.tolist()
+        if not math.isfinite(sum(qc) + sum(vc) + sum(ql) + sum(v.tolist())):  # NaN or inf if any entry is
+            return True
+        tight = 1.0 - 1e-9  # the screen fires a little before the bounds, never after
+        floor = self.ground - self.ground_tolerance
+        floor += 1e-9 * max(1.0, abs(floor))
+        if min(qc[i] for i in hinge_z) < floor or min(row[2] for row in positions.tolist()) < floor:
+            return True
+        if not closure_error <= self.max_closure_error * tight:
+            return True
+        speed, rate = (self.max_drone_speed * tight) ** 2, (self.max_drone_rate * tight) ** 2
+        for (a, b, c), (d, e, f) in zip(linear, angular, strict=True):
+            if vc[a] ** 2 + vc[b] ** 2 + vc[c] ** 2 > speed or vc[d] ** 2 + vc[e] ** 2 + vc[f] ** 2 > rate:
+                return True
+        if self.max_tilt < math.pi:  # the cosine of the tilt: third row of the drone's rotation . its axis
+            lowest = math.cos(self.max_tilt * tight)
+            for i, j, k, m, (ax, ay, az) in quaternions:
+                x, y, z, w = qc[i], qc[j], qc[k], qc[m]
+                norm2 = x * x + y * y + z * z + w * w
+                cosine = (2 * (x * z - w * y) * ax + 2 * (y * z + w * x) * ay) / norm2 \
+                    + (1 - 2 * (x * x + y * y) / norm2) * az
+                if cosine < lowest:
+                    return True
+        bound = self.max_tracking_error * tight
+        return any(abs(ql[i] - p) > bound for i, p in zip(chain, planned.tolist(), strict=True))
 
     def check(self, t: float, plant, q, v, positions, closure_error: float, planned) -> str | None:
         """The failure at time t, or None when the robot is not lost.
@@ -67,6 +118,8 @@ class Watch:
         Returns:
             one line naming what happened, the value, the bound and the time; None.
         """
+        if not self._may_be_lost(plant, q, v, positions, closure_error, planned):
+            return None
         at = f"at t = {t:.3f} s"
         if not (np.isfinite(plant.qc).all() and np.isfinite(plant.vc).all() and np.isfinite(q).all()
                 and np.isfinite(v).all()):
