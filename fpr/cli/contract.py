@@ -83,33 +83,27 @@ def run(work, debug: bool = False) -> int:
     try:
         with _terminate_as_interrupt():
             return work()
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Exception) as error:  # noqa: BLE001 - the contract: an exit code and one line
+        code, line = _ending(error)
         if debug:
             traceback.print_exc()
-        print("interrupted (Ctrl-C or SIGTERM): nothing written; a previous --out folder is left as it was",
-              file=sys.stderr)
-        return INTERRUPTED
-    except FprError as error:
-        if debug:
-            traceback.print_exc()
-        print(f"error: {one_line(error)}", file=sys.stderr)
-        return BAD_INPUT
-    except MemoryError:
-        if debug:
-            traceback.print_exc()
-        print("error: out of memory: ask for less work (a lower --rate, shorter --times, fewer --via-points)",
-              file=sys.stderr)
-        return BAD_INPUT
-    except OSError as error:
-        if debug:
-            traceback.print_exc()
+        print(line, file=sys.stderr)
+        return code
+
+
+def _ending(error: BaseException) -> tuple[int, str]:
+    """The exit code and the stderr line of an exception that ended the work (:func:`run`)."""
+    if isinstance(error, KeyboardInterrupt):
+        return INTERRUPTED, ("interrupted (Ctrl-C or SIGTERM): nothing written; a previous --out folder is "
+                             "left as it was")
+    if isinstance(error, FprError):
+        return BAD_INPUT, f"error: {one_line(error)}"
+    if isinstance(error, MemoryError):
+        return BAD_INPUT, ("error: out of memory: ask for less work (a lower --rate, shorter --times, "
+                           "fewer --via-points)")
+    if isinstance(error, OSError):
         where = f" {error.filename}" if error.filename else ""
-        print(f"error: cannot read or write{where}: {error.strerror or error}: check the path and the free space",
-              file=sys.stderr)
-        return BAD_INPUT
-    except Exception as error:  # noqa: BLE001 - the contract: a bug is one line and exit 3
-        if debug:
-            traceback.print_exc()
-        print(f"internal error (a bug in fpr {fpr.__version__}): {type(error).__name__}: {one_line(error)}; "
-              f"{REPORT}", file=sys.stderr)
-        return INTERNAL_ERROR
+        return BAD_INPUT, (f"error: cannot read or write{where}: {error.strerror or error}: check the path "
+                           "and the free space")
+    return INTERNAL_ERROR, (f"internal error (a bug in fpr {fpr.__version__}): {type(error).__name__}: "
+                            f"{one_line(error)}; {REPORT}")
