@@ -114,6 +114,36 @@ def urdf_path(robot: str | Path) -> Path:
     return path.with_name(name + ".urdf")
 
 
+UNWRAPPED_ANGLE_LIMIT = 1.0e9
+"""The position limit [rad] :func:`single_angle_urdf` gives a continuous joint: never reached, never enforced."""
+
+
+def single_angle_urdf(urdf: str) -> str:
+    """Return the URDF text with every ``continuous`` joint written as a ``revolute`` one, for Pinocchio.
+
+    The passive hinges of the chain are ``continuous`` in the URDF: they have no angle limit, and other
+    readers (MuJoCo, yourdfpy, RViz) see none. Pinocchio, however, gives a continuous joint two
+    configuration coordinates (cos, sin of its angle; ``nq = 2``, ``nv = 1``), while every model of this
+    project uses one unwrapped angle per hinge (``nq = nv``). A revolute joint with the limits
+    ``+-UNWRAPPED_ANGLE_LIMIT`` is that coordinate; Pinocchio's dynamics never enforce a limit.
+
+    Args:
+        urdf: the URDF text.
+
+    Returns:
+        The same text with ``type="continuous"`` joints replaced (everything else byte for byte).
+    """
+
+    def revolute(match: re.Match) -> str:
+        joint = match.group(0).replace('type="continuous"', 'type="revolute"', 1)
+        limit = f'<limit lower="{-UNWRAPPED_ANGLE_LIMIT:g}" upper="{UNWRAPPED_ANGLE_LIMIT:g}" effort="0" velocity="0"/>'
+        if "<limit" in joint:
+            return re.sub(r"<limit\b[^>]*/>", limit, joint, count=1)
+        return joint.replace("</joint>", limit + "</joint>", 1)
+
+    return re.sub(r"<joint\b[^>]*\btype=\"continuous\"[^>]*>.*?</joint>", revolute, urdf, flags=re.S)
+
+
 def xacro_arguments(xacro: str | Path | None = None) -> tuple[str, ...]:
     """Return the names of the xacro arguments the robot descriptions accept.
 

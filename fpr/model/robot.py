@@ -34,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
+from fpr.model.description import single_angle_urdf
 from fpr.model.errors import ModelArgumentError, NotUniformError, RobotDefinitionError, check_shape
 from fpr.model.parameters import Margins, RotorConstants, load_parameters, margins, rotor_constants
 from fpr.model.planar import PlanarModel
@@ -146,10 +147,11 @@ class Robot:
         self.layout = kind.layout
         self.urdf = urdf
         self.parameters = params or load_parameters()
+        text = single_angle_urdf(urdf)  # continuous hinges: one angle each
         if self.layout.euler_root:
-            self.model = pin.buildModelFromXML(urdf, euler_root_joint(), EULER_ROOT_NAME)
+            self.model = pin.buildModelFromXML(text, euler_root_joint(), EULER_ROOT_NAME)
         else:
-            self.model = pin.buildModelFromXML(urdf)
+            self.model = pin.buildModelFromXML(text)
         self.model.gravity.linear = np.array([0.0, 0.0, -float(self.parameters["gravity"])])
         self.data = self.model.createData()
         self.rotor_constants: RotorConstants = rotor_constants(self.parameters)

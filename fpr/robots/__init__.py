@@ -121,6 +121,8 @@ PARAMETER_RANGES: dict[str, tuple[float, float, bool, str]] = {
     "drone_izz": (0.0, 10.0, False, "kg m^2"),
     "hinge_offset": (0.0, 2.0, True, "m"),
     "rotor_arm": (0.0, 2.0, False, "m"),
+    "pivot_mass": (0.0, 10.0, False, "kg"),
+    "pivot_inertia": (0.0, 1.0, False, "kg m^2"),
 }
 """Sane physical range of the xacro arguments of the built-in descriptions: name -> (least, largest,
 whether the least itself is allowed, unit) [SI units]; :func:`check_parameters` applies it."""
