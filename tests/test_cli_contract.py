@@ -356,3 +356,32 @@ def test_same_bytes_whatever_the_hash_seed(tmp_path):
         assert proc.returncode == 0, proc.stderr
         files.append({n: (out / n).read_bytes() for n in ("plan.json", "trajectory.csv")})
     assert files[0] == files[1]
+
+
+# --- python -m fpr.studies: the same contract -------------------------------------------------------
+
+
+def test_studies_refuses_a_bad_out_before_the_work(tmp_path, capsys):
+    """An --out that is a file: exit 2 and one line at once (not after the minutes of planning)."""
+    from fpr.cli import studies
+
+    target = tmp_path / "file"
+    target.write_text("mine", encoding="utf-8")
+    start = time.perf_counter()
+    code = studies.main(["--quick", "--quiet", "--out", str(target)])
+    err = capsys.readouterr().err
+    assert code == 2 and time.perf_counter() - start < 5
+    assert "--out" in _one_line(err) and target.read_text(encoding="utf-8") == "mine"
+    assert studies.main(["--bogus"]) == 2
+    assert "see python -m fpr.studies --help" in _one_line(capsys.readouterr().err)
+
+
+def test_studies_keep_wall_times_out_of_studies_json():
+    """The planning times go to the manifest, so that studies.json is the same bytes from run to run."""
+    from fpr.cli.studies import _split_times
+
+    times = []
+    doc = _split_times({"via": {"cases": [{"J": 1.0, "wall_time": 0.25}, {"J": 2.0, "wall_time": 0.5}]},
+                        "wall_time": 3.0}, times)
+    assert doc == {"via": {"cases": [{"J": 1.0}, {"J": 2.0}]}}
+    assert times == [("via/cases[0]", 0.25), ("via/cases[1]", 0.5), ("", 3.0)]

@@ -29,7 +29,7 @@ import fpr
 from fpr.model.errors import FprError
 
 MANIFEST = "manifest.json"
-_PREVIOUS_RUN_FILES = (("manifest.json",), ("mission.toml", "plan.json"))
+_PREVIOUS_RUN_FILES = (("manifest.json",), ("mission.toml", "plan.json"), ("studies.json",))
 
 
 class OutputError(FprError, OSError):

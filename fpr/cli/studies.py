@@ -12,7 +12,6 @@ motion against the stop-at-way-points one (Fig. 3.11-3.18, one folder per method
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -24,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fpr.cli import contract
+from fpr.cli.output import OutputFolder, inputs_hash, manifest, write_manifest
 from fpr.views.figures import alpha_study_figure, plan_figures, via_point_study_figure
 from planners.mission import load_mission
 from planners.studies import (
@@ -138,42 +139,95 @@ def _json_safe(value):
     return value
 
 
-def main(argv=None) -> int:
-    """Run the three studies, print their tables, write the figures and ``studies.json``; returns 0."""
-    parser = argparse.ArgumentParser(prog="python -m fpr.studies", description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("fpr-out") / "studies",
-                        help="output folder (default fpr-out/studies)")
-    parser.add_argument("--quick", action="store_true",
-                        help=f"fewer cases: n_vp in {QUICK['counts']}, alpha in {QUICK['alphas']}")
-    parser.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
-    parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
-    args = parser.parse_args(argv)
+def _split_times(value, times: list, path: str = ""):
+    """``value`` without its wall times (``wall_time`` keys), which go to ``times`` as (path, seconds)."""
+    if isinstance(value, dict):
+        kept = {}
+        for key, item in value.items():
+            if key == "wall_time":
+                times.append((path, item))
+            else:
+                kept[key] = _split_times(item, times, f"{path}/{key}" if path else str(key))
+        return kept
+    if isinstance(value, list):
+        return [_split_times(item, times, f"{path}[{i}]") for i, item in enumerate(value)]
+    return value
+
+
+def parser() -> contract.Parser:
+    """The argument parser of ``python -m fpr.studies``."""
+    p = contract.Parser(prog="python -m fpr.studies", description=__doc__.split("\n\n")[0],
+                        formatter_class=contract.HelpFormatter,
+                        epilog=contract.EXIT_CODES.replace(
+                            "  1    the result breaks a limit",
+                            "  1    (not used: an infeasible case is a finding of the study, shown in its table)\n"
+                            "       for fpr.plan: the result breaks a limit", 1))
+    p.add_argument("--out", type=Path, default=Path("fpr-out") / "studies",
+                   help="output folder, replaced atomically when the studies are done")
+    p.add_argument("--quick", action="store_true",
+                   help=f"fewer cases: n_vp in {QUICK['counts']}, alpha in {QUICK['alphas']}")
+    p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    contract.add_debug(p)
+    return p
+
+
+def _run(args, argv) -> int:
     progress = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
     counts = QUICK["counts"] if args.quick else VIA_POINT_COUNTS
     alphas = QUICK["alphas"] if args.quick else ALPHAS
-    start = time.perf_counter()
-    robot = load_mission(STUDY_MISSION).load_robot()
-    via = via_point_study(counts=counts, robot=robot, progress=progress)
-    alpha = alpha_study(alphas=alphas, robot=robot, progress=progress)
-    comparison = method_comparison(robot=robot, progress=progress)
-    for title, study in ((f"Via points (mission {via.mission!r}, {via.method}, alpha = {via.alpha:g}); "
-                          "ratios divide by the n_vp = 0 case (seed Fig. 3.7-3.8)", via),
-                         (f"Weight alpha (mission {alpha.mission!r}, {alpha.method}, "
-                          f"n_vp = {alpha.via_points}); J_e / J_e|alpha=0, J_phi / J_phi|alpha=1 "
-                          "(seed Fig. 3.9-3.10)", alpha),
-                         (f"Methods (mission {comparison.mission!r}); J_e0, J_phi0: stop at way points "
-                          "(seed appendix, Fig. 3.11-3.18)", comparison)):
-        print(title)
-        print(format_table(study.rows()))
-        print()
-    args.out.mkdir(parents=True, exist_ok=True)
-    written = [] if args.no_plots else write_study_figures(args.out, via, alpha, comparison)
-    doc = studies_document(via, alpha, comparison, quick=bool(args.quick),
-                           total_time_s=time.perf_counter() - start)
-    (args.out / "studies.json").write_text(json.dumps(_json_safe(doc), indent=1), encoding="utf-8")
-    print(f"wrote studies.json and {len(written)} figures into {args.out} "
+    started, start = time.time(), time.perf_counter()
+    folder = OutputFolder(args.out)
+    try:
+        tmp = folder.open()  # a bad --out is refused before minutes of work
+        robot = load_mission(STUDY_MISSION).load_robot()
+        via = via_point_study(counts=counts, robot=robot, progress=progress)
+        alpha = alpha_study(alphas=alphas, robot=robot, progress=progress)
+        comparison = method_comparison(robot=robot, progress=progress)
+        for title, study in ((f"Via points (mission {via.mission!r}, {via.method}, alpha = {via.alpha:g}); "
+                              "ratios divide by the n_vp = 0 case (seed Fig. 3.7-3.8)", via),
+                             (f"Weight alpha (mission {alpha.mission!r}, {alpha.method}, "
+                              f"n_vp = {alpha.via_points}); J_e / J_e|alpha=0, J_phi / J_phi|alpha=1 "
+                              "(seed Fig. 3.9-3.10)", alpha),
+                             (f"Methods (mission {comparison.mission!r}); J_e0, J_phi0: stop at way points "
+                              "(seed appendix, Fig. 3.11-3.18)", comparison)):
+            print(title)
+            print(format_table(study.rows()))
+            print()
+        written = [] if args.no_plots else write_study_figures(tmp, via, alpha, comparison)
+        times: list = []
+        doc = _split_times(_json_safe(studies_document(via, alpha, comparison, quick=bool(args.quick))), times)
+        (tmp / "studies.json").write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+        files = sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file())
+        options = {"quick": bool(args.quick), "no_plots": bool(args.no_plots)}
+        timings = {"planning_s": dict(times), "total_s": round(time.perf_counter() - start, 3)}
+        write_manifest(tmp, manifest(parser().prog.split() + list(argv), inputs_hash("", options), started,
+                                     time.perf_counter() - start, contract.OK,
+                                     f"{len(via.cases) + len(alpha.cases) + len(comparison.cases)} cases planned",
+                                     files, timings))
+        folder.commit()
+    except BaseException:
+        folder.discard()
+        raise
+    print(f"wrote studies.json, {len(written)} figures and manifest.json into {folder.path} "
           f"({time.perf_counter() - start:.1f} s)")
-    return 0
+    return contract.OK
+
+
+def main(argv=None) -> int:
+    """Run the three studies, print their tables, write the figures, ``studies.json`` and ``manifest.json``.
+
+    Returns:
+        The exit code: 0, or 2 (bad input, e.g. an --out that cannot be written), 3 (a bug), 130 (Ctrl-C);
+        see ``--help``. The planning times are in ``manifest.json``, so ``studies.json`` is the same bytes
+        from one run to the next.
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = parser().parse_args(argv)
+    except SystemExit as stop:  # --help (0), or an option argparse refuses (2, one line printed)
+        return stop.code if isinstance(stop.code, int) else contract.BAD_INPUT
+    return contract.run(lambda: _run(args, argv), debug=args.debug)
 
 
 __all__ = [
