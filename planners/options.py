@@ -75,7 +75,8 @@ class PlanOptions:
     def sqp_options(self) -> SqpOptions:
         """The :class:`~planners.sqp.SqpOptions` of these options."""
         return SqpOptions(max_iterations=self.max_iterations, tolerance=self.tolerance, stop=self.stop,
-                          kkt_tolerance=self.kkt_tolerance, curvature=self.curvature)
+                          kkt_tolerance=self.kkt_tolerance, curvature=self.curvature,
+                          second_order=self.stop == "kkt" or self.curvature == "composite")
 
 
 class PlanningMethod(Protocol):

@@ -16,10 +16,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import minimize, nnls
 
 from fpr.model.errors import PlannerArgumentError
-from planners.sqp import SqpOptions, solve_sqp
+from planners.sqp import SqpOptions, kkt_residual, solve_sqp
 
 #: The NLP solvers :func:`solve_stage` knows.
 SOLVERS = ("sqp", "slsqp")
@@ -67,8 +67,9 @@ class StageReport:
         J_start, J_end: objective (on the optimisation grid) before and after.
         violation_end: largest scaled constraint violation on the grid at the end (0 = none).
         kkt: the KKT residual at the end (:func:`planners.sqp.kkt_residual`: the largest of the three
-            below; NaN when the solver gives no multipliers), kkt_stationarity, kkt_complementarity,
-            kkt_feasibility: its parts, active: constraints with a positive multiplier.
+            below; SQP: with its last QP's multipliers; SLSQP: with the non-negative least-squares
+            multipliers of the constraints within 1e-6 of their bound), kkt_stationarity,
+            kkt_complementarity, kkt_feasibility: its parts, active: constraints with a positive multiplier.
     """
 
     name: str
@@ -125,6 +126,8 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
     if problem.n_x == 0:
         stage.success, stage.message, stage.status = True, "nothing to optimise", 0
         stage.J_end, stage.violation_end = ev0.J, ev0.violation
+        stage.kkt = stage.kkt_feasibility = ev0.violation  # no variables: feasibility is all there is
+        stage.kkt_stationarity = stage.kkt_complementarity = 0.0
         return np.asarray(x0, dtype=float), stage
     if solver == "sqp":
         settings = replace(sqp or SqpOptions(stop="progress", curvature="gauss-newton"),
@@ -172,7 +175,19 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
     stage.iterations, stage.evaluations = int(res.nit), int(res.nfev)
     stage.gradient_evaluations = int(getattr(res, "njev", 0))
     stage.J_end, stage.violation_end = best[1], best[2]
+    stage.set_kkt(kkt_with_best_multipliers(problem.evaluate(best[0], True)))
     return best[0], stage
+
+
+def kkt_with_best_multipliers(ev):
+    """The :class:`~planners.sqp.Kkt` residual of an Evaluation (with derivatives) with the multipliers
+    that fit it best: lambda >= 0 on the constraints within 1e-6 of their bound, by non-negative least
+    squares on nabla J = A^T lambda (for a solver that gives none, SLSQP, and to compare methods)."""
+    near = np.flatnonzero(ev.constraints <= 1e-6)
+    lam = np.zeros(ev.constraints.size)
+    if near.size:
+        lam[near] = nnls(ev.jacobian[near].T, ev.gradient)[0]
+    return kkt_residual(ev.gradient, ev.constraints, ev.jacobian, lam)
 
 
 def solve_refining(attempt: Callable, check: Callable, grid: Grid, max_refinements: int):
