@@ -43,8 +43,9 @@ class PlanOptions:
         curvature: the SQP's Hessian model, ``"gauss-newton"`` or ``"composite"`` (J_e's |P| piecewise
             linear in the QP, a damped BFGS correction: converges to the optimum in far fewer
             iterations, each far slower), see :mod:`planners.sqp`.
-        polish: ``"two-step"`` only: after both steps, solve the 1-step NLP from the 2-step motion and keep
-            it when it is better and holds the dense check (:mod:`planners.methods.two_step`).
+        polish: ``"two-step"`` only: after both steps (when they hold the grid's constraints), solve the
+            1-step NLP from the 2-step motion and keep it when its grid J is lower
+            (:mod:`planners.methods.two_step`); False gives the thesis' 2-step method alone.
     """
 
     samples_per_segment: int = 17
@@ -58,7 +59,7 @@ class PlanOptions:
     stop: str = "progress"
     kkt_tolerance: float = 1e-5
     curvature: str = "gauss-newton"
-    polish: bool = False
+    polish: bool = True
 
     @property
     def grid(self) -> Grid:

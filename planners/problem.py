@@ -318,6 +318,9 @@ class MotionProblem:
         self.scale = scale[self.free]
         self.n_x = int(self.free.sum())
         self._cache: tuple[bytes, bool, Evaluation] | None = None
+        #: set by the composite SQP (:mod:`planners.sqp`): evaluations with derivatives then also give the
+        #: powers, their derivatives and J_phi's Gauss-Newton matrix (``Evaluation.power``...)
+        self.power_model = False
         self._rows_names: list[str] | None = None
 
     # ------------------------------------------------------------------ x <-> points
@@ -396,16 +399,17 @@ class MotionProblem:
             free = np.flatnonzero(self.free.reshape(-1))
             grad = g_points[free] * self.scale
             hess = self._assemble(np.einsum("iq,iqv,iqw->ivw", curv, local, local), index, free)
-            # J_phi's part alone (the composite SQP models J_e's |P| piecewise linearly instead)
-            rate_local = local[:, n_d:]
-            rate_hess = self._assemble(np.einsum("i,iqv,iqw->ivw", 2 * a_phi * self.weights, rate_local, rate_local),
-                                       index, free)
-            # the powers' derivatives with respect to x: (N n_d, n_x)
-            p_full = np.zeros((n_s, n_d, size))
-            rows_i = np.arange(n_s)[:, None, None]
-            p_full[rows_i, np.arange(n_d)[None, :, None], index[:, None, :]] = local[:, :n_d]
-            p_jac = p_full.reshape(n_s * n_d, size)[:, free] * self.scale
-            p_weight = np.repeat(a_e * self.weights, n_d)
+            if self.power_model:
+                # J_phi's part alone (the composite SQP models J_e's |P| piecewise linearly instead)
+                rate_local = local[:, n_d:]
+                rate_hess = self._assemble(
+                    np.einsum("i,iqv,iqw->ivw", 2 * a_phi * self.weights, rate_local, rate_local), index, free)
+                # the powers' derivatives with respect to x: (N n_d, n_x)
+                p_full = np.zeros((n_s, n_d, size))
+                rows_i = np.arange(n_s)[:, None, None]
+                p_full[rows_i, np.arange(n_d)[None, :, None], index[:, None, :]] = local[:, :n_d]
+                p_jac = p_full.reshape(n_s * n_d, size)[:, free] * self.scale
+                p_weight = np.repeat(a_e * self.weights, n_d)
         n_d = raw.shape[1] // 2
         terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
@@ -425,6 +429,8 @@ class MotionProblem:
             jac = full[:, self.free] * self.scale
         if not derivatives:
             return Evaluation(value, terms, constraints)
+        if not self.power_model:
+            return Evaluation(value, terms, constraints, grad, jac, hess)
         return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess)
 
     def _assemble(self, h_local, index, free) -> np.ndarray:

@@ -20,7 +20,7 @@ J + rho * sum(max(0, -c)). Constraints that cannot become active inside the trus
 Gauss-Newton matrix, where J_e's |P| (drone powers P, seed 3.24) gets the reweighted majoriser
 a_e w |nabla P|^2 / |P|. It overestimates the curvature along the steps (accepted steps decrease the
 merit by twice the prediction) and converges linearly: the square one-step stops 1 % above the best
-known J, and reaches it only after ~2,000 iterations. ``"composite"``: J = a_phi J_phi + sum_k pw_k
+known J, and reaches 0.5036 only after 305 iterations (issue 17). ``"composite"``: J = a_phi J_phi + sum_k pw_k
 |P_k| is modelled as what it is, a smooth part plus a weighted l1 sum: each |P_k| that can change sign
 inside the trust region becomes a QP variable t_k >= |P_k + nabla P_k d| (the rest are linear there),
 and H is J_phi's Gauss-Newton matrix plus a structured quasi-Newton correction S: after each accepted
@@ -302,7 +302,7 @@ def _model_gradient(ev, xi, composite: bool) -> np.ndarray:
         return ev.gradient
     pv, pj, pw = ev.power, ev.power_jacobian, ev.power_weight
     g_phi = ev.gradient - pj.T @ (pw * pv / np.sqrt(pv * pv + POWER_SMOOTHING**2))
-    return g_phi + pj.T @ (pw * xi)
+    return g_phi + pj.T @ (pw * (np.sign(pv) if xi is None else xi))
 
 
 def _second_order_correction(ev, d, multipliers, trial_constraints) -> np.ndarray:
@@ -356,6 +356,9 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     """
     opt = options or SqpOptions()
     start = time.perf_counter()
+    if opt.curvature == "composite" and hasattr(problem, "power_model") and not problem.power_model:
+        problem.power_model = True  # the powers and their derivatives with every gradient
+        problem._cache = None  # an evaluation cached without them
     x = np.asarray(x0, dtype=float).copy()
     radius, penalty = opt.radius, opt.penalty
     evaluations = gradients = 0

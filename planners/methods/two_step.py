@@ -8,9 +8,10 @@ ends worse than step 1. The first and last way points keep zero derivatives (the
 ends at rest). A motion that fails the dense check but holds on the grid is solved again, both
 steps, on a finer grid (:func:`planners.solving.solve_refining`).
 
-With ``PlanOptions.polish``, a third stage ``"polish (one-step)"`` solves the 1-step NLP (every entry
-at once, :func:`planners.methods.one_step.one_step_problem`) from the 2-step motion, and keeps its
-result when its grid J is lower and its grid violation no larger. Steps 1 and 2 each optimise part of
+With ``PlanOptions.polish`` (the default), when steps 1 and 2 hold the grid's constraints, a third
+stage ``"polish (one-step)"`` solves the 1-step NLP (every entry at once,
+:func:`planners.methods.one_step.one_step_problem`) from the 2-step motion, and keeps its result when
+its grid J is lower and its grid violation no larger. Steps 1 and 2 each optimise part of
 the entries with the rest fixed, so the 2-step motion is in general not a stationary point of the
 whole problem (the prototype tour ends 7 % above it); the polish makes it one, at the price of a
 1-step solve. Without it the method guarantees only that step 2 is no worse than step 1.
@@ -71,7 +72,7 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
                                    **options.solve_arguments)
             stages.append(stage)
             points[a:b + 1] = travel.points_of(x)
-        if options.polish:
+        if options.polish and all(st.violation_end <= GRID_FEASIBILITY for st in stages):
             points = _polish(task, grid, points, stages, options)
         return PiecewisePolynomial(points, durations), stages
 

@@ -32,8 +32,8 @@ MISSIONS = (("square", "square", {}), ("prototype-tour", "prototype-tour", {}),
 #: (name in the table, method, PlanOptions fields, also with --quick).
 PLANNERS = (
     ("one-step", "one-step", {}, True),
-    ("two-step", "two-step", {}, True),
-    ("two-step + polish", "two-step", {"polish": True}, True),
+    ("two-step (thesis, no polish)", "two-step", {"polish": False}, True),
+    ("two-step (polished, default)", "two-step", {}, True),
     ("one-step, composite, KKT stop", "one-step", {"curvature": "composite", "stop": "kkt", "max_iterations": 60},
      False),
 )
