@@ -94,7 +94,8 @@ class StageReport:
     def set_kkt(self, kkt) -> None:
         """Copy a :class:`planners.sqp.Kkt` into the report."""
         self.kkt, self.kkt_stationarity = kkt.residual, kkt.stationarity
-        self.kkt_complementarity, self.kkt_feasibility, self.active = kkt.complementarity, kkt.feasibility, kkt.active
+        self.kkt_complementarity, self.kkt_feasibility = kkt.complementarity, kkt.feasibility
+        self.active = kkt.active
 
 
 def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100, tolerance: float = 1e-4,
@@ -180,9 +181,11 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
 
 
 def kkt_with_best_multipliers(ev):
-    """The :class:`~planners.sqp.Kkt` residual of an Evaluation (with derivatives) with the multipliers
-    that fit it best: lambda >= 0 on the constraints within 1e-6 of their bound, by non-negative least
-    squares on nabla J = A^T lambda (for a solver that gives none, SLSQP, and to compare methods)."""
+    """The :class:`~planners.sqp.Kkt` residual of an Evaluation (with derivatives), best multipliers.
+
+    The multipliers: lambda >= 0 on the constraints within 1e-6 of their bound, by non-negative least
+    squares on nabla J = A^T lambda (for a solver that gives none, SLSQP, and to compare methods).
+    """
     near = np.flatnonzero(ev.constraints <= 1e-6)
     lam = np.zeros(ev.constraints.size)
     if near.size:

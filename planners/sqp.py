@@ -1,5 +1,6 @@
-"""A small trust-region SQP for the planning NLP: Gauss-Newton curvature (or a composite model of J_e's
-absolute values with a damped BFGS correction), elastic QPs by ProxQP, and the KKT residual.
+"""A small trust-region SQP for the planning NLP: elastic QPs by ProxQP, the KKT residual.
+
+Gauss-Newton curvature, or a composite model of J_e's absolute values with a damped BFGS correction.
 
 The planning objective is a weighted sum of integrals of squares (J_phi) and of absolute values
 (J_e) of per-sample quantities whose exact Jacobians :class:`planners.problem.MotionProblem`
@@ -20,9 +21,10 @@ J + rho * sum(max(0, -c)). Constraints that cannot become active inside the trus
 Gauss-Newton matrix, where J_e's |P| (drone powers P, seed 3.24) gets the reweighted majoriser
 a_e w |nabla P|^2 / |P|. It overestimates the curvature along the steps (accepted steps decrease the
 merit by twice the prediction) and converges linearly: the square one-step stops 1 % above the best
-known J, and reaches 0.5036 only after 305 iterations (issue 17). ``"composite"``: J = a_phi J_phi + sum_k pw_k
-|P_k| is modelled as what it is, a smooth part plus a weighted l1 sum: each |P_k| that can change sign
-inside the trust region becomes a QP variable t_k >= |P_k + nabla P_k d| (the rest are linear there),
+known J, and reaches 0.5036 only after 305 iterations (issue 17). ``"composite"``:
+J = a_phi J_phi + sum_k pw_k |P_k| is modelled as what it is, a smooth part plus a weighted l1 sum:
+each |P_k| that can change sign inside the trust region becomes a QP variable
+t_k >= |P_k + nabla P_k d| (the rest are linear there),
 and H is J_phi's Gauss-Newton matrix plus a structured quasi-Newton correction S: after each accepted
 step s, B = H_phi(x + s) + S gets Powell's damped BFGS update with y = nabla L(x + s) - nabla L(x)
 (L = a_phi J_phi + sum_k pw_k xi_k P_k - lambda^T c, xi_k the QP's subgradient of |.|, lambda its
@@ -114,7 +116,8 @@ class SqpOptions:
 
     def __post_init__(self):
         if self.stop not in STOPS:
-            raise PlannerArgumentError("stop", self.stop, f"stop={self.stop!r}: use one of {', '.join(STOPS)}")
+            raise PlannerArgumentError("stop", self.stop,
+                                       f"stop={self.stop!r}: use one of {', '.join(STOPS)}")
         if self.curvature not in CURVATURES:
             raise PlannerArgumentError("curvature", self.curvature,
                                        f"curvature={self.curvature!r}: use one of {', '.join(CURVATURES)}")
@@ -148,9 +151,11 @@ class Kkt:
 
 @dataclass
 class SqpOutcome:
-    """What happened: x, success, message, iteration and evaluation counts, wall time, and the KKT
-    residual of the returned x with the multipliers of the last QP solved at it (``multipliers``: one
-    per constraint, >= 0, in the units of the problem's constraints)."""
+    """What happened: x, success, message, counts, wall time, and the KKT residual.
+
+    ``kkt`` is the KKT residual of the returned x with the multipliers of the last QP solved
+    (``multipliers``: one per constraint, >= 0, in the units of the problem's constraints).
+    """
 
     x: np.ndarray
     success: bool
@@ -298,8 +303,11 @@ def _composite_qp_step(ev, radius: float, penalty: float, hessian):
 
 
 def _model_gradient(ev, xi, composite: bool) -> np.ndarray:
-    """The objective's gradient the KKT residual uses: nabla J, or with J_e's |P_k| as a nonsmooth sum,
-    nabla (a_phi J_phi) + sum_k pw_k xi_k nabla P_k (xi_k a subgradient of |.| at P_k, from the QP)."""
+    """The objective's gradient the KKT residual uses.
+
+    nabla J, or with J_e's |P_k| as a nonsmooth sum, nabla (a_phi J_phi) + sum_k pw_k xi_k nabla P_k
+    (xi_k a subgradient of |.| at P_k, from the QP).
+    """
     if not composite:
         return ev.gradient
     pv, pj, pw = ev.power, ev.power_jacobian, ev.power_weight
@@ -308,8 +316,11 @@ def _model_gradient(ev, xi, composite: bool) -> np.ndarray:
 
 
 def _second_order_correction(ev, d, multipliers, trial_constraints) -> np.ndarray:
-    """The least-norm dd with A_W dd = -c_W(x + d) on the working set W (rows with a positive
-    multiplier, or violated at x + d): the second-order correction of the Maratos effect."""
+    """The second-order correction of the Maratos effect.
+
+    The least-norm dd with A_W dd = -c_W(x + d) on the working set W (rows with a positive multiplier,
+    or violated at x + d).
+    """
     work = np.flatnonzero((multipliers > 0.0) | (trial_constraints < 0.0))
     if work.size == 0:
         return np.zeros_like(d)
@@ -320,7 +331,7 @@ def _second_order_correction(ev, d, multipliers, trial_constraints) -> np.ndarra
 
 
 def _floored(b: np.ndarray) -> np.ndarray:
-    """b (symmetric) with its eigenvalues floored at 1e-8 of the largest (positive definite)."""
+    """The symmetric b with its eigenvalues floored at 1e-8 of the largest (positive definite)."""
     b = 0.5 * (b + b.T)
     w, v = np.linalg.eigh(b)
     top = max(float(w[-1]), 1e-12)
@@ -382,10 +393,11 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
             model = _floored(base + (correction if correction is not None else 0.0))
             if pending is not None:
                 step, before, lam, xi = pending
-                model = damped_bfgs(model, step, _model_gradient(ev, xi, composite) - ev.jacobian.T @ lam - before)
+                change = _model_gradient(ev, xi, composite) - ev.jacobian.T @ lam - before
+                model = damped_bfgs(model, step, change)
             correction, hessian = model - base, model
 
-        def solve_qp(rho):
+        def solve_qp(rho, ev=ev, hessian=hessian, composite=composite, radius=radius):
             if composite:
                 return _composite_qp_step(ev, radius, rho, hessian)
             return (*_qp_step(ev, radius, rho, hessian), None)
@@ -459,7 +471,8 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
         elif len(merits) > opt.patience and viol <= opt.feasibility \
                 and merits[-1 - opt.patience] - merits[-1] < opt.tolerance**2 * max(1.0, abs(now.J)):
             success = True
-            message = (f"converged: the merit decreased by less than {opt.tolerance**2:.2g} in {opt.patience} "
+            message = (f"converged: the merit decreased by less than {opt.tolerance**2:.2g} in "
+                       f"{opt.patience} "
                        "iterations (round-off)")
             break
         if radius < 1e-10:
@@ -470,6 +483,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     final = problem.evaluate(x, True)
     if kkt is None or final is not ev:
         # the returned x moved after the last QP: its KKT residual with the last multipliers
-        kkt = kkt_residual(_model_gradient(final, xi, composite), final.constraints, final.jacobian, multipliers)
+        kkt = kkt_residual(_model_gradient(final, xi, composite), final.constraints, final.jacobian,
+                           multipliers)
     return SqpOutcome(x, success, message, it, evaluations, gradients, time.perf_counter() - start, final.J,
                       final.violation, kkt, multipliers)

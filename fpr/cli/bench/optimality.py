@@ -34,8 +34,8 @@ PLANNERS = (
     ("one-step", "one-step", {}, True),
     ("two-step (thesis, no polish)", "two-step", {"polish": False}, True),
     ("two-step (polished, default)", "two-step", {}, True),
-    ("one-step, composite, KKT stop", "one-step", {"curvature": "composite", "stop": "kkt", "max_iterations": 60},
-     False),
+    ("one-step, composite, KKT stop", "one-step",
+     {"curvature": "composite", "stop": "kkt", "max_iterations": 60}, False),
 )
 
 
@@ -68,12 +68,13 @@ def run_optimality(quick: bool, progress: bool) -> list[dict]:
 
 def optimality_table(rows: list[dict]) -> str:
     """The rows as text."""
-    lines = ["optimality (issue 17): J against the best known, KKT residuals (solver's last stage; the result "
-             "as a point of the 1-step NLP)",
+    lines = ["optimality (issue 17): J against the best known, KKT residuals (solver's last stage; the "
+             "result as a point of the 1-step NLP)",
              f"{'mission':<16} {'planner':<30} {'J':>7} {'best J':>7} {'gap':>7} {'KKT stage':>9} "
              f"{'KKT 1-step':>10} {'iter':>5} {'time':>8}  feasible"]
     for r in rows:
-        lines.append(f"{r['mission']:<16} {r['planner']:<30} {r['J']:7.4f} {r['best_J']:7.4f} {r['gap']:+7.2%} "
+        lines.append(f"{r['mission']:<16} {r['planner']:<30} {r['J']:7.4f} {r['best_J']:7.4f} "
+                     f"{r['gap']:+7.2%} "
                      f"{r['solver_kkt']:9.2g} {r['one_step_kkt']:10.2g} {r['iterations']:5d} "
                      f"{r['wall_time_s']:7.2f}s  {'yes' if r['feasible'] else 'NO'}")
     return "\n".join(lines)
