@@ -43,8 +43,8 @@ class PlanOptions:
         curvature: the SQP's Hessian model, ``"gauss-newton"`` or ``"composite"`` (J_e's |P| piecewise
             linear in the QP, a damped BFGS correction: converges to the optimum in far fewer
             iterations, each far slower), see :mod:`planners.sqp`.
-        polish: ``"two-step"`` only: after both steps (when they hold the grid's constraints), solve the
-            1-step NLP from the 2-step motion and keep it when its grid J is lower
+        polish: ``"two-step"`` only: after both steps (when they hold the grid's constraints and the
+            1-step NLP is neither step's), solve the 1-step NLP from the 2-step motion and keep it when its grid J is lower
             (:mod:`planners.methods.two_step`); False gives the thesis' 2-step method alone.
     """
 

@@ -8,8 +8,9 @@ ends worse than step 1. The first and last way points keep zero derivatives (the
 ends at rest). A motion that fails the dense check but holds on the grid is solved again, both
 steps, on a finer grid (:func:`planners.solving.solve_refining`).
 
-With ``PlanOptions.polish`` (the default), when steps 1 and 2 hold the grid's constraints and there
-is more than one travel (with one, step 2 is the 1-step NLP already), a third
+With ``PlanOptions.polish`` (the default), when steps 1 and 2 hold the grid's constraints, there is
+more than one travel (with one, step 2 is the 1-step NLP already) and there are via points (without,
+step 1 is), a third
 stage ``"polish (one-step)"`` solves the 1-step NLP (every entry at once,
 :func:`planners.methods.one_step.one_step_problem`) from the 2-step motion, and keeps its result when
 its grid J is lower and its grid violation no larger. Steps 1 and 2 each optimise part of
@@ -73,8 +74,9 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
                                    **options.solve_arguments)
             stages.append(stage)
             points[a:b + 1] = travel.points_of(x)
-        # one travel: step 2 was the 1-step NLP already
-        if options.polish and len(task.way_times) > 1 and all(st.violation_end <= GRID_FEASIBILITY for st in stages):
+        # one travel: step 2 was the 1-step NLP already; no via points: step 1 was
+        whole_differs = len(task.way_times) > 1 and task.n_via.sum() > 0
+        if options.polish and whole_differs and all(st.violation_end <= GRID_FEASIBILITY for st in stages):
             points = _polish(task, grid, points, stages, options)
         return PiecewisePolynomial(points, durations), stages
 
