@@ -13,6 +13,7 @@ from typing import Protocol
 
 from planners.result import PlanResult
 from planners.solving import Grid
+from planners.sqp import SqpOptions
 
 #: progress(stage_name, iteration, J, violation), called after every solver iteration.
 Progress = Callable[[str, int, float, float], None]
@@ -35,6 +36,16 @@ class PlanOptions:
             (:func:`planners.solving.solve_refining`).
         progress: called as ``progress(stage_name, iteration, J, violation)`` after every solver
             iteration, or None.
+        stop: the SQP's stopping rule, ``"progress"`` (the merit decrease below ``tolerance``) or
+            ``"kkt"`` (the KKT residual at most ``kkt_tolerance``), see :mod:`planners.sqp`; the KKT
+            residual is reported either way (``StageReport.kkt``).
+        kkt_tolerance: the KKT residual at which the SQP converges with ``stop="kkt"``.
+        curvature: the SQP's Hessian model, ``"gauss-newton"`` or ``"composite"`` (J_e's |P| piecewise
+            linear in the QP, a damped BFGS correction: converges to the optimum in far fewer
+            iterations, each far slower), see :mod:`planners.sqp`.
+        polish: ``"two-step"`` only: after both steps (when they hold the grid's constraints and the
+            1-step NLP is neither step's), solve the 1-step NLP from the 2-step motion and keep it when its grid J is lower
+            (:mod:`planners.methods.two_step`); False gives the thesis' 2-step method alone.
     """
 
     samples_per_segment: int = 17
@@ -45,6 +56,10 @@ class PlanOptions:
     solver: str = "sqp"
     max_refinements: int = 2
     progress: Progress | None = field(default=None, compare=False)
+    stop: str = "progress"
+    kkt_tolerance: float = 1e-5
+    curvature: str = "gauss-newton"
+    polish: bool = True
 
     @property
     def grid(self) -> Grid:
@@ -55,7 +70,14 @@ class PlanOptions:
     def solve_arguments(self) -> dict:
         """Keyword arguments of :func:`planners.solving.solve_stage`."""
         return {"progress": self.progress, "max_iterations": self.max_iterations, "tolerance": self.tolerance,
-                "solver": self.solver}
+                "solver": self.solver, "sqp": self.sqp_options}
+
+    @property
+    def sqp_options(self) -> SqpOptions:
+        """The :class:`~planners.sqp.SqpOptions` of these options."""
+        return SqpOptions(max_iterations=self.max_iterations, tolerance=self.tolerance, stop=self.stop,
+                          kkt_tolerance=self.kkt_tolerance, curvature=self.curvature,
+                          second_order=self.stop == "kkt" or self.curvature == "composite")
 
 
 class PlanningMethod(Protocol):

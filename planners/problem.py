@@ -204,6 +204,10 @@ class Evaluation:
         gradient: dJ/dx, shape (n_x,), or None.
         jacobian: d constraints / dx, shape (n_windows * R, n_x), or None.
         hessian: Gauss-Newton approximation of d^2 J / dx^2 (positive semi-definite), or None.
+        power, power_weight, power_jacobian: the drone powers P_k = F_i . r_i' at every node (K = N n_d,
+            [W]), their weights a_e w_k in J (J = sum_k a_e w_k |P_k|_eps + a_phi J_phi) and their
+            derivatives (K, n_x): the SQP models the sum of |P_k| piecewise linearly (or None).
+        rate_hessian: the Gauss-Newton matrix of the a_phi J_phi part alone (or None).
     """
 
     J: float
@@ -212,6 +216,10 @@ class Evaluation:
     gradient: np.ndarray | None = None
     jacobian: np.ndarray | None = None
     hessian: np.ndarray | None = None
+    power: np.ndarray | None = None
+    power_weight: np.ndarray | None = None
+    power_jacobian: np.ndarray | None = None
+    rate_hessian: np.ndarray | None = None
 
     @property
     def violation(self) -> float:
@@ -310,6 +318,9 @@ class MotionProblem:
         self.scale = scale[self.free]
         self.n_x = int(self.free.sum())
         self._cache: tuple[bytes, bool, Evaluation] | None = None
+        #: set by the composite SQP (:mod:`planners.sqp`): evaluations with derivatives then also give the
+        #: powers, their derivatives and J_phi's Gauss-Newton matrix (``Evaluation.power``...)
+        self.power_model = False
         self._rows_names: list[str] | None = None
 
     # ------------------------------------------------------------------ x <-> points
@@ -382,15 +393,23 @@ class MotionProblem:
             curv = self.weights[:, None] * np.concatenate([a_e / np.maximum(smooth, POWER_CURVATURE_FLOOR),
                                                           2 * a_phi * np.ones_like(rate)], axis=1)
             g_local = np.einsum("iq,iqv->iv", dj, local)  # (N, 2 * 5 * n)
-            h_local = np.einsum("iq,iqv,iqw->ivw", curv, local, local)
             size = self.points.size
             index = (self.segment[:, None] * (N_DERIVS * n) + np.arange(2 * N_DERIVS * n)).reshape(n_s, -1)
             g_points = np.bincount(index.reshape(-1), g_local.reshape(-1), minlength=size)
-            h_points = np.zeros((size, size))
-            np.add.at(h_points, (index[:, :, None], index[:, None, :]), h_local)
             free = np.flatnonzero(self.free.reshape(-1))
             grad = g_points[free] * self.scale
-            hess = h_points[np.ix_(free, free)] * np.outer(self.scale, self.scale)
+            hess = self._assemble(np.einsum("iq,iqv,iqw->ivw", curv, local, local), index, free)
+            if self.power_model:
+                # J_phi's part alone (the composite SQP models J_e's |P| piecewise linearly instead)
+                rate_local = local[:, n_d:]
+                rate_hess = self._assemble(
+                    np.einsum("i,iqv,iqw->ivw", 2 * a_phi * self.weights, rate_local, rate_local), index, free)
+                # the powers' derivatives with respect to x: (N n_d, n_x)
+                p_full = np.zeros((n_s, n_d, size))
+                rows_i = np.arange(n_s)[:, None, None]
+                p_full[rows_i, np.arange(n_d)[None, :, None], index[:, None, :]] = local[:, :n_d]
+                p_jac = p_full.reshape(n_s * n_d, size)[:, free] * self.scale
+                p_weight = np.repeat(a_e * self.weights, n_d)
         n_d = raw.shape[1] // 2
         terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
@@ -408,7 +427,17 @@ class MotionProblem:
             rows_idx = np.arange(sample.size)[:, None]
             full[rows_idx, self.segment[sample][:, None] + np.arange(2)] = local
             jac = full[:, self.free] * self.scale
-        return Evaluation(value, terms, constraints, grad, jac, hess)
+        if not derivatives:
+            return Evaluation(value, terms, constraints)
+        if not self.power_model:
+            return Evaluation(value, terms, constraints, grad, jac, hess)
+        return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess)
+
+    def _assemble(self, h_local, index, free) -> np.ndarray:
+        """Sum per-node (N, 10 n, 10 n) blocks into the Hessian of the free entries, in x's scaling."""
+        h_points = np.zeros((self.points.size, self.points.size))
+        np.add.at(h_points, (index[:, :, None], index[:, None, :]), h_local)
+        return h_points[np.ix_(free, free)] * np.outer(self.scale, self.scale)
 
     def objective_terms(self, points) -> np.ndarray:
         """[J_e, J_phi] of given points on the grid (smoothed |.|, as the optimiser sees them)."""

@@ -13,13 +13,13 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import minimize, nnls
 
 from fpr.model.errors import PlannerArgumentError
-from planners.sqp import SqpOptions, solve_sqp
+from planners.sqp import SqpOptions, kkt_residual, solve_sqp
 
 #: The NLP solvers :func:`solve_stage` knows.
 SOLVERS = ("sqp", "slsqp")
@@ -66,6 +66,10 @@ class StageReport:
         wall_time: [s].
         J_start, J_end: objective (on the optimisation grid) before and after.
         violation_end: largest scaled constraint violation on the grid at the end (0 = none).
+        kkt: the KKT residual at the end (:func:`planners.sqp.kkt_residual`: the largest of the three
+            below; SQP: with its last QP's multipliers; SLSQP: with the non-negative least-squares
+            multipliers of the constraints within 1e-6 of their bound), kkt_stationarity,
+            kkt_complementarity, kkt_feasibility: its parts, active: constraints with a positive multiplier.
     """
 
     name: str
@@ -81,10 +85,21 @@ class StageReport:
     J_start: float = float("nan")
     J_end: float = float("nan")
     violation_end: float = float("nan")
+    kkt: float = float("nan")
+    kkt_stationarity: float = float("nan")
+    kkt_complementarity: float = float("nan")
+    kkt_feasibility: float = float("nan")
+    active: int = 0
+
+    def set_kkt(self, kkt) -> None:
+        """Copy a :class:`planners.sqp.Kkt` into the report."""
+        self.kkt, self.kkt_stationarity = kkt.residual, kkt.stationarity
+        self.kkt_complementarity, self.kkt_feasibility = kkt.complementarity, kkt.feasibility
+        self.active = kkt.active
 
 
 def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100, tolerance: float = 1e-4,
-                solver: str = "sqp") -> tuple[np.ndarray, StageReport]:
+                solver: str = "sqp", sqp: SqpOptions | None = None) -> tuple[np.ndarray, StageReport]:
     """Solve ``problem`` from x0 with ``solver``.
 
     Args:
@@ -97,6 +112,9 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
         tolerance: stop when an iteration improves J (about 1) by less than this.
         solver: one of :data:`SOLVERS`: ``"sqp"`` (:func:`planners.sqp.solve_sqp`) or ``"slsqp"`` (scipy;
             its best iterate is returned, a feasible one first).
+        sqp: further :class:`~planners.sqp.SqpOptions` of the SQP (its ``max_iterations`` and
+            ``tolerance`` are replaced by the arguments above); default: the earlier rule
+            (``stop="progress"``, ``curvature="gauss-newton"``), as the singularity crossing uses it.
 
     Returns:
         (x, :class:`StageReport`).
@@ -109,14 +127,18 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
     if problem.n_x == 0:
         stage.success, stage.message, stage.status = True, "nothing to optimise", 0
         stage.J_end, stage.violation_end = ev0.J, ev0.violation
+        stage.kkt = stage.kkt_feasibility = ev0.violation  # no variables: feasibility is all there is
+        stage.kkt_stationarity = stage.kkt_complementarity = 0.0
         return np.asarray(x0, dtype=float), stage
     if solver == "sqp":
-        out = solve_sqp(problem, x0, SqpOptions(max_iterations=max_iterations, tolerance=tolerance),
-                        progress, name)
+        settings = replace(sqp or SqpOptions(stop="progress", curvature="gauss-newton"),
+                           max_iterations=max_iterations, tolerance=tolerance)
+        out = solve_sqp(problem, x0, settings, progress, name)
         stage.success, stage.message, stage.status = out.success, out.message, 0 if out.success else 1
         stage.iterations, stage.evaluations = out.iterations, out.evaluations + out.gradient_evaluations
         stage.gradient_evaluations, stage.wall_time = out.gradient_evaluations, out.wall_time
         stage.J_end, stage.violation_end = out.J, out.violation
+        stage.set_kkt(out.kkt)
         return out.x, stage
     if solver != "slsqp":
         raise PlannerArgumentError("solver", solver, f"solver={solver!r}: use one of {', '.join(SOLVERS)}")
@@ -154,7 +176,21 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
     stage.iterations, stage.evaluations = int(res.nit), int(res.nfev)
     stage.gradient_evaluations = int(getattr(res, "njev", 0))
     stage.J_end, stage.violation_end = best[1], best[2]
+    stage.set_kkt(kkt_with_best_multipliers(problem.evaluate(best[0], True)))
     return best[0], stage
+
+
+def kkt_with_best_multipliers(ev):
+    """The :class:`~planners.sqp.Kkt` residual of an Evaluation (with derivatives), best multipliers.
+
+    The multipliers: lambda >= 0 on the constraints within 1e-6 of their bound, by non-negative least
+    squares on nabla J = A^T lambda (for a solver that gives none, SLSQP, and to compare methods).
+    """
+    near = np.flatnonzero(ev.constraints <= 1e-6)
+    lam = np.zeros(ev.constraints.size)
+    if near.size:
+        lam[near] = nnls(ev.jacobian[near].T, ev.gradient)[0]
+    return kkt_residual(ev.gradient, ev.constraints, ev.jacobian, lam)
 
 
 def solve_refining(attempt: Callable, check: Callable, grid: Grid, max_refinements: int):

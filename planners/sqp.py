@@ -1,4 +1,6 @@
-"""A small trust-region SQP for the planning NLP: Gauss-Newton curvature, elastic QPs by ProxQP.
+"""A small trust-region SQP for the planning NLP: elastic QPs by ProxQP, the KKT residual.
+
+Gauss-Newton curvature, or a composite model of J_e's absolute values with a damped BFGS correction.
 
 The planning objective is a weighted sum of integrals of squares (J_phi) and of absolute values
 (J_e) of per-sample quantities whose exact Jacobians :class:`planners.problem.MotionProblem`
@@ -14,6 +16,40 @@ Each iteration solves the elastic (S-l1-QP) subproblem
 with slacks s only on the constraints violated at x (always feasible), and accepts the step by the ratio of actual to predicted decrease of the exact l1 merit
 J + rho * sum(max(0, -c)). Constraints that cannot become active inside the trust region
 (c_i > |A_i|_1 Delta) are left out of the QP, which keeps it small.
+
+**Curvature** (``SqpOptions.curvature``). ``"gauss-newton"`` (default): H is the problem's
+Gauss-Newton matrix, where J_e's |P| (drone powers P, seed 3.24) gets the reweighted majoriser
+a_e w |nabla P|^2 / |P|. It overestimates the curvature along the steps (accepted steps decrease the
+merit by twice the prediction) and converges linearly: the square one-step stops 1 % above the best
+known J, and reaches 0.5036 only after 305 iterations (issue 17). ``"composite"``:
+J = a_phi J_phi + sum_k pw_k |P_k| is modelled as what it is, a smooth part plus a weighted l1 sum:
+each |P_k| that can change sign inside the trust region becomes a QP variable
+t_k >= |P_k + nabla P_k d| (the rest are linear there),
+and H is J_phi's Gauss-Newton matrix plus a structured quasi-Newton correction S: after each accepted
+step s, B = H_phi(x + s) + S gets Powell's damped BFGS update with y = nabla L(x + s) - nabla L(x)
+(L = a_phi J_phi + sum_k pw_k xi_k P_k - lambda^T c, xi_k the QP's subgradient of |.|, lambda its
+multipliers; y replaced by theta y + (1 - theta) B s so that s^T y >= 0.2 s^T B s: B stays positive
+definite), and S = B - H_phi(x + s) is kept; B's eigenvalues are floored at 1e-8 of the largest. It
+reaches the best known J of the square in 41 iterations (0.50359 on the dense grid, the peers' 0.5037),
+but its QPs have one more variable and two more rows per drone and grid node that can change sign
+(the square: 400 variables, ~1,700 rows instead of 128, ~960) and ProxQP needs 400-800 iterations on
+each (its sparse backend and quadprog are no faster there): measured about 6 times slower per SQP
+iteration than Gauss-Newton, so it is not the default.
+
+**Stop** (``SqpOptions.stop``). ``"kkt"``: at x, with the multipliers lambda >= 0 of the QP
+solved there (constraint rows scaled to unit infinity norm, c_hat_i = c_i / max(1, |nabla c_i|_inf)),
+
+* stationarity  = |nabla J - sum_i lambda_i nabla c_hat_i|_inf (J is O(1) by its normalisation 3.26,
+  x is in local Taylor units: both are scaled),
+* complementarity = max_i lambda_i |min(c_hat_i, 0) or c_hat_i| = max_i lambda_i |c_hat_i|,
+* feasibility = the largest violation max_i max(0, -c_i) (the problem's scaled units),
+
+and the **KKT residual** is the largest of the three; the run converges when it is at most
+``kkt_tolerance`` (:func:`kkt_residual`); with ``"composite"`` nabla J is J_e's subgradient sum
+nabla (a_phi J_phi) + sum_k pw_k xi_k nabla P_k. ``"progress"`` (default, the rule the planner's
+timings were set with): an accepted step that decreases the merit by less than ``tolerance``
+(relative). Either way the final KKT residual is computed and reported (:class:`SqpOutcome`,
+``StageReport.kkt``): a stop on progress far from a stationary point shows there.
 """
 
 from __future__ import annotations
@@ -23,10 +59,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
+from planners.problem import POWER_SMOOTHING
 
 # the portable build: its results do not depend on memory alignment (fpr.model.qp): plans repeat bit for bit
 proxsuite = proxsuite_module()
+
+
+#: The curvature models of :class:`SqpOptions` (see the module docstring).
+CURVATURES = ("gauss-newton", "composite")
+#: The stopping rules of :class:`SqpOptions` (see the module docstring).
+STOPS = ("kkt", "progress")
 
 
 @dataclass
@@ -35,8 +79,10 @@ class SqpOptions:
 
     Attributes:
         max_iterations: iteration limit (each iteration is one exact-derivative evaluation).
-        tolerance: stop when an accepted step decreases the merit by less than this (relative to
-            max(1, |J|)) and the constraints hold.
+        tolerance: with ``stop="progress"``: stop when an accepted step decreases the merit by less than
+            this (relative to max(1, |J|)) and the constraints hold. With ``stop="kkt"``: the run also
+            stops (as converged when feasible) when the merit decreased by less than ``tolerance**2``
+            relative over the last ``patience`` iterations (a stall at round-off).
         feasibility: largest accepted (scaled) constraint violation.
         radius: initial trust-region radius in the scaled variables.
         penalty: initial l1 penalty weight rho; raised while the linearised constraints cannot be met.
@@ -45,6 +91,15 @@ class SqpOptions:
         crawl: an infeasible run (violation above 1e-3) also stops when its violation decreased by less
             than this fraction over the last ``patience`` iterations (a crawl towards an unreachable
             feasible set: the infeasible square decreased it by 0.5 % an iteration for 90 iterations).
+        stop: ``"progress"`` (the merit-decrease rule of ``tolerance``) or ``"kkt"`` (converged when the
+            KKT residual is at most ``kkt_tolerance``); :data:`STOPS`.
+        kkt_tolerance: the KKT residual at which ``stop="kkt"`` converges (module docstring: J and x
+            scaled to O(1), constraint rows to unit gradient).
+        curvature: ``"gauss-newton"`` or ``"composite"`` (:data:`CURVATURES`; the composite model
+            needs the problem's ``power`` fields, else it is Gauss-Newton with the BFGS correction).
+        second_order: after a rejected step that raised the constraint violation, try it once more with
+            a second-order correction (the least-norm step back to the linearised working set): along
+            curved constraints the l1 merit rejects good steps (the Maratos effect).
     """
 
     max_iterations: int = 100
@@ -54,11 +109,53 @@ class SqpOptions:
     penalty: float = 10.0
     patience: int = 10
     crawl: float = 0.1
+    stop: str = "progress"
+    kkt_tolerance: float = 1e-5
+    curvature: str = "gauss-newton"
+    second_order: bool = False
+
+    def __post_init__(self):
+        if self.stop not in STOPS:
+            raise PlannerArgumentError("stop", self.stop,
+                                       f"stop={self.stop!r}: use one of {', '.join(STOPS)}")
+        if self.curvature not in CURVATURES:
+            raise PlannerArgumentError("curvature", self.curvature,
+                                       f"curvature={self.curvature!r}: use one of {', '.join(CURVATURES)}")
+        if not self.kkt_tolerance > 0:
+            raise PlannerArgumentError("kkt_tolerance", self.kkt_tolerance,
+                                       f"kkt_tolerance={self.kkt_tolerance!r}: must be > 0")
+
+
+@dataclass(frozen=True)
+class Kkt:
+    """The KKT residual of a point and its multipliers (see the module docstring for the scaling).
+
+    Attributes:
+        stationarity: |nabla J - sum_i lambda_i nabla c_hat_i|_inf.
+        complementarity: max_i lambda_i |c_hat_i|.
+        feasibility: max_i max(0, -c_i).
+        residual: the largest of the three.
+        active: how many constraints carry a multiplier above 1e-9.
+    """
+
+    stationarity: float
+    complementarity: float
+    feasibility: float
+    active: int = 0
+
+    @property
+    def residual(self) -> float:
+        """max(stationarity, complementarity, feasibility)."""
+        return max(self.stationarity, self.complementarity, self.feasibility)
 
 
 @dataclass
 class SqpOutcome:
-    """What happened: x, success, message, iteration and evaluation counts, wall time."""
+    """What happened: x, success, message, counts, wall time, and the KKT residual.
+
+    ``kkt`` is the KKT residual of the returned x with the multipliers of the last QP solved
+    (``multipliers``: one per constraint, >= 0, in the units of the problem's constraints).
+    """
 
     x: np.ndarray
     success: bool
@@ -69,20 +166,51 @@ class SqpOutcome:
     wall_time: float
     J: float
     violation: float
+    kkt: Kkt | None = None
+    multipliers: np.ndarray | None = None
 
 
 def _violation(c) -> float:
     return float(np.maximum(0.0, -np.asarray(c)).sum())
 
 
-def _qp_step(ev, radius: float, penalty: float):
-    """Solve the elastic step QP; returns (d, predicted merit decrease, linearised violation, multiplier).
+def row_norms(jacobian) -> np.ndarray:
+    """max(1, |nabla c_i|_inf) of every constraint row: the scaling of c_hat (module docstring)."""
+    a = np.asarray(jacobian)
+    return np.maximum(np.abs(a).max(axis=1), 1.0) if a.size else np.ones(a.shape[0])
+
+
+def kkt_residual(gradient, constraints, jacobian, multipliers) -> Kkt:
+    """The KKT residual of min J s.t. c >= 0 at a point (module docstring).
+
+    Args:
+        gradient: nabla J (n,).
+        constraints: c (m,), >= 0 where satisfied.
+        jacobian: nabla c (m, n).
+        multipliers: lambda (m,) in the units of c (negative entries are taken as 0).
+    """
+    c = np.asarray(constraints, dtype=float)
+    a = np.asarray(jacobian, dtype=float).reshape(c.size, -1)
+    lam = np.maximum(np.asarray(multipliers, dtype=float), 0.0)
+    norms = row_norms(a)
+    lam_hat = lam * norms  # multipliers of c_hat = c / norms
+    stationarity = float(np.abs(np.asarray(gradient) - a.T @ lam).max()) if a.shape[1] else 0.0
+    complementarity = float((lam_hat * np.abs(c / norms)).max()) if c.size else 0.0
+    feasibility = float(max(0.0, -c.min())) if c.size else 0.0
+    return Kkt(stationarity, complementarity, feasibility, int(np.count_nonzero(lam_hat > 1e-9)))
+
+
+def _qp_step(ev, radius: float, penalty: float, hessian=None):
+    """Solve the elastic step QP; returns (d, predicted merit decrease, linearised violation, multipliers).
 
     Only the constraints violated at x get a slack (the others hold at d = 0, so the QP is always
     feasible). Rows are scaled to unit infinity norm and the objective to O(1): near a vanishing
     thrust the roll rows reach 1e7 and the QP would crawl; the minimiser is unchanged. ProxQP's work
-    is bounded: an inexact step is judged by the merit ratio anyway.
+    is bounded: an inexact step is judged by the merit ratio anyway. ``hessian`` is the model's
+    curvature (default the problem's Gauss-Newton matrix); the multipliers (m,) are >= 0, in the units
+    of the constraints, 0 for the rows left out.
     """
+    hess = ev.hessian if hessian is None else hessian
     n = ev.gradient.size
     c, a = ev.constraints, ev.jacobian
     keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
@@ -90,9 +218,9 @@ def _qp_step(ev, radius: float, penalty: float):
     c_k, a_k = c[keep] / norms, a[keep] / norms[:, None]
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
-    scale = 1.0 / max(1.0, np.abs(ev.hessian).max())
+    scale = 1.0 / max(1.0, np.abs(hess).max())
     h = np.zeros((n + p, n + p))
-    h[:n, :n] = (ev.hessian + (1e-9 * max(np.trace(ev.hessian) / n, 1e-12)) * np.eye(n)) * scale
+    h[:n, :n] = (hess + (1e-9 * max(np.trace(hess) / n, 1e-12)) * np.eye(n)) * scale
     g = np.concatenate([ev.gradient * scale, penalty * norms[soft] * scale])  # slack in row-scaled units
     slack = np.zeros((keep.size, p))
     slack[soft, np.arange(p)] = 1.0
@@ -101,19 +229,139 @@ def _qp_step(ev, radius: float, penalty: float):
     upper = np.concatenate([np.full(keep.size, np.inf), np.full(n, radius), np.full(p, np.inf)])
     res = proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
     d = np.clip(np.asarray(res.x)[:n], -radius, radius)
-    model = ev.gradient @ d + 0.5 * d @ ev.hessian @ d
+    model = ev.gradient @ d + 0.5 * d @ hess @ d
     linear = _violation(c + a @ d)  # the pruned constraints stay satisfied inside the region
     predicted = penalty * (_violation(c) - linear) - model
-    # multipliers of the constraint rows, back in the units of c
-    duals = np.abs(np.asarray(res.z)[:keep.size]) / (norms * scale) if keep.size else np.zeros(0)
-    return d, predicted, linear, float(duals.max()) if duals.size else 0.0
+    # multipliers of the constraint rows, back in the units of c (ProxQP: z < 0 on an active lower bound)
+    multipliers = np.zeros(c.size)
+    if keep.size:
+        multipliers[keep] = np.maximum(-np.asarray(res.z)[:keep.size], 0.0) / (norms * scale)
+    return d, predicted, linear, multipliers
+
+
+def _smooth_abs(p):
+    return np.sqrt(p * p + POWER_SMOOTHING**2) - POWER_SMOOTHING
+
+
+def _composite_qp_step(ev, radius: float, penalty: float, hessian):
+    """The elastic step QP with J's sum of weighted |P_k| (J_e) modelled piecewise linearly.
+
+    J = a_phi J_phi + sum_k pw_k |P_k| (``ev.power``...). Terms that cannot change sign inside the trust
+    region (|P_k| > |nabla P_k|_1 Delta) are linear there and go to the gradient; each of the others
+    gets a variable t_k >= |P_k + nabla P_k d| (two rows) and pw_k t_k in the objective. ``hessian``
+    models the rest (J_phi's Gauss-Newton matrix and the quasi-Newton correction).
+
+    Returns:
+        (d, predicted merit decrease, linearised violation, constraint multipliers (m,), xi (K,)):
+        xi_k in [-1, 1] is the subgradient of |.| at P_k the QP's multipliers give (sign(P_k) for the
+        terms left linear).
+    """
+    n = ev.gradient.size
+    c, a = ev.constraints, ev.jacobian
+    pw, pv, pj = ev.power_weight, ev.power, ev.power_jacobian
+    smooth_slope = pv / np.sqrt(pv * pv + POWER_SMOOTHING**2)
+    g_phi = ev.gradient - pj.T @ (pw * smooth_slope)  # the J_phi part of the gradient
+    near = np.flatnonzero(np.abs(pv) <= np.abs(pj).sum(axis=1) * radius)
+    far = np.setdiff1d(np.arange(pv.size), near)
+    xi = np.sign(pv)
+    g_lin = g_phi + pj[far].T @ (pw[far] * xi[far])
+    keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
+    norms = np.maximum(np.abs(a[keep]).max(axis=1), 1.0)
+    c_k, a_k = c[keep] / norms, a[keep] / norms[:, None]
+    soft = np.flatnonzero(c_k < 0.0)
+    p, q = soft.size, near.size
+    p_norms = np.maximum(np.abs(pj[near]).max(axis=1), 1.0) if q else np.ones(0)
+    pj_k, pv_k = pj[near] / p_norms[:, None], pv[near] / p_norms
+    scale = 1.0 / max(1.0, np.abs(hessian).max())
+    size = n + q + p
+    h = np.zeros((size, size))
+    h[:n, :n] = (hessian + (1e-9 * max(np.trace(hessian) / n, 1e-12)) * np.eye(n)) * scale
+    g = np.concatenate([g_lin * scale, pw[near] * p_norms * scale, penalty * norms[soft] * scale])
+    m_c = keep.size
+    rows = np.zeros((m_c + 2 * q + size, size))
+    rows[:m_c, :n] = a_k
+    rows[soft, n + q + np.arange(p)] = 1.0
+    rows[m_c:m_c + q, :n], rows[m_c + q:m_c + 2 * q, :n] = -pj_k, pj_k  # t - dP >= P, t + dP >= -P
+    rows[m_c + np.arange(q), n + np.arange(q)] = 1.0
+    rows[m_c + q + np.arange(q), n + np.arange(q)] = 1.0
+    rows[m_c + 2 * q:] = np.eye(size)
+    lower = np.concatenate([-c_k, pv_k, -pv_k, np.full(n, -radius), np.full(q, -np.inf), np.zeros(p)])
+    upper = np.concatenate([np.full(m_c + 2 * q, np.inf), np.full(n, radius), np.full(q + p, np.inf)])
+    res = proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
+    d = np.clip(np.asarray(res.x)[:n], -radius, radius)
+    z = np.asarray(res.z)
+    model = g_phi @ d + 0.5 * d @ hessian @ d + pw @ (_smooth_abs(pv + pj @ d) - _smooth_abs(pv))
+    linear = _violation(c + a @ d)
+    predicted = penalty * (_violation(c) - linear) - model
+    multipliers = np.zeros(c.size)
+    if m_c:
+        multipliers[keep] = np.maximum(-z[:m_c], 0.0) / (norms * scale)
+    if q:  # xi pw = (-z_plus) - (-z_minus), back from the row and objective scaling
+        plus, minus = np.maximum(-z[m_c:m_c + q], 0.0), np.maximum(-z[m_c + q:m_c + 2 * q], 0.0)
+        xi[near] = np.clip((plus - minus) / (p_norms * scale * pw[near]), -1.0, 1.0)
+    return d, predicted, linear, multipliers, xi
+
+
+def _model_gradient(ev, xi, composite: bool) -> np.ndarray:
+    """The objective's gradient the KKT residual uses.
+
+    nabla J, or with J_e's |P_k| as a nonsmooth sum, nabla (a_phi J_phi) + sum_k pw_k xi_k nabla P_k
+    (xi_k a subgradient of |.| at P_k, from the QP).
+    """
+    if not composite:
+        return ev.gradient
+    pv, pj, pw = ev.power, ev.power_jacobian, ev.power_weight
+    g_phi = ev.gradient - pj.T @ (pw * pv / np.sqrt(pv * pv + POWER_SMOOTHING**2))
+    return g_phi + pj.T @ (pw * (np.sign(pv) if xi is None else xi))
+
+
+def _second_order_correction(ev, d, multipliers, trial_constraints) -> np.ndarray:
+    """The second-order correction of the Maratos effect.
+
+    The least-norm dd with A_W dd = -c_W(x + d) on the working set W (rows with a positive multiplier,
+    or violated at x + d).
+    """
+    work = np.flatnonzero((multipliers > 0.0) | (trial_constraints < 0.0))
+    if work.size == 0:
+        return np.zeros_like(d)
+    a = ev.jacobian[work]
+    gram = a @ a.T
+    gram += 1e-12 * max(float(np.trace(gram)), 1e-300) * np.eye(work.size)
+    return -a.T @ np.linalg.solve(gram, trial_constraints[work])
+
+
+def _floored(b: np.ndarray) -> np.ndarray:
+    """The symmetric b with its eigenvalues floored at 1e-8 of the largest (positive definite)."""
+    b = 0.5 * (b + b.T)
+    w, v = np.linalg.eigh(b)
+    top = max(float(w[-1]), 1e-12)
+    if w[0] >= 1e-8 * top:
+        return b
+    return (v * np.maximum(w, 1e-8 * top)) @ v.T
+
+
+def damped_bfgs(b: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Powell's damped BFGS update of a positive definite b with the step s and gradient change y.
+
+    y is replaced by r = theta y + (1 - theta) b s, theta the largest in [0, 1] with s^T r >= 0.2 s^T b s,
+    so the update stays positive definite (Nocedal & Wright, procedure 18.2).
+    """
+    bs = b @ s
+    sbs = float(s @ bs)
+    if not sbs > 0.0:
+        return b
+    sy = float(s @ y)
+    theta = 1.0 if sy >= 0.2 * sbs else 0.8 * sbs / (sbs - sy)
+    r = theta * y + (1.0 - theta) * bs
+    return b - np.outer(bs, bs) / sbs + np.outer(r, r) / float(s @ r)
 
 
 def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, name: str = "") -> SqpOutcome:
     """Minimise ``problem``'s J subject to its constraints >= 0, from x0.
 
     Args:
-        problem: a :class:`planners.problem.MotionProblem` (``evaluate(x, derivatives)``).
+        problem: a :class:`planners.problem.MotionProblem` (``evaluate(x, derivatives)`` returning J,
+            constraints, gradient, jacobian, a positive semi-definite ``hessian`` and ``violation``).
         x0: start.
         options: :class:`SqpOptions`.
         progress: ``progress(name, iteration, J, violation)`` after each iteration, or None.
@@ -121,45 +369,87 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     """
     opt = options or SqpOptions()
     start = time.perf_counter()
+    if opt.curvature == "composite" and hasattr(problem, "power_model") and not problem.power_model:
+        problem.power_model = True  # the powers and their derivatives with every gradient
+        problem._cache = None  # an evaluation cached without them
     x = np.asarray(x0, dtype=float).copy()
     radius, penalty = opt.radius, opt.penalty
     evaluations = gradients = 0
     message, success = "iteration limit reached", False
     it = 0
     best_violation, last_progress = np.inf, 0
-    history = []  # the violation after each iteration
+    history, merits = [], []  # the violation and the merit after each iteration
+    correction = None  # S of the structured quasi-Newton model H_GN + S
+    pending = None  # (s, grad L at the point before, multipliers) of the last accepted step
+    kkt = multipliers = xi = None
+    composite = False
     for it in range(1, opt.max_iterations + 1):
         ev = problem.evaluate(x, True)
         gradients += 1
+        composite = opt.curvature == "composite" and getattr(ev, "power", None) is not None
+        hessian = None
+        if opt.curvature == "composite":
+            base = ev.rate_hessian if composite else ev.hessian
+            model = _floored(base + (correction if correction is not None else 0.0))
+            if pending is not None:
+                step, before, lam, xi = pending
+                change = _model_gradient(ev, xi, composite) - ev.jacobian.T @ lam - before
+                model = damped_bfgs(model, step, change)
+            correction, hessian = model - base, model
+
+        def solve_qp(rho, ev=ev, hessian=hessian, composite=composite, radius=radius):
+            if composite:
+                return _composite_qp_step(ev, radius, rho, hessian)
+            return (*_qp_step(ev, radius, rho, hessian), None)
+
         merit = ev.J + penalty * _violation(ev.constraints)
-        d, predicted, linear, multiplier = _qp_step(ev, radius, penalty)
-        # the l1 merit is exact only with rho above the multipliers; and while the linearisation cannot
-        # be met, weigh feasibility more
-        wanted = max(2.0 * multiplier, 10.0 * penalty if linear > 1e-9 else 0.0)
+        d, predicted, linear, multipliers, xi = solve_qp(penalty)
+        # the l1 merit is exact only with rho above the multipliers; and while the linearised constraints
+        # cannot be met, weigh feasibility more
+        top = float(multipliers.max()) if multipliers.size else 0.0
+        wanted = max(2.0 * top, 10.0 * penalty if linear > 1e-9 else 0.0)
         if wanted > penalty and penalty < 1e6:
             penalty = min(wanted, 1e6)
             merit = ev.J + penalty * _violation(ev.constraints)
-            d, predicted, linear, _ = _qp_step(ev, radius, penalty)
-        if predicted <= 1e-12 * max(1.0, abs(ev.J)):
+            d, predicted, linear, multipliers, xi = solve_qp(penalty)
+        objective_gradient = _model_gradient(ev, xi, composite)
+        kkt = kkt_residual(objective_gradient, ev.constraints, ev.jacobian, multipliers)
+        if opt.stop == "kkt" and kkt.residual <= opt.kkt_tolerance and ev.violation <= opt.feasibility:
+            success, message = True, f"converged: KKT residual {kkt.residual:.2g} <= {opt.kkt_tolerance:g}"
+            break
+        if predicted <= (1e-12 if opt.stop == "progress" else 1e-16) * max(1.0, abs(ev.J)):
             viol = ev.violation
             success = viol <= opt.feasibility
-            message = "converged: no decrease predicted" if success else \
+            message = f"converged: no decrease predicted (KKT residual {kkt.residual:.2g})" if success else \
                 "stopped at a point where the linearised constraints cannot be met (locally infeasible)"
             break
         trial = problem.evaluate(x + d)
         evaluations += 1
         actual = merit - (trial.J + penalty * _violation(trial.constraints))
         ratio = actual / predicted
+        if ratio <= 0.1 and opt.second_order and trial.violation > ev.violation:
+            # the Maratos effect: a good step along curved constraints raises their violation; correct
+            # it back to the constraints' linearisation (least-norm step, the Jacobian at x)
+            corrected = d + _second_order_correction(ev, d, multipliers, trial.constraints)
+            if np.abs(corrected).max() <= radius:
+                again = problem.evaluate(x + corrected)
+                evaluations += 1
+                if merit - (again.J + penalty * _violation(again.constraints)) > 0.1 * predicted:
+                    d, trial = corrected, again
+                    actual = merit - (trial.J + penalty * _violation(trial.constraints))
+                    ratio = actual / predicted
         accepted = ratio > 0.1
         if accepted:
+            pending = (d, objective_gradient - ev.jacobian.T @ multipliers, multipliers, xi)
             x = x + d
             if ratio > 0.75 and np.abs(d).max() > 0.9 * radius:
                 radius *= 2.0
         else:
             radius *= 0.25
-        viol = (trial if accepted else ev).violation
+        now = trial if accepted else ev
+        viol = now.violation
         if progress is not None:
-            progress(name, it, (trial if accepted else ev).J, viol)
+            progress(name, it, now.J, viol)
         # an infeasible request: stop once the violation has not improved by 1 % in `patience` iterations
         if viol < 0.99 * best_violation or (accepted and viol <= 1e-3):  # small violations: keep polishing
             best_violation, last_progress = min(viol, best_violation), it
@@ -168,19 +458,32 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                        "iterations (the request looks infeasible)")
             break
         history.append(viol)
+        merits.append(now.J + penalty * _violation(now.constraints))
         if len(history) > opt.patience and viol > max(opt.feasibility, 1e-3) \
                 and viol > (1.0 - opt.crawl) * history[-1 - opt.patience]:
             message = (f"stopped: the constraint violation ({viol:.3g}) decreased by less than "
                        f"{opt.crawl:.0%} in {opt.patience} iterations (the request looks infeasible)")
             break
-        if accepted and actual < opt.tolerance * max(1.0, abs(trial.J)) and viol <= opt.feasibility:
-            success, message = True, "converged: merit decrease below tolerance"
+        if opt.stop == "progress":
+            if accepted and actual < opt.tolerance * max(1.0, abs(trial.J)) and viol <= opt.feasibility:
+                success, message = True, "converged: merit decrease below tolerance"
+                break
+        elif len(merits) > opt.patience and viol <= opt.feasibility \
+                and merits[-1 - opt.patience] - merits[-1] < opt.tolerance**2 * max(1.0, abs(now.J)):
+            success = True
+            message = (f"converged: the merit decreased by less than {opt.tolerance**2:.2g} in "
+                       f"{opt.patience} "
+                       "iterations (round-off)")
             break
         if radius < 1e-10:
             viol = problem.evaluate(x).violation
             success = viol <= opt.feasibility
             message = "converged: trust region collapsed" if success else "trust region collapsed while infeasible"
             break
-    final = problem.evaluate(x)
+    final = problem.evaluate(x, True)
+    if kkt is None or final is not ev:
+        # the returned x moved after the last QP: its KKT residual with the last multipliers
+        kkt = kkt_residual(_model_gradient(final, xi, composite), final.constraints, final.jacobian,
+                           multipliers)
     return SqpOutcome(x, success, message, it, evaluations, gradients, time.perf_counter() - start, final.J,
-                      final.violation)
+                      final.violation, kkt, multipliers)

@@ -363,7 +363,8 @@ def _work(args, mission, robot, tmp, say):
     for report in final.report.constraints.values():
         say("  " + report.describe())
     for stage in final.stages:
-        say(f"  solver {stage.name}: {stage.message} ({stage.iterations} iterations, {stage.wall_time:.3f} s)")
+        say(f"  solver {stage.name}: {stage.message} ({stage.iterations} iterations, {stage.wall_time:.3f} s, "
+            f"KKT residual {stage.kkt:.2g})")
     if log is not None:
         say(_simulation_table(log))
     problems = []

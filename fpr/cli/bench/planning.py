@@ -14,7 +14,9 @@ e. re-optimising one segment: step 2 of the two-step method on travel 1
    (:func:`planners.methods.two_step.travel_problem`), from the step-1 result (problem construction
    included; median of 11 runs, 5 with ``--quick``);
 f. the singularity crossing: ``plan(load_mission("cross-singularity"))`` (:mod:`planners.crossing`,
-   median of 3 runs, 1 with ``--quick``); not part of the speed-ups (no baseline).
+   median of 3 runs, 1 with ``--quick``); not part of the speed-ups (no baseline);
+g. optimality: per built-in mission and planner, J beside the best J known, the KKT residuals,
+   iterations and time (:mod:`fpr.cli.bench.optimality`; ``--quick`` leaves the composite SQP out).
 
 Speed-up = baseline time / our time, where the baseline time is its time to reach our J, or, when it
 did not within the cap, its run time (the ratio is then a lower bound, marked ">="). The targets
@@ -33,6 +35,7 @@ import time
 
 import numpy as np
 
+from fpr.cli.bench.optimality import optimality_table, run_optimality
 from fpr.cli.bench.timing import fmt
 from planners.baseline import plan_baseline
 from planners.methods.one_step import one_step_problem
@@ -172,6 +175,7 @@ def run_planning(quick: bool, progress: bool) -> dict:
         times.append(runs[-1].wall_time)
     items.append(_plan_item("(f) singularity crossing (cross-singularity mission)", runs, times))
     say(f"bench planning (f): {fmt(items[-1]['wall_time_s'])}, feasible {items[-1]['feasible']}")
+    optimality = run_optimality(quick, progress)
     speedups = {}
     for key, item in zip(("two-step", "one-step", "slsqp"), items[:3]):
         reached = base["time_to_J_s"][key]
@@ -197,6 +201,7 @@ def run_planning(quick: bool, progress: bool) -> dict:
              met=seg["wall_time_s"] < TARGETS["segment_s"]),
     ]
     return dict(mission=PLANNING_MISSION, settings=settings, items=items, speedups=speedups, targets=targets,
+                optimality=optimality,
                 one_step_problem_matches_plan=consistent, load_average_before=load_before,
                 load_average_after=os.getloadavg(),
                 blas_threads_env={k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")})
@@ -228,4 +233,6 @@ def planning_table(planning: dict) -> str:
         verdict = {True: "met", False: "NOT met", None: "undecided (the baseline stopped at its time cap "
                    "before reaching our J: raise the cap)"}[t["met"]]
         lines.append(f"target {t['target']}: {t['value']:.4g}{bound} -> {verdict}")
+    if planning.get("optimality"):
+        lines.append(optimality_table(planning["optimality"]))
     return "\n".join(lines)
