@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import lapack
 
+from controllers.box_qp import solve_box_qp
 from fpr.model.qp import proxsuite_module
 
 # the portable build, whose results do not depend on memory alignment (fpr.model.qp)
@@ -53,7 +54,8 @@ class AllocationResult:
         thrust: f of each drone, shape (n_d,) [N].
         torque: body torques, shape (n_d, 3) [N m].
         saturated: rotors at a bound (within 1e-6 of it), shape (n_d, 4) bool.
-        iterations: ProxQP iterations, 0 when the closed form (no bound active) was used.
+        iterations: linear solves of the active-set route (or ProxQP iterations), 0 when the closed form (no
+            bound active) was used.
         attitude_error: achieved minus wanted attitude accelerations, shape (n_a,) [rad/s^2] (computed when
             first read: the control loop does not read it).
         thrust_error: achieved minus wanted thrusts, shape (n_d,) [N] (same).
@@ -167,9 +169,12 @@ class Allocator:
        R_f^-1; A_tau^+ = A_tau^T (A_tau A_tau^T)^-1 by one Cholesky solve. When every w^2 lies within
        [0, w_max^2] this is the QP's solution exactly (the objective is 0 there, its least value, and H is
        positive definite), so no QP is built or solved.
-    2. **A bound active**: H and g are built (:meth:`_lean_qp`, the constant terms computed once) and the one
-       dense ProxQP workspace, built at the first such call, is updated (H, g only) and solved warm from its
-       previous result.
+    2. **A bound active**: H and g are built (:meth:`_lean_qp`, the constant terms computed once) and the box
+       QP is solved exactly by an active-set method (:func:`controllers.box_qp.solve_box_qp`), warm-started
+       from the previous tick's active bounds (or, after a tick without, from the bounds the law crosses):
+       usually one Cholesky solve.
+    3. Should the active-set method cycle (not seen on the reference missions), ProxQP: one dense workspace,
+       initialised at its first use, then updated (H, g only) and solved warm from its previous result.
 
     Small arrays: each numpy call costs about a microsecond or more, ``a.dot(b)`` about half of ``a @ b``;
     the code counts its calls.
@@ -182,9 +187,9 @@ class Allocator:
         max_speed: upper rotor speed bound [rad/s] (default: the robot's w_max).
 
     Attributes:
-        qp: the ProxQP workspace of route 2 (``proxsuite.proxqp.dense.QP``); built in the constructor,
+        qp: the ProxQP workspace of route 3 (``proxsuite.proxqp.dense.QP``); built in the constructor,
             initialised at its first use.
-        routes: how many calls took each route, {"closed form": n, "qp": n}.
+        routes: how many calls took each route, {"closed form": n, "active set": n, "proxqp": n}.
     """
 
     def __init__(self, robot, attitude_weight=1.0, thrust_weight=1.0, regularisation: float = 100.0,
@@ -214,7 +219,8 @@ class Allocator:
         self.qp.settings.eps_rel = 0.0
         self.qp.settings.verbose = False
         self._initialised = False
-        self.routes = {"closed form": 0, "qp": 0}
+        self.routes = {"closed form": 0, "active set": 0, "proxqp": 0}
+        self._active = None  # the active bounds (lower, upper) of the previous tick, when it had some
 
     @property
     def regularisation(self) -> float:
@@ -273,17 +279,19 @@ class Allocator:
         gram = a_tau.dot(a_tau.T)
         x, info = _posv(gram, u_a + attitude.m_inv_a.dot(attitude.c - attitude.j_f.T.dot(f_d)))[1:]
         if info != 0:  # A_tau rank deficient (never on these robots): the QP decides
-            return self._bounded(attitude, f_d, u_a, None)
+            return self._bounded(attitude, f_d, u_a, None, None)
         tau = a_tau.T.dot(x)
         z = self._inv_f.dot(f_d) + self._inv_tau.dot(tau)
         values = z.tolist()
         lowest, highest = min(values), max(values)
         if lowest >= 0.0 and highest <= self.scale:  # the law is feasible: it is the QP's minimiser
             self.routes["closed form"] += 1
+            self._active = None
             saturated = (self._unsaturated if lowest > self._tol and highest < self.scale - self._tol
                          else self._saturation(z))
-            return AllocationResult(z.reshape(-1, 4), f_d, tau.reshape(-1, 3), saturated, 0, attitude, f_d, u_a)
-        return self._bounded(attitude, f_d, u_a, gram)
+            return AllocationResult(z.reshape(-1, 4), f_d, tau.reshape(-1, 3), saturated, 0, attitude, f_d,
+                                    u_a)
+        return self._bounded(attitude, f_d, u_a, gram, values)
 
     def _saturation(self, z) -> np.ndarray:
         """Rotors within 1e-6 w_max^2 of a bound, shape (n_d, 4)."""
@@ -292,7 +300,8 @@ class Allocator:
     def _lean_qp(self, attitude, f_d, u_a, gram):
         """(H, g) of :meth:`build`, scaled to zeta = z / w_max^2 (H w_max^4, g w_max^2), in fewer array calls.
 
-        With B = A_tau S_tau, the regularisation's S_tau^T N_tau S_tau = S_tau^T S_tau - B^T (A_tau A_tau^T)^-1 B
+        With B = A_tau S_tau, the regularisation's
+        S_tau^T N_tau S_tau = S_tau^T S_tau - B^T (A_tau A_tau^T)^-1 B
         (N_tau = I - A_tau^T (A_tau A_tau^T)^-1 A_tau, symmetric and idempotent); the constant terms are
         computed once (:meth:`_constants`). Equal to :meth:`build` to round-off (tested).
         """
@@ -305,16 +314,41 @@ class Allocator:
         wa = a * self._w_a[:, None]
         h = wa.T.dot(wa) + self._h_constant - self._regularisation * b.T.dot(x)
         h = (0.5 * self.scale**2) * (h + h.T)
-        g = -self.scale * (wa.T.dot(self._w_a * (u_a + attitude.m_inv_a.dot(attitude.c))) + self._thrust_g.dot(f_d))
+        r = self._w_a * (u_a + attitude.m_inv_a.dot(attitude.c))
+        g = -self.scale * (wa.T.dot(r) + self._thrust_g.dot(f_d))
         return h, g
 
-    def _bounded(self, attitude, f_d, u_a, gram) -> AllocationResult:
-        """Route 2 (class docstring); ``gram``: A_tau A_tau^T, or None when it is singular."""
+    def _bounded(self, attitude, f_d, u_a, gram, law) -> AllocationResult:
+        """Routes 2 and 3 (class docstring).
+
+        ``gram``: A_tau A_tau^T, or None when it is singular; ``law``: the law's w^2 as a list, or None.
+        """
         if gram is None:
             h, g = self.build(attitude, f_d, u_a)
             h, g = h * self.scale**2, g * self.scale
         else:
             h, g = self._lean_qp(attitude, f_d, u_a, gram)
+        if self._active is not None:
+            lower, upper = self._active
+        elif law is not None:
+            lower, upper = [w < 0.0 for w in law], [w > self.scale for w in law]
+        else:
+            lower = upper = [False] * self.n
+        found = solve_box_qp(h, g, lower, upper)
+        if found is not None:
+            zeta, lower, upper, iterations = found
+            self._active = (lower, upper) if any(lower) or any(upper) else None
+            self.routes["active set"] += 1
+        else:
+            zeta, iterations = self._proxqp(h, g)
+            self._active = None
+            self.routes["proxqp"] += 1
+        z = np.minimum(np.maximum(zeta * self.scale, self.lower), self.upper)  # np.clip, cheaper
+        return AllocationResult(z.reshape(-1, 4), self.s_f.dot(z), self.s_tau.dot(z).reshape(-1, 3),
+                                self._saturation(z), iterations, attitude, f_d, u_a)
+
+    def _proxqp(self, h, g):
+        """Route 3: the scaled QP by the warm-started ProxQP workspace; (zeta, iterations)."""
         if not self._initialised:
             self.qp.init(h, g, None, None, None, None, None, self.lower / self.scale, self.upper / self.scale)
             self.qp.solve()
@@ -324,7 +358,4 @@ class Allocator:
         else:
             self.qp.update(H=h, g=g, update_preconditioner=False)
             self.qp.solve()
-        self.routes["qp"] += 1
-        z = np.minimum(np.maximum(self.qp.results.x * self.scale, self.lower), self.upper)  # np.clip, cheaper
-        return AllocationResult(z.reshape(-1, 4), self.s_f.dot(z), self.s_tau.dot(z).reshape(-1, 3),
-                                self._saturation(z), int(self.qp.results.info.iter), attitude, f_d, u_a)
+        return np.asarray(self.qp.results.x), int(self.qp.results.info.iter)

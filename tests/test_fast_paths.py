@@ -19,6 +19,7 @@ import pytest
 
 import fpr
 from controllers.allocation import Allocator, allocation_qp, selectors
+from controllers.box_qp import solve_box_qp
 from fpr.model.qp import proxsuite_module
 from fpr.sim.plant import Plant, hover_configuration, hover_speeds, rkmk4_step
 
@@ -87,16 +88,21 @@ def _allocation_cases(name, thrust_factor, count, seed, spread=0.3):
     w = hover_speeds(robot, q0)
     hover = np.array([rotor.wrench(wi**2)[0] for rotor, wi in zip(robot.rotors, w, strict=True)])
     n_a = len(robot.layout.attitude)
-    return robot, [(robot.attitude_model(q0 + 0.02 * rng.normal(size=robot.nq), 0.02 * rng.normal(size=robot.nq)),
-                    thrust_factor * hover * (1 + 0.02 * rng.normal(size=hover.size)), spread * rng.normal(size=n_a))
-                   for _ in range(count)]
+    cases = []
+    for _ in range(count):
+        q, v = q0 + 0.02 * rng.normal(size=robot.nq), 0.02 * rng.normal(size=robot.nq)
+        attitude = robot.attitude_model(q, v)
+        thrust = thrust_factor * hover * (1 + 0.02 * rng.normal(size=hover.size))
+        cases.append((attitude, thrust, spread * rng.normal(size=n_a)))
+    return robot, cases
 
 
 def _cold(allocator, attitude, thrust, u_a):
     """ProxQP from scratch on the allocator's built QP (scaled to z / w_max^2): w^2, shape (n,)."""
     h, g = allocator.build(attitude, thrust, u_a)
     s = allocator.scale
-    out = proxsuite.proxqp.dense.solve(h * s**2, g * s, l_box=np.zeros(allocator.n), u_box=np.ones(allocator.n),
+    n = allocator.n
+    out = proxsuite.proxqp.dense.solve(h * s**2, g * s, l_box=np.zeros(n), u_box=np.ones(n),
                                        eps_abs=1e-11, eps_rel=0.0, verbose=False)
     return np.asarray(out.x) * s
 
@@ -111,12 +117,13 @@ def test_closed_form_allocation_is_the_qp_minimiser(name):
         result = allocator.solve(attitude, thrust, u_a)
         z = result.speeds_squared.reshape(-1)
         assert not result.any_saturated and result.iterations == 0
-        np.testing.assert_allclose(z, _cold(allocator, attitude, thrust, u_a), rtol=0, atol=1e-6 * allocator.scale)
+        cold = _cold(allocator, attitude, thrust, u_a)
+        np.testing.assert_allclose(z, cold, rtol=0, atol=1e-6 * allocator.scale)
         h, g = allocator.build(attitude, thrust, u_a)
         assert np.abs(h @ z + g).max() <= 1e-9 * np.abs(g).max()
         np.testing.assert_allclose(result.attitude_error, 0.0, atol=1e-9)
         np.testing.assert_allclose(result.thrust_error, 0.0, atol=1e-12)
-    assert allocator.routes == {"closed form": 20, "qp": 0}
+    assert allocator.routes == {"closed form": 20, "active set": 0, "proxqp": 0}
 
 
 @pytest.mark.parametrize("name", fpr.ROBOTS)
@@ -137,7 +144,49 @@ def test_bounded_allocation_is_the_qp_minimiser(name):
         assert result.any_saturated
         np.testing.assert_allclose(result.speeds_squared.reshape(-1), _cold(allocator, attitude, thrust, u_a),
                                    rtol=0, atol=1e-6 * s)
-    assert allocator.routes == {"closed form": 0, "qp": 20}
+    assert allocator.routes == {"closed form": 0, "active set": 20, "proxqp": 0}
+
+
+@pytest.mark.parametrize("name", fpr.ROBOTS)
+def test_proxqp_fallback_gives_the_active_set_answer(name, monkeypatch):
+    """With the active-set method made to fail, the warm ProxQP workspace takes over, with the same w^2."""
+    import controllers.allocation as allocation
+    robot, cases = _allocation_cases(name, 3.0, 5, 6)
+    exact = [Allocator(robot).solve(*case).speeds_squared for case in cases]
+    monkeypatch.setattr(allocation, "solve_box_qp", lambda *args, **kwargs: None)
+    allocator = Allocator(robot)
+    for case, z in zip(cases, exact, strict=True):
+        again = allocator.solve(*case).speeds_squared
+        np.testing.assert_allclose(again, z, rtol=0, atol=1e-6 * allocator.scale)
+    assert allocator.routes == {"closed form": 0, "active set": 0, "proxqp": 5}
+
+
+def test_box_qp_meets_the_kkt_conditions_from_any_guess():
+    """Random positive definite box QPs (n = 8, the allocation's size), every start guess tried being wrong:
+    x in the box, gradient 0 where free, >= 0 at 0, <= 0 at 1; x equal to ProxQP's."""
+    rng = np.random.default_rng(7)
+    solved = 0
+    for _ in range(200):
+        a = rng.normal(size=(8, 8))
+        h = a @ a.T + 0.1 * np.eye(8)
+        g = 3.0 * rng.normal(size=8)
+        lower = list(rng.random(8) < 0.3)
+        upper = [not lo and bool(rng.random() < 0.3) for lo in lower]
+        found = solve_box_qp(h, g, lower, upper, max_iterations=30)
+        if found is None:
+            continue  # may cycle: the allocator falls back to ProxQP then
+        solved += 1
+        x = found[0]
+        grad = h @ x + g
+        tol = 1e-9 * max(1.0, np.abs(g).max())
+        assert x.min() >= 0.0 and x.max() <= 1.0
+        free = (x > 1e-12) & (x < 1 - 1e-12)
+        assert np.abs(grad[free]).max(initial=0.0) <= tol
+        assert np.all(grad[x <= 1e-12] >= -tol) and np.all(grad[x >= 1 - 1e-12] <= tol)
+        reference = proxsuite.proxqp.dense.solve(h, g, l_box=np.zeros(8), u_box=np.ones(8), eps_abs=1e-12,
+                                                 eps_rel=0.0, verbose=False)
+        np.testing.assert_allclose(x, reference.x, rtol=0, atol=1e-7)
+    assert solved >= 180
 
 
 @pytest.mark.parametrize("name", fpr.ROBOTS)
@@ -152,7 +201,8 @@ def test_attitude_model_rows_of_the_inverse_mass_matrix(name):
         np.testing.assert_allclose(m, m.T, rtol=0, atol=1e-15 * np.abs(m).max())  # T^T M_p T: round-off
         model = robot.attitude_model(q, v)
         inverse = np.linalg.inv(m)
-        np.testing.assert_allclose(model.m_inv_a, inverse[attitude_rows], rtol=0, atol=1e-13 * np.abs(inverse).max())
+        tol = 1e-13 * np.abs(inverse).max()
+        np.testing.assert_allclose(model.m_inv_a, inverse[attitude_rows], rtol=0, atol=tol)
         jac = robot.drone_jacobians(q)
         np.testing.assert_array_equal(model.j_f, jac[:, 2])
         np.testing.assert_array_equal(model.j_tau, jac[:, 3:].reshape(-1, robot.nq))
