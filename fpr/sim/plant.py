@@ -234,7 +234,7 @@ class Plant:
             self._mixing = self._mixing * rotor_constant_scale
         self._rotor_map = _rotor_force_map(closed, self._mixing)
         self._max_speed = closed.robot.rotor_constants.max_speed
-        self._step_constants = {}  # dt -> (lag decay at 0, dt/2, dt; dt/2; dt/6), see _lean_step
+        self._step_constants = {}  # dt -> (lag decay at 0, dt/2, dt; dt/2; RK4 weights), see _lean_step
         # constraint and frame data read by drone_positions_and_closure_error (looked up once)
         self._closure_terms = tuple((cm.joint1_id, cm.joint1_placement.translation.copy(), cm.joint2_id,
                                      cm.joint2_placement.translation.copy()) for cm in closed.constraints)
@@ -502,19 +502,21 @@ class Plant:
         self.time += dt
 
     def _lean_step(self, w_cmd, dt: float) -> None:
-        """:meth:`step` without wind: the same RKMK4 step as :func:`rkmk4_step` (same operations on the same
-        numbers, to round-off; tested), in fewer array calls.
+        """:meth:`step` without wind: the same RKMK4 step as :func:`rkmk4_step` (equal to round-off; tested), in
+        fewer array calls.
 
         The rotors' generalised force does not depend on the configuration (:func:`_rotor_force_map`), only
         on the stage's time: the exact lag solution w(t) at the 3 distinct times (0, dt/2, dt) gives the 3
-        forces in one product. The step's constants (dt/2, dt/6, the lag's decay) are computed once per dt.
+        forces in one product. The step's constants (dt/2, the RK4 weights, the lag's decay) are computed once
+        per dt; the weighted sums of the stages are one product each.
         """
         constants = self._step_constants.get(dt)
         if constants is None:
             lag = self.robot.rotor_constants.time_constant
             decay = np.array([1.0, math.exp(-0.5 * dt / lag), math.exp(-dt / lag)] if lag > 0 else [0.0, 0.0, 0.0])
-            constants = self._step_constants[dt] = (decay[:, None], 0.5 * dt, dt / 6.0)
-        decay, half, sixth = constants
+            constants = self._step_constants[dt] = (decay[:, None], 0.5 * dt,
+                                                    np.array([dt / 6.0, dt / 3.0, dt / 3.0, dt / 6.0]))
+        decay, half, weights = constants
         w_cmd = w_cmd.reshape(-1)
         speeds = w_cmd + (self._w.reshape(-1) - w_cmd) * decay  # (3, 4 n_d): w at 0, dt/2, dt
         forces = (speeds * speeds).dot(self._rotor_map.T)  # (3, nv)
@@ -525,21 +527,30 @@ class Plant:
             pin.ArgumentPosition.ARG1
         q, v = self.qc, self.vc
 
-        def stage(theta, vel, tau):  # a(q exp(theta), vel) and dexp^-1_theta(vel), as rkmk4_step's stages
-            a = dynamics(model, data, integrate(model, q, theta), vel, tau, cms, cds, settings).copy()
+        def rate(theta, vel):  # dexp^-1_theta(vel), as rkmk4_step's theta_rate
             x, info = _gesv(d_integrate(model, q, theta, arg1), vel)[2:]
             if info != 0:
                 raise np.linalg.LinAlgError("Singular matrix")
-            return a, x
+            return x
 
         def integrate_step():
-            k1v = dynamics(model, data, q, v, forces[0], cms, cds, settings).copy()
-            k2v, k2q = stage(half * v, v + half * k1v, forces[1])
-            k3v, k3q = stage(half * k2q, v + half * k2v, forces[1])
-            v4 = v + dt * k3v
-            k4v, k4q = stage(dt * k3q, v4, forces[2])
-            q_next = integrate(model, q, sixth * (v + 2.0 * (k2q + k3q) + k4q))
-            return q_next, v + sixth * (k1v + 2.0 * (k2v + k3v) + k4v)
+            # the stages' accelerations go straight into the rows of k_v (no copies of Pinocchio's buffer), and
+            # the final sums are one product each with the weights (dt/6, dt/3, dt/3, dt/6)
+            k_v = np.empty((4, v.size))
+            k_v[0] = dynamics(model, data, q, v, forces[0], cms, cds, settings)
+            v_stage, theta = v + half * k_v[0], half * v
+            k_v[1] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
+            k2q = rate(theta, v_stage)
+            v_stage = v + half * k_v[1]
+            theta = half * k2q
+            k_v[2] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
+            k3q = rate(theta, v_stage)
+            v_stage = v + dt * k_v[2]
+            theta = dt * k3q
+            k_v[3] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[2], cms, cds, settings)
+            k4q = rate(theta, v_stage)
+            q_next = integrate(model, q, weights.dot(np.array((v, k2q, k3q, k4q))))
+            return q_next, v + weights.dot(k_v)
 
         self._advance(integrate_step, dt, speeds[2].reshape(-1, 4))
 
