@@ -172,7 +172,8 @@ class Allocator:
     2. **A bound active**: H and g are built (:meth:`_lean_qp`, the constant terms computed once) and the box
        QP is solved exactly by an active-set method (:func:`controllers.box_qp.solve_box_qp`), warm-started
        from the previous tick's active bounds (or, after a tick without, from the bounds the law crosses):
-       usually one Cholesky solve.
+       usually one Cholesky solve. A tick after one with a bound active comes here directly, without trying
+       the closed form: the method releases the bounds that no longer bind (its minimiser is then the law's).
     3. Should the active-set method cycle (not seen on the reference missions), ProxQP: one dense workspace,
        initialised at its first use, then updated (H, g only) and solved warm from its previous result.
 
@@ -263,6 +264,7 @@ class Allocator:
         # the constant part of H, and W_f^2 S_f^T (g's thrust term), for the bounded path (_lean_qp)
         self._h_constant = self._thrust_gram + self.regularisation * self.s_tau.T @ self.s_tau
         self._thrust_g = self._w_s_f.T * self._w_f
+        self._unit_attitude_weight = bool(np.all(self._w_a == 1.0))
 
     def build(self, attitude, thrust_desired, attitude_desired):
         """(H, g) at this state (see :func:`allocation_qp`)."""
@@ -277,6 +279,8 @@ class Allocator:
         u_a = np.asarray(attitude_desired, dtype=float)
         a_tau = attitude.a_tau
         gram = a_tau.dot(a_tau.T)
+        if self._active is not None:  # the previous tick had a bound active: most likely this one too
+            return self._bounded(attitude, f_d, u_a, gram, None)
         x, info = _posv(gram, u_a + attitude.m_inv_a.dot(attitude.c - attitude.j_f.T.dot(f_d)))[1:]
         if info != 0:  # A_tau rank deficient (never on these robots): the QP decides
             return self._bounded(attitude, f_d, u_a, None, None)
@@ -303,7 +307,8 @@ class Allocator:
         With B = A_tau S_tau, the regularisation's
         S_tau^T N_tau S_tau = S_tau^T S_tau - B^T (A_tau A_tau^T)^-1 B
         (N_tau = I - A_tau^T (A_tau A_tau^T)^-1 A_tau, symmetric and idempotent); the constant terms are
-        computed once (:meth:`_constants`). Equal to :meth:`build` to round-off (tested).
+        computed once (:meth:`_constants`). Equal to :meth:`build` to round-off (tested); symmetric to round-off
+        (the Cholesky solves read its upper triangle; ProxQP gets 0.5 (H + H^T)).
         """
         b = attitude.a_tau.dot(self.s_tau)
         a = b + attitude.m_inv_a.dot(attitude.j_f.T).dot(self.s_f)  # d qdd_a / d z
@@ -311,12 +316,11 @@ class Allocator:
         if info != 0:  # A_tau rank deficient: the general builder (pinv)
             h, g = self.build(attitude, f_d, u_a)
             return h * self.scale**2, g * self.scale
-        wa = a * self._w_a[:, None]
-        h = wa.T.dot(wa) + self._h_constant - self._regularisation * b.T.dot(x)
-        h = (0.5 * self.scale**2) * (h + h.T)
-        r = self._w_a * (u_a + attitude.m_inv_a.dot(attitude.c))
-        g = -self.scale * (wa.T.dot(r) + self._thrust_g.dot(f_d))
-        return h, g
+        r = u_a + attitude.m_inv_a.dot(attitude.c)
+        if not self._unit_attitude_weight:
+            a, r = a * self._w_a[:, None], self._w_a * r
+        h = (a.T.dot(a) + self._h_constant - self._regularisation * b.T.dot(x)) * self.scale**2
+        return h, -self.scale * (a.T.dot(r) + self._thrust_g.dot(f_d))
 
     def _bounded(self, attitude, f_d, u_a, gram, law) -> AllocationResult:
         """Routes 2 and 3 (class docstring).
@@ -340,12 +344,14 @@ class Allocator:
             self._active = (lower, upper) if any(lower) or any(upper) else None
             self.routes["active set"] += 1
         else:
-            zeta, iterations = self._proxqp(h, g)
+            zeta, iterations = self._proxqp(0.5 * (h + h.T), g)
             self._active = None
             self.routes["proxqp"] += 1
         z = np.minimum(np.maximum(zeta * self.scale, self.lower), self.upper)  # np.clip, cheaper
-        return AllocationResult(z.reshape(-1, 4), self.s_f.dot(z), self.s_tau.dot(z).reshape(-1, 3),
-                                self._saturation(z), iterations, attitude, f_d, u_a)
+        low, high = self._tol, self.scale - self._tol
+        saturated = np.array([w <= low or w >= high for w in z.tolist()]).reshape(-1, 4)  # as _saturation
+        return AllocationResult(z.reshape(-1, 4), self.s_f.dot(z), self.s_tau.dot(z).reshape(-1, 3), saturated,
+                                iterations, attitude, f_d, u_a)
 
     def _proxqp(self, h, g):
         """Route 3: the scaled QP by the warm-started ProxQP workspace; (zeta, iterations)."""
