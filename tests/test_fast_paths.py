@@ -9,12 +9,14 @@ Each fast path is held equal to a slower, independent computation of the same qu
   :meth:`~fpr.sim.plant.Plant.drone_positions_and_closure_error` (their own kinematics pass);
 * the allocation's closed form (the thesis' law 2.24, used when no rotor bound is active) against ProxQP
   solving the built QP from scratch, and the bounded route's lean H, g against :func:`allocation_qp`;
-* the attitude model (M^-1 rows from Pinocchio's upper triangle) against the full inverse of ``mass_matrix``.
+* the attitude model (M^-1 rows from Pinocchio's upper triangle) against the full inverse of ``mass_matrix``,
+  and ``mass_matrix`` (one product on CRBA's triangle) against T^T M_p T with M_p mirrored by ``np.triu``.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 import fpr
@@ -198,6 +200,9 @@ def test_attitude_model_rows_of_the_inverse_mass_matrix(name):
     for _ in range(5):
         q, v = centre + 0.3 * rng.normal(size=robot.nq), rng.normal(size=robot.nq)
         m = robot.mass_matrix(q)
+        upper = np.triu(pin.crba(robot.model, robot.data, robot.to_pinocchio(q)))  # CRBA's triangle, mirrored
+        reference = robot.T.T @ (upper + np.triu(upper, 1).T) @ robot.T
+        np.testing.assert_allclose(m, reference, rtol=0, atol=1e-14 * np.abs(reference).max())
         np.testing.assert_allclose(m, m.T, rtol=0, atol=1e-15 * np.abs(m).max())  # T^T M_p T: round-off
         model = robot.attitude_model(q, v)
         inverse = np.linalg.inv(m)

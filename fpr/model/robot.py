@@ -305,11 +305,21 @@ class Robot:
     # ------------------------------------------------------------------ dynamics
     def mass_matrix(self, q) -> np.ndarray:
         """M(q), generalised inertia matrix, shape (n, n) (seed 2.11)."""
-        m = pin.crba(self.model, self.data, self._q(q))
-        # CRBA fills the upper triangle only: mirror it through a mask built once (np.tril_indices at every
-        # call cost more than the CRBA itself)
-        t = self.T
-        return t.T.dot(np.where(self._upper_mask, m, m.T)).dot(t)
+        # CRBA fills the upper triangle of Pinocchio's M_p only. T^T M_p T is linear in that triangle: one
+        # constant (n^2, n^2) matrix maps it (row-major, the lower entries ignored) onto the result, so the
+        # call is CRBA and one product (np.tril_indices at every call cost more than the CRBA itself).
+        n = self.nq
+        return self._mass_map.dot(pin.crba(self.model, self.data, self._q(q)).reshape(-1)).reshape(n, n)
+
+    @cached_property
+    def _mass_map(self) -> np.ndarray:
+        """A with vec(T^T M_p T) = A vec(U), U the upper triangle of M_p (row-major vec), shape (n^2, n^2)."""
+        n, t = self.nq, self.T
+        a = np.zeros((n * n, n * n))
+        for i in range(n):
+            for j in range(n):  # M_p[i, j] = U[min(i, j), max(i, j)]
+                a[:, min(i, j) * n + max(i, j)] += np.outer(t[i], t[j]).reshape(-1)
+        return a
 
     def nonlinear_effects(self, q, v) -> np.ndarray:
         """c(q, qdot): Coriolis, centrifugal and gravity terms, shape (n,) (seed 2.11)."""
