@@ -15,7 +15,8 @@ from fpr.sim.plant import hover_configuration, hover_speeds
 def _calls(robot, rng, factors):
     """(attitude, thrust, u_a) near hover, the thrust scaled by each factor (3: rotors saturate)."""
     q0 = hover_configuration(robot, robot.kind.reference_chain)
-    hover = np.array([rotor.wrench(w**2)[0] for rotor, w in zip(robot.rotors, hover_speeds(robot, q0), strict=True)])
+    speeds = hover_speeds(robot, q0)
+    hover = np.array([rotor.wrench(w**2)[0] for rotor, w in zip(robot.rotors, speeds, strict=True)])
     n_a = len(robot.layout.attitude)
     return [(robot.attitude_model(q0 + 0.01 * rng.normal(size=robot.nq), np.zeros(robot.nq)), f * hover,
              0.01 * rng.normal(size=n_a)) for f in factors]

@@ -242,7 +242,8 @@ class Plant:
         self._drone_frames = tuple((model.frames[f].parentJoint, model.frames[f].placement.translation.copy())
                                    for f in closed.drone_frame_ids)
         self._drone_points = tuple((joint, p.tolist()) for joint, p in self._drone_frames)  # as floats
-        self._closure_points = tuple((j1, p1.tolist(), j2, p2.tolist()) for j1, p1, j2, p2 in self._closure_terms)
+        self._closure_points = tuple((j1, p1.tolist(), j2, p2.tolist())
+                                     for j1, p1, j2, p2 in self._closure_terms)
         # each drone's free flyer (its hinge frame, build_closed_chain): where its q and v sit, and its thrust
         # axis (the centre frame's z) in the free flyer's frame, read by drone_joint_positions / drone_tilts
         self._freeflyers = tuple((model.joints[j].idx_q, model.joints[j].idx_v,
@@ -335,7 +336,8 @@ class Plant:
         def point(joint, p):  # world position of the point p (a list) of a joint's frame
             m = omi[joint]
             (r0, r1, r2), (t0, t1, t2) = m.rotation.tolist(), m.translation.tolist()
-            return (r0[0] * p[0] + r0[1] * p[1] + r0[2] * p[2] + t0, r1[0] * p[0] + r1[1] * p[1] + r1[2] * p[2] + t1,
+            return (r0[0] * p[0] + r0[1] * p[1] + r0[2] * p[2] + t0,
+                    r1[0] * p[0] + r1[1] * p[1] + r1[2] * p[2] + t1,
                     r2[0] * p[0] + r2[1] * p[1] + r2[2] * p[2] + t2)
 
         positions = np.array([point(joint, p) for joint, p in self._drone_points])
@@ -453,7 +455,8 @@ class Plant:
     def saturate(self, w_command) -> np.ndarray:
         """Rotor speed commands clipped to [0, w_max], shape (n_d, 4) [rad/s]."""
         w = w_command
-        if not (type(w) is np.ndarray and w.shape == self._w.shape and w.dtype == float):  # the usual call: no copy
+        # the usual call (a float array of the right shape) skips check_shape
+        if not (type(w) is np.ndarray and w.shape == self._w.shape and w.dtype == float):
             w = check_shape("w_command", w_command, (self.robot.n_drones, 4))
         return np.minimum(np.maximum(w, 0.0), self._max_speed)  # np.clip, cheaper
 
@@ -502,8 +505,8 @@ class Plant:
         self.time += dt
 
     def _lean_step(self, w_cmd, dt: float) -> None:
-        """:meth:`step` without wind: the same RKMK4 step as :func:`rkmk4_step` (equal to round-off; tested), in
-        fewer array calls.
+        """:meth:`step` without wind: the same RKMK4 step as :func:`rkmk4_step` (equal to round-off; tested),
+        in fewer array calls.
 
         The rotors' generalised force does not depend on the configuration (:func:`_rotor_force_map`), only
         on the stage's time: the exact lag solution w(t) at the 3 distinct times (0, dt/2, dt) gives the 3
@@ -513,7 +516,8 @@ class Plant:
         constants = self._step_constants.get(dt)
         if constants is None:
             lag = self.robot.rotor_constants.time_constant
-            decay = np.array([1.0, math.exp(-0.5 * dt / lag), math.exp(-dt / lag)] if lag > 0 else [0.0, 0.0, 0.0])
+            decay = np.array([1.0, math.exp(-0.5 * dt / lag), math.exp(-dt / lag)] if lag > 0
+                             else [0.0, 0.0, 0.0])
             constants = self._step_constants[dt] = (decay[:, None], 0.5 * dt,
                                                     np.array([dt / 6.0, dt / 3.0, dt / 3.0, dt / 6.0]))
         decay, half, weights = constants
@@ -521,8 +525,8 @@ class Plant:
         speeds = w_cmd + (self._w.reshape(-1) - w_cmd) * decay  # (3, 4 n_d): w at 0, dt/2, dt
         forces = (speeds * speeds).dot(self._rotor_map.T)  # (3, nv)
         closed = self.closed
-        model, data, cms, cds, settings = closed.model, closed.data, closed.constraints, closed.constraint_datas, \
-            closed.settings
+        model, data, settings = closed.model, closed.data, closed.settings
+        cms, cds = closed.constraints, closed.constraint_datas
         dynamics, integrate, d_integrate, arg1 = pin.constraintDynamics, pin.integrate, pin.dIntegrate, \
             pin.ArgumentPosition.ARG1
         q, v = self.qc, self.vc
@@ -534,8 +538,8 @@ class Plant:
             return x
 
         def integrate_step():
-            # the stages' accelerations go straight into the rows of k_v (no copies of Pinocchio's buffer), and
-            # the final sums are one product each with the weights (dt/6, dt/3, dt/3, dt/6)
+            # the stages' accelerations go straight into the rows of k_v (no copies of Pinocchio's buffer),
+            # and the final sums are one product each with the weights (dt/6, dt/3, dt/3, dt/6)
             k_v = np.empty((4, v.size))
             k_v[0] = dynamics(model, data, q, v, forces[0], cms, cds, settings)
             v_stage, theta = v + half * k_v[0], half * v
