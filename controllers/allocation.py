@@ -31,11 +31,12 @@ holds one ProxQP workspace, built once and warm-started at every call.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import lapack
 
+from controllers.box_qp import solve_box_qp
 from fpr.model.qp import proxsuite_module
 
 # the portable build, whose results do not depend on memory alignment (fpr.model.qp)
@@ -53,23 +54,37 @@ class AllocationResult:
         thrust: f of each drone, shape (n_d,) [N].
         torque: body torques, shape (n_d, 3) [N m].
         saturated: rotors at a bound (within 1e-6 of it), shape (n_d, 4) bool.
-        attitude_error: achieved minus wanted attitude accelerations, shape (n_a,) [rad/s^2].
-        thrust_error: achieved minus wanted thrusts, shape (n_d,) [N].
-        iterations: ProxQP iterations (0 when the unconstrained law was used).
+        iterations: linear solves of the active-set route (or ProxQP iterations), 0 when the closed form (no
+            bound active) was used.
+        attitude_error: achieved minus wanted attitude accelerations, shape (n_a,) [rad/s^2] (computed when
+            first read: the control loop does not read it).
+        thrust_error: achieved minus wanted thrusts, shape (n_d,) [N] (same).
     """
 
     speeds_squared: np.ndarray
     thrust: np.ndarray
     torque: np.ndarray
     saturated: np.ndarray
-    attitude_error: np.ndarray
-    thrust_error: np.ndarray
     iterations: int
+    attitude: object = field(default=None, repr=False, compare=False)
+    thrust_desired: np.ndarray | None = field(default=None, repr=False, compare=False)
+    attitude_desired: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def any_saturated(self) -> bool:
         """Whether a rotor bound is active."""
         return bool(self.saturated.any())
+
+    @property
+    def attitude_error(self) -> np.ndarray:
+        """Achieved minus wanted attitude accelerations, shape (n_a,) [rad/s^2] (seed 2.13)."""
+        achieved = self.attitude.attitude_acceleration(self.thrust, self.torque)
+        return achieved - np.asarray(self.attitude_desired, dtype=float)
+
+    @property
+    def thrust_error(self) -> np.ndarray:
+        """Achieved minus wanted thrusts, shape (n_d,) [N]."""
+        return self.thrust - np.asarray(self.thrust_desired, dtype=float)
 
 
 def selectors(robot) -> tuple[np.ndarray, np.ndarray]:
@@ -145,7 +160,25 @@ def pseudo_inverse_law(attitude, thrust_desired, attitude_desired) -> np.ndarray
 
 
 class Allocator:
-    """The allocation QP of one controller: one ProxQP workspace, warm-started at every call.
+    """The allocation QP of one controller, solved at every control tick.
+
+    :meth:`solve` takes one of two routes:
+
+    1. **No bound active** (the usual tick): the minimiser is the thesis' law (2.24), f = f_d and
+       tau = A_tau^+ (u_a + M_inv,a (c - J_f^T f_d)) (module docstring), mapped to w^2 by each drone's
+       R_f^-1; A_tau^+ = A_tau^T (A_tau A_tau^T)^-1 by one Cholesky solve. When every w^2 lies within
+       [0, w_max^2] this is the QP's solution exactly (the objective is 0 there, its least value, and H is
+       positive definite), so no QP is built or solved.
+    2. **A bound active**: H and g are built (:meth:`_lean_qp`, the constant terms computed once) and the box
+       QP is solved exactly by an active-set method (:func:`controllers.box_qp.solve_box_qp`), warm-started
+       from the previous tick's active bounds (or, after a tick without, from the bounds the law crosses):
+       usually one Cholesky solve. A tick after one with a bound active comes here directly, without trying
+       the closed form: the method releases the bounds that no longer bind (its minimiser is then the law's).
+    3. Should the active-set method cycle (not seen on the reference missions), ProxQP: one dense workspace,
+       initialised at its first use, then updated (H, g only) and solved warm from its previous result.
+
+    Small arrays: each numpy call costs about a microsecond or more, ``a.dot(b)`` about half of ``a @ b``;
+    the code counts its calls.
 
     Args:
         robot: the robot (rotor maps and limits).
@@ -153,6 +186,11 @@ class Allocator:
         thrust_weight: W_f, scalar or (n_d,).
         regularisation: epsilon, picks the least-norm torque (the pseudo-inverse's) [1/(N m)^2].
         max_speed: upper rotor speed bound [rad/s] (default: the robot's w_max).
+
+    Attributes:
+        qp: the ProxQP workspace of route 3 (``proxsuite.proxqp.dense.QP``); built in the constructor,
+            initialised at its first use.
+        routes: how many calls took each route, {"closed form": n, "active set": n, "proxqp": n}.
     """
 
     def __init__(self, robot, attitude_weight=1.0, thrust_weight=1.0, regularisation: float = 100.0,
@@ -160,18 +198,40 @@ class Allocator:
         self.robot = robot
         self.s_f, self.s_tau = selectors(robot)
         self.n = self.s_f.shape[1]
+        n_d = robot.n_drones
         self._weights = (attitude_weight, thrust_weight)
+        self._regularisation = float(regularisation)
         self._constants()
-        self.regularisation = float(regularisation)
         speed = robot.rotor_constants.max_speed if max_speed is None else float(max_speed)
         self.upper = np.full(self.n, speed**2)
         self.lower = np.zeros(self.n)
-        self.scale = speed**2  # ProxQP solves for zeta = z / w_max^2 in [0, 1]: well scaled
+        self.scale = speed**2  # the bounded routes solve for zeta = z / w_max^2 in [0, 1]: well scaled
+        # w^2 of (f, tau) for every drone at once: z = inv_f f + inv_tau tau (the R_f^-1 blocks)
+        inverse = np.zeros((self.n, 4 * n_d))
+        for i, rotor in enumerate(robot.rotors):
+            inverse[4 * i:4 * i + 4, 4 * i:4 * i + 4] = rotor.inverse_mixing_matrix
+        self._inv_f = np.ascontiguousarray(inverse[:, 0::4])
+        self._inv_tau = np.ascontiguousarray(np.delete(inverse, np.s_[0::4], axis=1))
+        self._tol = 1e-6 * self.scale  # a rotor within this of a bound is reported saturated
+        self._unsaturated = np.zeros((n_d, 4), dtype=bool)
+        self._unsaturated.flags.writeable = False
         self.qp = proxsuite.proxqp.dense.QP(self.n, 0, 0, True)
         self.qp.settings.eps_abs = 1e-9
         self.qp.settings.eps_rel = 0.0
         self.qp.settings.verbose = False
         self._initialised = False
+        self.routes = {"closed form": 0, "active set": 0, "proxqp": 0}
+        self._active = None  # the active bounds (lower, upper) of the previous tick, when it had some
+
+    @property
+    def regularisation(self) -> float:
+        """epsilon [1/(N m)^2]."""
+        return self._regularisation
+
+    @regularisation.setter
+    def regularisation(self, value):
+        self._regularisation = float(value)
+        self._constants()
 
     @property
     def attitude_weight(self):
@@ -201,6 +261,10 @@ class Allocator:
         self._w_f = np.broadcast_to(np.asarray(thrust_weight, dtype=float), (self.s_f.shape[0],))
         self._w_s_f = self._w_f[:, None] * self.s_f
         self._thrust_gram = self._w_s_f.T @ self._w_s_f
+        # the constant part of H, and W_f^2 S_f^T (g's thrust term), for the bounded path (_lean_qp)
+        self._h_constant = self._thrust_gram + self.regularisation * self.s_tau.T @ self.s_tau
+        self._thrust_g = self._w_s_f.T * self._w_f
+        self._unit_attitude_weight = bool(np.all(self._w_a == 1.0))
 
     def build(self, attitude, thrust_desired, attitude_desired):
         """(H, g) at this state (see :func:`allocation_qp`)."""
@@ -209,9 +273,88 @@ class Allocator:
                               self._thrust_gram, self.regularisation)
 
     def solve(self, attitude, thrust_desired, attitude_desired) -> AllocationResult:
-        """Allocate the rotor speeds for wanted thrusts and attitude accelerations."""
-        h, g = self.build(attitude, thrust_desired, attitude_desired)
-        h, g = h * self.scale**2, g * self.scale
+        """Allocate the rotor speeds for wanted thrusts f_d (n_d,) [N] and attitude accelerations u_a (n_a,)
+        [rad/s^2] at the state of ``attitude`` (:class:`fpr.model.robot.AttitudeModel`)."""
+        f_d = np.asarray(thrust_desired, dtype=float)
+        u_a = np.asarray(attitude_desired, dtype=float)
+        a_tau = attitude.a_tau
+        gram = a_tau.dot(a_tau.T)
+        if self._active is not None:  # the previous tick had a bound active: most likely this one too
+            return self._bounded(attitude, f_d, u_a, gram, None)
+        x, info = _posv(gram, u_a + attitude.m_inv_a.dot(attitude.c - attitude.j_f.T.dot(f_d)))[1:]
+        if info != 0:  # A_tau rank deficient (never on these robots): the QP decides
+            return self._bounded(attitude, f_d, u_a, None, None)
+        tau = a_tau.T.dot(x)
+        z = self._inv_f.dot(f_d) + self._inv_tau.dot(tau)
+        values = z.tolist()
+        lowest, highest = min(values), max(values)
+        if lowest >= 0.0 and highest <= self.scale:  # the law is feasible: it is the QP's minimiser
+            self.routes["closed form"] += 1
+            self._active = None
+            saturated = (self._unsaturated if lowest > self._tol and highest < self.scale - self._tol
+                         else self._saturation(z))
+            return AllocationResult(z.reshape(-1, 4), f_d, tau.reshape(-1, 3), saturated, 0, attitude, f_d,
+                                    u_a)
+        return self._bounded(attitude, f_d, u_a, gram, values)
+
+    def _saturation(self, z) -> np.ndarray:
+        """Rotors within 1e-6 w_max^2 of a bound, shape (n_d, 4)."""
+        return ((z <= self.lower + self._tol) | (z >= self.upper - self._tol)).reshape(-1, 4)
+
+    def _lean_qp(self, attitude, f_d, u_a, gram):
+        """(H, g) of :meth:`build`, scaled to zeta = z / w_max^2 (H w_max^4, g w_max^2), in fewer array calls.
+
+        With B = A_tau S_tau, the regularisation's
+        S_tau^T N_tau S_tau = S_tau^T S_tau - B^T (A_tau A_tau^T)^-1 B
+        (N_tau = I - A_tau^T (A_tau A_tau^T)^-1 A_tau, symmetric and idempotent); the constant terms are
+        computed once (:meth:`_constants`). Equal to :meth:`build` to round-off (tested); symmetric to round-off
+        (the Cholesky solves read its upper triangle; ProxQP gets 0.5 (H + H^T)).
+        """
+        b = attitude.a_tau.dot(self.s_tau)
+        a = b + attitude.m_inv_a.dot(attitude.j_f.T).dot(self.s_f)  # d qdd_a / d z
+        x, info = _posv(gram, b)[1:]
+        if info != 0:  # A_tau rank deficient: the general builder (pinv)
+            h, g = self.build(attitude, f_d, u_a)
+            return h * self.scale**2, g * self.scale
+        r = u_a + attitude.m_inv_a.dot(attitude.c)
+        if not self._unit_attitude_weight:
+            a, r = a * self._w_a[:, None], self._w_a * r
+        h = (a.T.dot(a) + self._h_constant - self._regularisation * b.T.dot(x)) * self.scale**2
+        return h, -self.scale * (a.T.dot(r) + self._thrust_g.dot(f_d))
+
+    def _bounded(self, attitude, f_d, u_a, gram, law) -> AllocationResult:
+        """Routes 2 and 3 (class docstring).
+
+        ``gram``: A_tau A_tau^T, or None when it is singular; ``law``: the law's w^2 as a list, or None.
+        """
+        if gram is None:
+            h, g = self.build(attitude, f_d, u_a)
+            h, g = h * self.scale**2, g * self.scale
+        else:
+            h, g = self._lean_qp(attitude, f_d, u_a, gram)
+        if self._active is not None:
+            lower, upper = self._active
+        elif law is not None:
+            lower, upper = [w < 0.0 for w in law], [w > self.scale for w in law]
+        else:
+            lower = upper = [False] * self.n
+        found = solve_box_qp(h, g, lower, upper)
+        if found is not None:
+            zeta, lower, upper, iterations = found
+            self._active = (lower, upper) if any(lower) or any(upper) else None
+            self.routes["active set"] += 1
+        else:
+            zeta, iterations = self._proxqp(0.5 * (h + h.T), g)
+            self._active = None
+            self.routes["proxqp"] += 1
+        z = np.minimum(np.maximum(zeta * self.scale, self.lower), self.upper)  # np.clip, cheaper
+        low, high = self._tol, self.scale - self._tol
+        saturated = np.array([w <= low or w >= high for w in z.tolist()]).reshape(-1, 4)  # as _saturation
+        return AllocationResult(z.reshape(-1, 4), self.s_f.dot(z), self.s_tau.dot(z).reshape(-1, 3), saturated,
+                                iterations, attitude, f_d, u_a)
+
+    def _proxqp(self, h, g):
+        """Route 3: the scaled QP by the warm-started ProxQP workspace; (zeta, iterations)."""
         if not self._initialised:
             self.qp.init(h, g, None, None, None, None, None, self.lower / self.scale, self.upper / self.scale)
             self.qp.solve()
@@ -221,16 +364,4 @@ class Allocator:
         else:
             self.qp.update(H=h, g=g, update_preconditioner=False)
             self.qp.solve()
-        z = np.minimum(np.maximum(self.qp.results.x * self.scale, self.lower), self.upper)  # np.clip, cheaper
-        return self._result(attitude, z, thrust_desired, attitude_desired, int(self.qp.results.info.iter))
-
-    def _result(self, attitude, z, thrust_desired, attitude_desired, iterations) -> AllocationResult:
-        thrust = self.s_f @ z
-        torque = (self.s_tau @ z).reshape(-1, 3)
-        achieved = attitude.attitude_acceleration(thrust, torque)
-        tol = 1e-6 * self.upper[0]
-        saturated = (z <= self.lower + tol) | (z >= self.upper - tol)
-        n_d = self.robot.n_drones
-        return AllocationResult(z.reshape(n_d, 4), thrust, torque, saturated.reshape(n_d, 4),
-                                achieved - np.asarray(attitude_desired, dtype=float),
-                                thrust - np.asarray(thrust_desired, dtype=float), iterations)
+        return np.asarray(self.qp.results.x), int(self.qp.results.info.iter)

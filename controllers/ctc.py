@@ -40,6 +40,7 @@ is called by the simulator at every inner-loop tick and recomputes the outer loo
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -165,6 +166,10 @@ class CascadedController:
         self._force = None
         self._last_outer = -np.inf
         self._integral = np.zeros(len(self.chain))
+        # the inner loop's indices and constants as Python numbers (update works on floats)
+        self._roll_list, self._attitude_list = self.rolls.tolist(), self.attitude.tolist()
+        self._mass_offset = (self.mass * self.offset).tolist()
+        self._x = r.index.get("x")
 
     def reset(self) -> None:
         """Forget the held outer-loop output and the integrated error (a new run)."""
@@ -194,7 +199,7 @@ class CascadedController:
         sd = reference.motion
         u = sd[2] - kp * (s - sd[0]) - kd * (ds - sd[1]) - st.chain_integral * self._integral
         m, c, jac = self._point_dynamics(s, ds)
-        return self.robot.kind.outer_loop_forces(s, m @ u + c, jac, reference.force, st.singular_band)
+        return self.robot.kind.outer_loop_forces(s, m.dot(u) + c, jac, reference.force, st.singular_band)
 
     def _point_dynamics(self, s, ds):
         """M_s(s), c_s(s, s') and the hinge Jacobian J_h(s) (2 n_d, n_s) of the point-drone planning model.
@@ -205,13 +210,13 @@ class CascadedController:
         """
         r, t = self._point_robot, self._chain_map
         model, data = r.model, r.data
-        qp = t @ s
+        qp = t.dot(s)
         m = pin.crba(model, data, qp)
-        m = t.T @ np.where(self._upper, m, m.T) @ t  # CRBA fills the upper triangle only
-        c = t.T @ pin.nonLinearEffects(model, data, qp, t @ ds)
+        m = t.T.dot(np.where(self._upper, m, m.T)).dot(t)  # CRBA fills the upper triangle only
+        c = t.T.dot(pin.nonLinearEffects(model, data, qp, t.dot(ds)))
         pin.computeJointJacobians(model, data, qp)
         jac = np.concatenate([pin.getJointJacobian(model, data, h, pin.LOCAL_WORLD_ALIGNED)[1:3]
-                              for h in r.hinge_joint_ids]) @ t  # world (y, z) of each hinge point
+                              for h in r.hinge_joint_ids]).dot(t)  # world (y, z) of each hinge point
         return m, c, jac
 
     def _attitude_gains(self) -> tuple[np.ndarray, np.ndarray]:
@@ -232,33 +237,40 @@ class CascadedController:
         if self._force is None or t - self._last_outer >= 1.0 / st.outer_rate - 1e-9:
             if np.isfinite(self._last_outer):
                 error = q[self.chain] - reference.motion[0]
-                self._integral = np.clip(self._integral + error * (t - self._last_outer),
-                                         -st.integral_limit, st.integral_limit)
+                self._integral = np.minimum(np.maximum(self._integral + error * (t - self._last_outer),
+                                                    -st.integral_limit), st.integral_limit)  # np.clip
             self._force = self.outer(q, v, reference)
             self._last_outer = t
-        force = self._force
-        roll = q[self.rolls]
-        roll_rate = v[self.rolls]
-        roll_desired = np.arctan2(-force[:, 0], force[:, 1])
-        # b_z(phi) . F, b_z = (-sin phi, cos phi)
-        thrust = (-np.sin(roll) * force[:, 0] + np.cos(roll) * force[:, 1]
-                  - self.mass * self.offset * roll_rate**2)
+        # The inner loop on floats: a few numbers each, where every numpy call costs a microsecond or more.
+        ql, vl = q.tolist(), v.tolist()
+        rolls, attitude = self._roll_list, self._attitude_list
+        force = self._force.tolist()
+        roll_desired = [math.atan2(-fy, fz) for fy, fz in force]  # (2.20)
+        # f_i = b_z(phi_i) . F_i - m_i d_i phi_i'^2, b_z = (-sin phi, cos phi)
+        thrust = [-math.sin(ql[i]) * fy + math.cos(ql[i]) * fz - md * vl[i] ** 2
+                  for i, (fy, fz), md in zip(rolls, force, self._mass_offset, strict=True)]
         # attitude references [psi, theta, rolls...]
-        r = self.robot
         pitch = 0.0
         if self.lateral:
             kp, kd = st.lateral_frequency**2, 2 * st.lateral_damping * st.lateral_frequency
-            x, dx = q[r.index["x"]], v[r.index["x"]]
-            pitch = float((-kp * x - kd * dx) / self._pitch_gain)
+            pitch = (-kp * ql[self._x] - kd * vl[self._x]) / self._pitch_gain
             pitch = min(max(pitch, -st.max_pitch), st.max_pitch)  # np.clip, cheaper on a float
-        qa, dqa = q[self.attitude], v[self.attitude]
-        target = np.concatenate([[0.0, pitch], roll_desired])
-        rate = np.concatenate([[0.0, 0.0], reference.roll_rate])
-        acc = np.concatenate([[0.0, 0.0], reference.roll_acceleration])
+        target = [0.0, pitch] + roll_desired
+        rate = [0.0, 0.0] + reference.roll_rate.tolist()
+        acc = [0.0, 0.0] + reference.roll_acceleration.tolist()
         kp, kd = self._attitude_gains()
-        error = qa - target
-        error[2:] = np.angle(np.exp(1j * error[2:]))  # rolls: shortest angle
-        u_a = acc - kp * error - kd * (dqa - rate)
-        allocation = self.allocator.solve(r.attitude_model(q, v), thrust, u_a)
+        u_a = []
+        for k, (i, goal, kp_k, kd_k, rate_k, acc_k) in enumerate(zip(attitude, target, kp.tolist(), kd.tolist(), rate,
+                                                                       acc, strict=True)):
+            error = ql[i] - goal
+            if k >= 2:  # rolls: the shortest angle
+                error = math.remainder(error, _TWO_PI)
+            u_a.append(acc_k - kp_k * error - kd_k * (vl[i] - rate_k))
+        u_a = np.array(u_a)
+        thrust = np.array(thrust)
+        allocation = self.allocator.solve(self.robot.attitude_model(q, v), thrust, u_a)
         speeds = np.sqrt(np.maximum(allocation.speeds_squared, 0.0))
-        return ControlOutput(speeds, allocation, force, roll_desired, thrust, u_a, pitch)
+        return ControlOutput(speeds, allocation, self._force, np.array(roll_desired), thrust, u_a, pitch)
+
+
+_TWO_PI = 2 * math.pi

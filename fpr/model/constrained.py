@@ -20,6 +20,7 @@ configuration (e.g. the previous measurement) and returns every angle within pi 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,13 +43,21 @@ def euler_zyx(rotation, reference=None) -> np.ndarray:
     Of the two solutions (theta in [-pi/2, pi/2] and (psi + pi, pi - theta, phi + pi)) the first is
     returned, or, given a ``reference`` [psi, theta, phi], the one closer to it modulo 2 pi.
     """
-    phi, theta, psi = pin.rpy.matrixToRpy(rotation)
+    phi, theta, psi = pin.rpy.matrixToRpy(rotation).tolist()
     if reference is None:
         return np.array([psi, theta, phi])
-    both = np.array([[psi, theta, phi], [psi + np.pi, np.pi - theta, phi + np.pi]])
-    gap = wrap_angle(both - reference)  # both candidates at once (to_minimal runs at every simulator tick)
-    squared = np.einsum("ij,ij->i", gap, gap)  # squared distances: the same order as the norms
-    return both[1] if squared[1] < squared[0] else both[0]
+    # the two candidates' squared distances to the reference (angles wrapped), on floats: to_minimal runs
+    # at every simulator tick, where each numpy call on three numbers costs microseconds
+    r0, r1, r2 = reference.tolist() if isinstance(reference, np.ndarray) else reference
+    pi, two_pi = math.pi, _TWO_PI
+    first = ((psi - r0 + pi) % two_pi - pi) ** 2 + ((theta - r1 + pi) % two_pi - pi) ** 2 \
+        + ((phi - r2 + pi) % two_pi - pi) ** 2
+    second = ((psi + pi - r0 + pi) % two_pi - pi) ** 2 + ((pi - theta - r1 + pi) % two_pi - pi) ** 2 \
+        + ((phi + pi - r2 + pi) % two_pi - pi) ** 2
+    return np.array([psi + pi, pi - theta, phi + pi] if second < first else [psi, theta, phi])
+
+
+_TWO_PI = 2 * math.pi
 
 
 @dataclass
@@ -154,17 +163,19 @@ class ClosedChainModel:
         qc = check_shape("qc", qc, (self.model.nq,))
         if reference is not None:
             reference = check_shape("reference", reference, (r.nq,))
-        pin.forwardKinematics(self.model, self.data, qc)
+        pin.forwardKinematics(self.model, self.data, qc)  # Plant.observe reads these placements after this call
         omi = self.data.oMi
         qp = np.zeros(r.nq)
         qp[cache.reversed_q_source] = cache.reversed_sign * qc[cache.reversed_q]
         cache.reader.read(qp, omi, reference)  # the robot's own: what the tree's joints do not give
-        q = r.from_pinocchio(qp)
+        q = r.T_inv.dot(qp)  # r.from_pinocchio
         if reference is None:
             cache.reader.wrap(q)
-        else:
-            angular = cache.angular
-            q[angular] = reference[angular] + wrap_angle(q[angular] - reference[angular])
+        else:  # every angle within pi of the reference, on floats (a few numbers: cheaper than array calls)
+            values, ref = q.tolist(), reference.tolist()
+            for i in cache.angular_list:
+                values[i] = ref[i] + ((values[i] - ref[i] + math.pi) % _TWO_PI - math.pi)
+            q = np.array(values)
         if vc is None:
             return q
         vc = check_shape("vc", vc, (self.model.nv,))
@@ -172,7 +183,8 @@ class ClosedChainModel:
         # directly) instead of lstsq's SVD: K is well conditioned (cond(K) ~ 3 on both robots, so
         # cond(K^T K) ~ 10), which keeps v within 1e-15 (relative) of the SVD solution.
         k = self._velocity_map(q, cache)
-        x, info = _posv(k.T @ k, k.T @ vc)[1:]
+        kt = k.T
+        x, info = _posv(kt.dot(k), kt.dot(vc))[1:]
         v = x if info == 0 else np.linalg.lstsq(k, vc, rcond=None)[0]  # rank-deficient K: not these robots
         return q, v
 
@@ -193,10 +205,10 @@ class ClosedChainModel:
     def _velocity_map(self, q, cache) -> np.ndarray:
         """:meth:`velocity_map` without the shape check; the reversed joints' rows come from the cache."""
         r = self.robot
-        pin.computeJointJacobians(r.model, r.data, r.to_pinocchio(q))
+        pin.computeJointJacobians(r.model, r.data, r.T.dot(q))
         k = cache.velocity_rows.copy()
         for jv, hinge in cache.freeflyer_rows:
-            k[jv:jv + 6] = pin.getJointJacobian(r.model, r.data, hinge, pin.LOCAL) @ r.T
+            k[jv:jv + 6] = pin.getJointJacobian(r.model, r.data, hinge, pin.LOCAL).dot(r.T)
         return k
 
     def generalized_input(self, qc, thrust, torque) -> np.ndarray:
@@ -261,6 +273,7 @@ class _MinimalCache:
         pairs = zip(closed.freeflyer_ids, r.hinge_joint_ids, strict=True)
         self.freeflyer_rows = tuple((model.joints[fly].idx_v, hinge) for fly, hinge in pairs)
         self.angular = closed._angular
+        self.angular_list = self.angular.tolist()
         self.reader = r.kind.closure_reader(closed)
 
 

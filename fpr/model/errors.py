@@ -120,6 +120,9 @@ class SceneError(FprError, ValueError):
         super().__init__(f"{argument}: {reason}")
 
 
+_FLOAT = np.dtype(float)
+
+
 def check_shape(argument: str, x, expected: tuple[int | None, ...]) -> np.ndarray:
     """Return ``x`` as a float array after checking its shape.
 
@@ -131,6 +134,8 @@ def check_shape(argument: str, x, expected: tuple[int | None, ...]) -> np.ndarra
     Raises:
         ShapeError: when the number of dimensions or a fixed size differs.
     """
+    if type(x) is np.ndarray and x.shape == expected and x.dtype == _FLOAT:  # the usual call: 2 comparisons
+        return x
     a = np.asarray(x, dtype=float)
     if a.ndim != len(expected) or any(e is not None and e != s for e, s in zip(expected, a.shape)):
         shown = "(" + ", ".join("N" if e is None else str(e) for e in expected) + ("," if len(expected) == 1 else "") + ")"

@@ -26,6 +26,7 @@ semi-implicit Euler gains 19 J.
 
 from __future__ import annotations
 
+import math
 import time as _time
 
 import numpy as np
@@ -232,12 +233,17 @@ class Plant:
         if rotor_constant_scale != 1.0:
             self._mixing = self._mixing * rotor_constant_scale
         self._rotor_map = _rotor_force_map(closed, self._mixing)
+        self._max_speed = closed.robot.rotor_constants.max_speed
+        self._step_constants = {}  # dt -> (lag decay at 0, dt/2, dt; dt/2; RK4 weights), see _lean_step
         # constraint and frame data read by drone_positions_and_closure_error (looked up once)
         self._closure_terms = tuple((cm.joint1_id, cm.joint1_placement.translation.copy(), cm.joint2_id,
                                      cm.joint2_placement.translation.copy()) for cm in closed.constraints)
         self._closure_is_3d = all(cm.type == pin.ContactType.CONTACT_3D for cm in closed.constraints)
         self._drone_frames = tuple((model.frames[f].parentJoint, model.frames[f].placement.translation.copy())
                                    for f in closed.drone_frame_ids)
+        self._drone_points = tuple((joint, p.tolist()) for joint, p in self._drone_frames)  # as floats
+        self._closure_points = tuple((j1, p1.tolist(), j2, p2.tolist())
+                                     for j1, p1, j2, p2 in self._closure_terms)
         # each drone's free flyer (its hinge frame, build_closed_chain): where its q and v sit, and its thrust
         # axis (the centre frame's z) in the free flyer's frame, read by drone_joint_positions / drone_tilts
         self._freeflyers = tuple((model.joints[j].idx_q, model.joints[j].idx_v,
@@ -320,17 +326,40 @@ class Plant:
         if not self._closure_is_3d:  # a 6D weld's error is a placement log: the general code
             return self.drone_positions(), self.closure_error()
         pin.forwardKinematics(self.closed.model, self.closed.data, self.qc)
+        return self._positions_and_closure()
+
+    def _positions_and_closure(self) -> tuple[np.ndarray, float]:
+        """:meth:`drone_positions_and_closure_error` from the joint placements in ``closed.data`` (forward
+        kinematics at ``qc`` already done), 3D closures only: x = R p + t for each point, on floats."""
         omi = self.closed.data.oMi
 
-        def point(joint, p):  # world position of the point p of a joint's frame
+        def point(joint, p):  # world position of the point p (a list) of a joint's frame
             m = omi[joint]
-            return m.rotation @ p + m.translation
+            (r0, r1, r2), (t0, t1, t2) = m.rotation.tolist(), m.translation.tolist()
+            return (r0[0] * p[0] + r0[1] * p[1] + r0[2] * p[2] + t0,
+                    r1[0] * p[0] + r1[1] * p[1] + r1[2] * p[2] + t1,
+                    r2[0] * p[0] + r2[1] * p[1] + r2[2] * p[2] + t2)
 
-        positions = np.array([point(joint, p) for joint, p in self._drone_frames])
+        positions = np.array([point(joint, p) for joint, p in self._drone_points])
         error = 0.0
-        for j1, p1, j2, p2 in self._closure_terms:
-            error = max(error, float(np.linalg.norm(point(j1, p1) - point(j2, p2))))
+        for j1, p1, j2, p2 in self._closure_points:
+            a, b = point(j1, p1), point(j2, p2)
+            error = max(error, math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2))
         return positions, error
+
+    def observe(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """What the closed loop reads at every tick, from one forward kinematics pass: :meth:`measure` (q, v)
+        and :meth:`drone_positions_and_closure_error` (positions, closure error), the same values.
+
+        Returns:
+            q, v (thesis coordinates, shape (n,)); the drones' centres of mass, shape (n_d, 3) [m]; the
+            loop-closure error [m].
+        """
+        q, v = self.measure()
+        if not self._closure_is_3d:
+            return (q, v) + self.drone_positions_and_closure_error()
+        # ClosedChainModel.to_minimal (in measure) left the placements at qc in closed.data
+        return (q, v) + self._positions_and_closure()
 
     def drone_joint_positions(self) -> np.ndarray:
         """World positions of the drones' passive joints (hinges), shape (n_d, 3) [m].
@@ -425,8 +454,11 @@ class Plant:
 
     def saturate(self, w_command) -> np.ndarray:
         """Rotor speed commands clipped to [0, w_max], shape (n_d, 4) [rad/s]."""
-        w = check_shape("w_command", w_command, (self.robot.n_drones, 4))
-        return np.minimum(np.maximum(w, 0.0), self.robot.rotor_constants.max_speed)  # np.clip, cheaper
+        w = w_command
+        # the usual call (a float array of the right shape) skips check_shape
+        if not (type(w) is np.ndarray and w.shape == self._w.shape and w.dtype == float):
+            w = check_shape("w_command", w_command, (self.robot.n_drones, 4))
+        return np.minimum(np.maximum(w, 0.0), self._max_speed)  # np.clip, cheaper
 
     def step(self, w_command, dt: float, wind=None) -> None:
         """Advance the plant by dt under a rotor speed command held over the step.
@@ -444,6 +476,9 @@ class Plant:
         if not dt > 0:
             raise ModelArgumentError("dt", dt, f"dt = {dt!r}: the time step must be positive [s]")
         w_cmd = self.saturate(w_command)
+        if wind is None and self._rotor_map is not None:
+            self._lean_step(w_cmd, dt)
+            return
         w0 = self._w
         lag = self.robot.rotor_constants.time_constant
         wind_forces = self._wind_forces(wind)
@@ -452,30 +487,76 @@ class Plant:
             return w_cmd + (w0 - w_cmd) * np.exp(-t / lag) if lag > 0 else w_cmd
 
         closed = self.closed
-        if wind_forces is None and self._rotor_map is not None:
-            # Speed: without wind the rotors' generalised force does not depend on the configuration
-            # (_rotor_force_map), only on the stage's time: computed once for each of the 3 distinct
-            # times (0, dt/2, dt) by one product, not by Pinocchio's Jacobians at each of the 4 stages.
-            forces = {}
 
-            def acceleration(qc, vc, t):
-                tau = forces.get(t)
-                if tau is None:
-                    w = speeds(t)
-                    tau = forces[t] = self._rotor_map @ (w * w).reshape(-1)
-                return closed.forward_dynamics(qc, vc, tau)
-        else:
-            def acceleration(qc, vc, t):
-                return closed.forward_dynamics(qc, vc, self.generalized_force(qc, speeds(t), wind_forces))
+        def acceleration(qc, vc, t):
+            return closed.forward_dynamics(qc, vc, self.generalized_force(qc, speeds(t), wind_forces))
 
+        self._advance(lambda: rkmk4_step(closed.model, self.qc, self.vc, dt, acceleration), dt, speeds(dt))
+
+    def _advance(self, integrate, dt: float, w_end) -> None:
+        """Run ``integrate() -> (qc, vc)``, check the result, and take it with the rotor speeds w_end."""
         try:
-            qc, vc = rkmk4_step(closed.model, self.qc, self.vc, dt, acceleration)
+            qc, vc = integrate()
         except np.linalg.LinAlgError as error:  # a rotation of ~2 pi within one step: the state blew up
             raise PlantDivergedError(self.time, dt, f"the plant's integrator failed ({error})") from error
-        if not (np.isfinite(qc).all() and np.isfinite(vc).all()):
+        if not math.isfinite(qc.sum() + vc.sum()):  # NaN or inf if any entry is
             raise PlantDivergedError(self.time, dt)
-        self.qc, self.vc, self._w = qc, vc, speeds(dt)
+        self.qc, self.vc, self._w = qc, vc, w_end
         self.time += dt
+
+    def _lean_step(self, w_cmd, dt: float) -> None:
+        """:meth:`step` without wind: the same RKMK4 step as :func:`rkmk4_step` (equal to round-off; tested),
+        in fewer array calls.
+
+        The rotors' generalised force does not depend on the configuration (:func:`_rotor_force_map`), only
+        on the stage's time: the exact lag solution w(t) at the 3 distinct times (0, dt/2, dt) gives the 3
+        forces in one product. The step's constants (dt/2, the RK4 weights, the lag's decay) are computed once
+        per dt; the weighted sums of the stages are one product each.
+        """
+        constants = self._step_constants.get(dt)
+        if constants is None:
+            lag = self.robot.rotor_constants.time_constant
+            decay = np.array([1.0, math.exp(-0.5 * dt / lag), math.exp(-dt / lag)] if lag > 0
+                             else [0.0, 0.0, 0.0])
+            constants = self._step_constants[dt] = (decay[:, None], 0.5 * dt,
+                                                    np.array([dt / 6.0, dt / 3.0, dt / 3.0, dt / 6.0]))
+        decay, half, weights = constants
+        w_cmd = w_cmd.reshape(-1)
+        speeds = w_cmd + (self._w.reshape(-1) - w_cmd) * decay  # (3, 4 n_d): w at 0, dt/2, dt
+        forces = (speeds * speeds).dot(self._rotor_map.T)  # (3, nv)
+        closed = self.closed
+        model, data, settings = closed.model, closed.data, closed.settings
+        cms, cds = closed.constraints, closed.constraint_datas
+        dynamics, integrate, d_integrate, arg1 = pin.constraintDynamics, pin.integrate, pin.dIntegrate, \
+            pin.ArgumentPosition.ARG1
+        q, v = self.qc, self.vc
+
+        def rate(theta, vel):  # dexp^-1_theta(vel), as rkmk4_step's theta_rate
+            x, info = _gesv(d_integrate(model, q, theta, arg1), vel)[2:]
+            if info != 0:
+                raise np.linalg.LinAlgError("Singular matrix")
+            return x
+
+        def integrate_step():
+            # the stages' accelerations go straight into the rows of k_v (no copies of Pinocchio's buffer),
+            # and the final sums are one product each with the weights (dt/6, dt/3, dt/3, dt/6)
+            k_v = np.empty((4, v.size))
+            k_v[0] = dynamics(model, data, q, v, forces[0], cms, cds, settings)
+            v_stage, theta = v + half * k_v[0], half * v
+            k_v[1] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
+            k2q = rate(theta, v_stage)
+            v_stage = v + half * k_v[1]
+            theta = half * k2q
+            k_v[2] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
+            k3q = rate(theta, v_stage)
+            v_stage = v + dt * k_v[2]
+            theta = dt * k3q
+            k_v[3] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[2], cms, cds, settings)
+            k4q = rate(theta, v_stage)
+            q_next = integrate(model, q, weights.dot(np.array((v, k2q, k3q, k4q))))
+            return q_next, v + weights.dot(k_v)
+
+        self._advance(integrate_step, dt, speeds[2].reshape(-1, 4))
 
 
 def plant_step_time(robot, steps: int = 1000, dt: float = 1e-3) -> float:

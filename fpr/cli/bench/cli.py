@@ -28,7 +28,7 @@ import numpy as np
 import pinocchio as pin
 
 from fpr.cli.bench.control import control_table, run_control
-from fpr.cli.bench.model import run_residuals, run_timings
+from fpr.cli.bench.model import model_targets, run_residuals, run_timings
 from fpr.cli.bench.planning import planning_table, run_planning
 from fpr.cli.bench.timing import Bench, fmt
 
@@ -63,9 +63,10 @@ def main(argv=None) -> int:
     if args.section in ("all", "control"):  # its own Bench: its rows are not the model table's
         control = run_control(Bench(bench.repeats, bench.target, bench.progress), args.quick,
                               progress=not args.json)
+    goals = _goals(bench, planning, control)
     if args.json:
         doc = dict(machine=info, repeats=bench.repeats, loop_target_s=bench.target, timings=bench.results,
-                   residuals=residuals)
+                   residuals=residuals, goals=goals)
         if planning is not None:
             doc["planning"] = planning
         if control is not None:
@@ -91,4 +92,16 @@ def main(argv=None) -> int:
     if control is not None:
         print()
         print(control_table(control))
+    if goals:
+        print("\ngoals (issue 13)")
+        for g in goals:
+            print(f"  [{g['section']}] {g['target']}: {g['value']:.4g} -> {g['verdict']}")
     return 0
+
+
+def _goals(bench, planning, control) -> list[dict]:
+    """Every section's goals in one list: target, value, (goal, unit when given), met and its verdict."""
+    rows = [("model", t) for t in model_targets(bench.results)]
+    rows += [(name, t) for name, section in (("planning", planning), ("control", control)) if section
+             for t in section.get("targets", [])]
+    return [dict(section=name, **t, verdict="met" if t["met"] else "not met") for name, t in rows]

@@ -111,6 +111,19 @@ def run_timings(bench: Bench) -> None:
             bench.time(f"{robot.name} closed {name}", cycling(fn, args), ref=(f"{robot.name} r.forward_dynamics",))
 
 
+#: goal of the FPR mass matrix M(q) in thesis coordinates, one call (issue 13) [s]
+MASS_MATRIX_GOAL_S = 5e-6
+
+
+def model_targets(results: list[dict]) -> list[dict]:
+    """The model section's goals with their values and verdicts (rows of ``Bench.results``)."""
+    row = next((r for r in results if r["name"] == "fpr r.mass_matrix"), None)
+    if row is None:
+        return []
+    return [dict(target="FPR mass matrix M(q), one call (median) <= 5 us", value=row["median_s"],
+                 goal=MASS_MATRIX_GOAL_S, unit="s", met=bool(row["median_s"] <= MASS_MATRIX_GOAL_S))]
+
+
 def run_residuals() -> list[dict]:
     """Accuracy figures of item 5 of the module docstring (maximum absolute errors)."""
     rng = np.random.default_rng(SEED + 1)
