@@ -60,6 +60,7 @@ Wrong inputs raise :class:`fpr.model.errors.FigureError` or :class:`fpr.model.er
 
 from fpr.views.figures.all_figures import FIGURE_SET, figure_set
 from fpr.views.figures.crossing import _crossing_comparison, crossing_comparison_figure  # noqa: F401
+from fpr.views.figures.margins import margins_figure
 from fpr.views.figures.planning import PLAN_FIGURES, plan_figures
 from fpr.views.figures.sampled import cumulative_integral
 from fpr.views.figures.simulation import SIMULATION_FIGURES, simulated_indices, simulation_figures
@@ -78,6 +79,7 @@ __all__ = [
     "crossing_comparison_figure",
     "cumulative_integral",
     "figure_set",
+    "margins_figure",
     "plan_figures",
     "simulated_indices",
     "simulation_figures",
