@@ -40,6 +40,10 @@ from planners.problem import CONSTRAINT_KINDS, constraint_kind, constraint_rows
 from planners.report import FEASIBILITY_TOLERANCE
 
 
+#: Entries of :meth:`fpr.sim.closed_loop.SimulationLog.summary` that depend on the wall clock.
+WALL_CLOCK = ("wall_time_s", "real_time_factor")
+
+
 @dataclass(frozen=True)
 class ClosedLoopMargin:
     """The worst value of one planned constraint along a closed-loop run.
@@ -264,8 +268,11 @@ def simulation_document(log, margins: dict) -> dict:
     """``simulation.json``, the summary of ``simulation.npz``: the robot, the log's summary
     (:meth:`fpr.sim.closed_loop.SimulationLog.summary`), every planned constraint's closed-loop margins
     against both limits (``constraints``: name -> ``margin_planning``, ``margin_physical``, ``unit``, ``time_s``...),
-    and the names of those whose physical limit was broken and those whose design margin was eaten."""
-    return {"robot": log.robot_name, "summary": log.summary(), "constraints": margins_document(margins),
+    and the names of those whose physical limit was broken and those whose design margin was eaten. The
+    wall-clock entries of the summary (:data:`WALL_CLOCK`) are left out, so that the file is byte-identical
+    from one run to the next (the command line's ``manifest.json`` has the timings)."""
+    summary = {k: v for k, v in log.summary().items() if k not in WALL_CLOCK}  # same run, same bytes
+    return {"robot": log.robot_name, "summary": summary, "constraints": margins_document(margins),
             "broken_physical": [m.name for m in broken(margins)],
             "design_margin_eaten": [m.name for m in eaten(margins)]}
 
