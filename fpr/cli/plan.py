@@ -52,9 +52,10 @@ from fpr.cli.plan_files import csv_columns, plan_document, split_timings, write_
 from fpr.model.errors import FprError, MissionError
 from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.sim.margins import (broken_message, closed_loop_margins, margin_lines, margin_series,
-                             simulation_document)
+                             simulation_document, thrust_floor)
 from fpr.sim.plant import PlantDivergedError
 from fpr.views.figures import margins_figure, plan_figures, simulation_figures
+from fpr.views.figures.all_figures import CROSSING_FIGURES
 from fpr.views.scene import view
 from planners.methods import METHODS, method_for
 from planners.mission import BUILTIN_MISSIONS, load_mission
@@ -223,6 +224,14 @@ class _Progress:
             self.stream.write("\n")
 
 
+def _figure_options(final) -> dict:
+    """What the figures must know of the motion: a singularity crossing gets chapter 4's titles, no assembly-mode
+    bounds it crosses, and its thrust floor."""
+    crossing = final.crossing is not None
+    return {"figure_numbers": CROSSING_FIGURES if crossing else None, "crossing": crossing,
+            "min_thrust": thrust_floor(final.report)}
+
+
 def _simulate(args, robot, final, out, sampled, written):
     """Run the closed-loop simulation and write its files.
 
@@ -255,7 +264,9 @@ def _simulate(args, robot, final, out, sampled, written):
     written.append("simulation.npz")
     if not args.no_plots:
         try:
-            written += [f.name for f in simulation_figures(out, robot, log, sampled)]
+            options = _figure_options(final)
+            options.pop("min_thrust")
+            written += [f.name for f in simulation_figures(out, robot, log, sampled, **options)]
             written.append(margins_figure(out / "sim_margins.png", margin_series(final, log)).name)
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the results
             print(f"warning: simulation figures not written: {contract.one_line(error)}", file=sys.stderr)
@@ -362,7 +373,7 @@ def _work(args, mission, robot, tmp, say):
         written.append("reference.csv")
     if not args.no_plots:
         try:
-            figures = plan_figures(tmp, robot, sampled, reference_sampled)
+            figures = plan_figures(tmp, robot, sampled, reference_sampled, **_figure_options(final))
             written += [f.name for f in figures]
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the computed plan
             print(f"warning: figures not written: {contract.one_line(error)}", file=sys.stderr)
