@@ -50,7 +50,7 @@ STYLE = MappingProxyType({
 })
 
 #: Line styles of rotors 1-4 (with their colours), so that rotors with equal speeds stay visible.
-ROTOR_STYLES = ("-", (0, (5, 2)), "-.", (0, (1, 1.5)))
+ROTOR_STYLES = ("-", "--", "-.", ":")
 
 #: Legend label of every limit line (also its matplotlib gid, so that tests and users can find them).
 LIMIT_LABEL = "limit"
