@@ -49,8 +49,8 @@ assert max(summary["tracking_max"].values()) < 0.01 and summary["saturated_ticks
 assert tuple(paths) == FIGURE_SET and all(p.is_file() and p.stat().st_size > 0 for p in paths.values())
 # closed-loop margins: every planned constraint, none broken; the energy floor is below both motions' J_e
 assert set(margins) == set(result.report.constraints) and not broken(margins)
-assert abs(energy_floor - robot.total_mass * g * 2.0) < 1e-9 and energy_floor <= result.report.J_e
-assert energy_floor <= reference.report.J_e and len(claims) >= 6
+assert abs(energy_floor - robot.total_mass * g * 2.0) < 1e-9 and energy_floor <= result.report.J_e * (1 + 1e-9)
+assert energy_floor <= reference.report.J_e * (1 + 1e-9) and len(claims) >= 6
 # the table's verdicts follow the numbers, and every disagreement is explained
 assert claims[2].agree == (opt["peak_thrust_N"] <= stop["peak_thrust_N"]) and all(c.agree or c.why for c in claims)
 assert claims[3].agree == (y_end.max() < 1.05)
@@ -67,7 +67,7 @@ assert via.J_phi[-1] < via.J_phi[0] and via.counts == COUNTS and alpha.alphas ==
 assert comparison.case("two-step").J < 1.0 and comparison.case("one-step").J < 1.0
 assert len(COUNTS) < 5 and len(written) >= 2 + 2 * 8  # quick mode; both study figures and two plan sets
 assert claims[0].agree == (not zero.feasible) and claims[4].agree == (two.J < one.J)
-assert climb_floor <= min(via.J_e + alpha.J_e) and all(c.agree or c.why for c in claims)
+assert climb_floor <= min(via.J_e + alpha.J_e) * (1 + 1e-9) and all(c.agree or c.why for c in claims)
 before = live.result
 sliders.children[1].value = 1.0  # alpha = 1: energy only
 assert live.result is not before and live.history[-1]["alpha"] == 1.0
