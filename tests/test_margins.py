@@ -142,3 +142,8 @@ def test_the_command_line_exits_1_when_the_simulation_breaks_a_physical_limit(tm
     assert {"ground_1", "ground_2", "q21_low", "roll_1", "rotor_speed_high_2"} <= set(document["constraints"])
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["exit_code"] == 1 and "simulation.json" in manifest["files"]
+    # same run, same bytes: no wall-clock entry in simulation.json (the manifest has the timings)
+    assert not {"wall_time_s", "real_time_factor"} & set(document["summary"])
+    again = tmp_path / "again"
+    cli.main(["--mission", "study", "--method", "none", "--simulate", "--no-plots", "--quiet", "--out", str(again)])
+    assert (again / "simulation.json").read_bytes() == (out / "simulation.json").read_bytes()
