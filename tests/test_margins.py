@@ -19,8 +19,16 @@ from fpr.cli import plan as cli
 from fpr.model.errors import ModelArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from fpr.sim.closed_loop import SimulationLog
-from fpr.sim.margins import (broken, broken_message, closed_loop_margins, eaten, margin_series, physical_robot,
-                             simulation_document, thrust_floor)
+from fpr.sim.margins import (
+    broken,
+    broken_message,
+    closed_loop_margins,
+    eaten,
+    margin_series,
+    physical_robot,
+    simulation_document,
+    thrust_floor,
+)
 from planners.mission import load_mission
 from planners.optimize import plan
 

@@ -39,7 +39,6 @@ from fpr.model.parameters import Margins
 from planners.problem import CONSTRAINT_KINDS, constraint_kind, constraint_rows
 from planners.report import FEASIBILITY_TOLERANCE
 
-
 #: Entries of :meth:`fpr.sim.closed_loop.SimulationLog.summary` that depend on the wall clock.
 WALL_CLOCK = ("wall_time_s", "real_time_factor")
 
@@ -110,7 +109,8 @@ class ClosedLoopMargin:
 
 def physical_robot(robot):
     """A view of ``robot`` whose planning margins (m_gd, m_ga, m_gf, m_gr) are all zero: its constraint
-    margins are those of the physical limits. The model, masses and rotor constants are shared."""
+    margins are those of the physical limits. The model, masses and rotor constants are shared.
+    """
     bare = copy.copy(robot)
     bare.margins = Margins(ground=0.0, angle=0.0, force=0.0, rotor_speed=0.0)
     bare.kind = type(robot.kind)(bare)
@@ -270,7 +270,8 @@ def simulation_document(log, margins: dict) -> dict:
     against both limits (``constraints``: name -> ``margin_planning``, ``margin_physical``, ``unit``, ``time_s``...),
     and the names of those whose physical limit was broken and those whose design margin was eaten. The
     wall-clock entries of the summary (:data:`WALL_CLOCK`) are left out, so that the file is byte-identical
-    from one run to the next (the command line's ``manifest.json`` has the timings)."""
+    from one run to the next (the command line's ``manifest.json`` has the timings).
+    """
     summary = {k: v for k, v in log.summary().items() if k not in WALL_CLOCK}  # same run, same bytes
     return {"robot": log.robot_name, "summary": summary, "constraints": margins_document(margins),
             "broken_physical": [m.name for m in broken(margins)],

@@ -14,7 +14,15 @@ from pathlib import Path
 import numpy as np
 
 from fpr.model.errors import FigureError
-from fpr.views.figures.style import LIMIT_LABEL, STYLE, _finish, _new_figure, _png_path, _save_to_file, _styled
+from fpr.views.figures.style import (
+    LIMIT_LABEL,
+    STYLE,
+    _finish,
+    _new_figure,
+    _png_path,
+    _save_to_file,
+    _styled,
+)
 
 #: Legend labels of the limit lines (the planning limit's gid is :data:`LIMIT_LABEL`, the physical one's its label).
 PLANNING_LABEL = "planning limit (design margins kept)"
