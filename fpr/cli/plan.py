@@ -52,7 +52,7 @@ from fpr.cli.plan_files import csv_columns, plan_document, split_timings, write_
 from fpr.model.errors import FprError, MissionError
 from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.sim.margins import (broken_message, closed_loop_margins, margin_lines, margin_series,
-                             simulation_document, thrust_floor)
+                             eaten, simulation_document, thrust_floor)
 from fpr.sim.plant import PlantDivergedError
 from fpr.views.figures import margins_figure, plan_figures, simulation_figures
 from fpr.views.figures.all_figures import CROSSING_FIGURES
@@ -403,6 +403,8 @@ def _work(args, mission, robot, tmp, say):
     for problem in problems:
         print(f"error: {problem}", file=sys.stderr)
     outcome = "; ".join(problems) or "every constraint holds" + (", the robot was not lost" if args.simulate else "")
+    if margins is not None and eaten(margins):  # reported, not a failure
+        outcome += "; the closed loop ate into the design margin of " + ", ".join(m.name for m in eaten(margins))
     return (contract.LIMIT_BROKEN if problems else contract.OK), outcome, timings, visualizer
 
 

@@ -78,10 +78,8 @@ def margins_figure(path: str | Path, series: dict, title: str = "Closed-loop mar
             ax.set_visible(False)
         for ax in axes[-cols:]:
             ax.set_xlabel("t [s]")
-        fig = _finish(fig, title, axes[:1], legend_below=False)
         handles, labels = axes[0].get_legend_handles_labels()
-        if axes[0].get_legend() is not None:
-            axes[0].get_legend().remove()
+        fig = _finish(fig, title, [])  # one legend for all panels, above them
         fig.subplots_adjust(top=1.0 - 1.0 / fig.get_figheight())
         fig.legend(handles, labels, loc="upper center", ncol=4, fontsize=STYLE["legend_size"],
                    bbox_to_anchor=(0.5, 1.0 - 0.45 / fig.get_figheight()))
