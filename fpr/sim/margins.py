@@ -155,15 +155,16 @@ def _rows(robot, log, crossing_sign, floor):
     measured = SimpleNamespace(roll=rolls, rotor_speed=log.speed, rotor_speed_squared=log.speed**2,
                                thrust=log.thrust)
     motion = s[None]
-    return constraint_rows(robot, motion, measured, scaled=False, crossing_sign=crossing_sign, min_thrust=floor)
+    return constraint_rows(robot, motion, measured, scaled=False, crossing_sign=crossing_sign,
+                           min_thrust=floor)
 
 
 def _check(result, log) -> None:
     """Refuse a log of another robot, or an empty one."""
     robot = result.robot
     if log.robot_name != robot.name or tuple(log.chain) != tuple(robot.layout.chain):
-        raise ModelArgumentError("log", log.robot_name, f"a log of the {log.robot_name} cannot be checked against a "
-                                                        f"plan of the {robot.name}: simulate this plan")
+        raise ModelArgumentError("log", log.robot_name, f"a log of the {log.robot_name} cannot be checked "
+                                                        f"against a plan of the {robot.name}: simulate this plan")
     if log.t.size == 0:
         raise ModelArgumentError("log", "empty", "the log has no sample: nothing was simulated")
 
@@ -190,7 +191,8 @@ class MarginSeries:
 
 
 def _per_constraint(result, log):
-    """(name, rows against the planning limit, rows against the physical limit, details) per planned constraint."""
+    """(name, rows against the planning limit, rows against the physical limit, details) of each planned
+    constraint."""
     _check(result, log)
     robot = result.robot
     floor = thrust_floor(result.report)
@@ -267,7 +269,8 @@ def margins_document(margins: dict) -> dict:
 def simulation_document(log, margins: dict) -> dict:
     """``simulation.json``, the summary of ``simulation.npz``: the robot, the log's summary
     (:meth:`fpr.sim.closed_loop.SimulationLog.summary`), every planned constraint's closed-loop margins
-    against both limits (``constraints``: name -> ``margin_planning``, ``margin_physical``, ``unit``, ``time_s``...),
+    against both limits (``constraints``: name -> ``margin_planning``, ``margin_physical``, ``unit``,
+    ``time_s``...),
     and the names of those whose physical limit was broken and those whose design margin was eaten. The
     wall-clock entries of the summary (:data:`WALL_CLOCK`) are left out, so that the file is byte-identical
     from one run to the next (the command line's ``manifest.json`` has the timings).
@@ -280,8 +283,8 @@ def simulation_document(log, margins: dict) -> dict:
 
 def margin_lines(margins: dict) -> list[str]:
     """Lines for people: a heading, then one line per constraint (:meth:`ClosedLoopMargin.describe`)."""
-    return ["closed-loop margins of the planned constraints (>= 0 holds; planning limit = with the design margins "
-            "m_gd, m_ga, m_gr and the thrust floor, physical limit = without them):",
+    return ["closed-loop margins of the planned constraints (>= 0 holds; planning limit = with the design "
+            "margins m_gd, m_ga, m_gr and the thrust floor, physical limit = without them):",
             *("  " + m.describe() for m in margins.values())]
 
 
@@ -292,5 +295,5 @@ def broken_message(margins: dict) -> str | None:
         return None
     names = ", ".join(f"{m.name} ({m.margin_physical:+.4g} {m.unit} past it at t = {m.time_physical:.3f} s)"
                       for m in bad)
-    return (f"the simulated robot broke a physical limit: {names}; plan with more margin (longer --times, more "
-            "--via-points) or a smaller disturbance")
+    return (f"the simulated robot broke a physical limit: {names}; plan with more margin (longer --times, "
+            "more --via-points) or a smaller disturbance")

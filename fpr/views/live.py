@@ -54,9 +54,9 @@ class LivePlan:
         self.result = result
         self.history.append(row)
         print(f"n_vp = {row['via_points']}, alpha = {row['alpha']:.2f}, T = {row['time_s']:.2f} s per travel: "
-              f"J = {row['J']:.4f}, J_e = {row['J_e']:.2f} J, J_phi = {row['J_phi']:.4f} rad^2/s, peak rotor speed "
-              f"{row['peak_rotor_speed']:.0f} rad/s, {'feasible' if row['feasible'] else 'NOT feasible'} "
-              f"({row['wall_time_s']:.2f} s to plan)")
+              f"J = {row['J']:.4f}, J_e = {row['J_e']:.2f} J, J_phi = {row['J_phi']:.4f} rad^2/s, "
+              f"peak rotor speed {row['peak_rotor_speed']:.0f} rad/s, "
+              f"{'feasible' if row['feasible'] else 'NOT feasible'} ({row['wall_time_s']:.2f} s to plan)")
         if draw:
             self._draw(result)
         return result

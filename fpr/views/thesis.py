@@ -65,8 +65,8 @@ class Claim:
 
     def __post_init__(self):
         if not self.agree and not self.why.strip():
-            raise ModelArgumentError("why", self.why, f"claim {self.claim!r} ({self.where}) disagrees with the thesis: "
-                                                      "say why, with a number the notebook computed")
+            raise ModelArgumentError("why", self.why, f"claim {self.claim!r} ({self.where}) disagrees with the "
+                                                      "thesis: say why, with a number the notebook computed")
 
 
 def claims_markdown(claims) -> str:

@@ -81,7 +81,8 @@ def strobe_figure(path: str | Path, robot, log, count: int = 12, title: str | No
         fig, axes = _new_figure(1, 1, height=5.0, width=6.4)
         ax = axes[0]
         ax.axhline(robot.kind.ground_height, color=STYLE["ground_color"], linewidth=2.0, label="ground")
-        ax.plot(*main.T, color="0.6", linewidth=STYLE["thin_width"], label=robot.kind.task_point_labels[0] + " path")
+        ax.plot(*main.T, color="0.6", linewidth=STYLE["thin_width"],
+                label=robot.kind.task_point_labels[0] + " path")
         for n, k in enumerate(picks):
             color = cmap(0.1 + 0.85 * n / max(len(picks) - 1, 1))
             ax.plot(*chain[k].T, "-o", color=color, markersize=3, linewidth=1.6, gid="chain")
@@ -146,7 +147,8 @@ def chain_animation(path: str | Path, robot, log, fps: float = 20.0, speed: floa
         main, _ = robot.kind.task_points(s)
         ax.plot(*main.T, color="0.75", linewidth=STYLE["thin_width"])
         (links,) = ax.plot([], [], "-o", color=STYLE["plan_color"], linewidth=2.0, markersize=4)
-        drones = [ax.plot([], [], color=STYLE["drone_colors"][i % 2], linewidth=4.0)[0] for i in range(bars.shape[1])]
+        drones = [ax.plot([], [], color=STYLE["drone_colors"][i % 2], linewidth=4.0)[0]
+                  for i in range(bars.shape[1])]
         label = ax.set_title("")
         ax.set_xlabel("y [m]")
         ax.set_ylabel("z [m]")
