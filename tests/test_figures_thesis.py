@@ -126,6 +126,7 @@ def test_strobe_and_animation_of_a_log(study, tmp_path):
 def test_thesis_table_rounds_and_demands_a_reason():
     assert fmt(557683.9) == "557,684" and fmt(-557683.4) == "-557,683" and fmt(0.50871, 4) == "0.5087"
     assert fmt(13.52, 3, "N") == "13.5 N" and fmt(0.0) == "0" and fmt(True) == "yes"
+    assert fmt(3) == "3" and fmt(2.132e-14, 4) == "2.132e-14" and fmt(np.bool_(False)) == "no"
     with pytest.raises(Exception, match="say why"):
         Claim("x", "3.2.5", "-", "-", False)
     table = claims_markdown([Claim("a | b", "Fig. 1", "t", "o", True), Claim("c", "2", "t", "o", False, "because")])

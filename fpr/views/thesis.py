@@ -12,12 +12,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from fpr.model.errors import ModelArgumentError
 
 
 def fmt(value, digits: int = 3, unit: str = "") -> str:
     """``value`` rounded to ``digits`` significant digits, with thousands separators for large numbers
-    (557683.9 -> "557,684"), and ``unit`` after a space; text is returned as it is.
+    (557683.9 -> "557,684"), integers as they are, numbers below 1e-3 in scientific notation (2.1e-14), and
+    ``unit`` after a space; text is returned as it is.
 
     Args:
         value: a number (or text).
@@ -26,14 +29,18 @@ def fmt(value, digits: int = 3, unit: str = "") -> str:
     """
     if isinstance(value, str):
         text = value
-    elif isinstance(value, bool):
+    elif isinstance(value, (bool, np.bool_)):
         text = "yes" if value else "no"
+    elif isinstance(value, (int, np.integer)):
+        text = f"{int(value):,}"
     else:
         x = float(value)
         if not math.isfinite(x):
             text = str(x)
         elif x == 0:
             text = "0"
+        elif abs(x) < 1e-3:  # tiny: scientific, not a row of zeros
+            text = f"{x:.{max(digits - 1, 0)}e}"
         elif abs(x) >= 10 ** digits:
             text = f"{round(x):,}"
         else:
