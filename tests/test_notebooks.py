@@ -39,28 +39,58 @@ assert np.allclose(M, M.T) and np.linalg.eigvalsh(M).min() > 0
 assert np.abs(ac - expected).max() < 1e-9 * (1 + np.abs(expected).max())  # closed chain = minimal model
 assert abs(hover.thrust_vector[0, :, 1].sum() - robot.total_mass * 9.81) < 1e-9
 assert np.allclose(prototype_inverse_kinematics(drone_joint, L, "up"), [0.9470, -1.8940], atol=1e-4)
+assert len(claims) >= 4 and det_error < 1e-12 and null_residual < 1e-12 and same_point < 1e-3
+assert [c.where for c in claims if not c.agree] == ["eq. 3.36, 4.1"]  # the printed signs, explained
 """),
-    "02_square_mission": Expected(images=15, html=1, checks="""
+    "02_square_mission": Expected(images=16, html=1, checks="""
 from fpr.views.figures import FIGURE_SET
 assert result.feasible and reference.feasible and result.J < 0.9 and reference.J == 1.0
 assert max(summary["tracking_max"].values()) < 0.01 and summary["saturated_ticks"] == 0
 assert tuple(paths) == FIGURE_SET and all(p.is_file() and p.stat().st_size > 0 for p in paths.values())
+# closed-loop margins: every planned constraint, none broken; the energy floor is below both motions' J_e
+assert set(margins) == set(result.report.constraints) and not broken(margins)
+assert abs(energy_floor - robot.total_mass * g * 2.0) < 1e-9 and energy_floor <= result.report.J_e * (1 + 1e-9)
+assert energy_floor <= reference.report.J_e * (1 + 1e-9) and len(claims) >= 6
+# the table's verdicts follow the numbers, and every disagreement is explained
+assert claims[2].agree == (opt["peak_thrust_N"] <= stop["peak_thrust_N"]) and all(c.agree or c.why for c in claims)
+assert claims[3].agree == (y_end.max() < 1.05)
+# a slider replans: one more via point per side gives a different plan, with more points
+before, count = live.result, len(live.history)
+assert count >= 1 and before is not None  # the widget planned once when it was built
+sliders.children[0].value = 2
+assert len(live.history) == count + 1 and live.result is not before and live.history[-1]["via_points"] == 2
+assert live.result.trajectory.points.shape[0] > before.trajectory.points.shape[0] and live.result.J != before.J
 """),
     "03_parameter_study": Expected(images=4, html=0, checks="""
 assert all(via.feasible) and all(alpha.feasible) and all(c.feasible for c in comparison.cases)
 assert via.J_phi[-1] < via.J_phi[0] and via.counts == COUNTS and alpha.alphas == WEIGHTS
 assert comparison.case("two-step").J < 1.0 and comparison.case("one-step").J < 1.0
 assert len(COUNTS) < 5 and len(written) >= 2 + 2 * 8  # quick mode; both study figures and two plan sets
+assert claims[0].agree == (not zero.feasible) and claims[4].agree == (two.J < one.J)
+assert climb_floor <= min(via.J_e + alpha.J_e) * (1 + 1e-9) and all(c.agree or c.why for c in claims)
+before = live.result
+sliders.children[1].value = 1.0  # alpha = 1: energy only
+assert live.result is not before and live.history[-1]["alpha"] == 1.0
+assert live.result.report.J_e <= before.report.J_e + 1e-3 and live.result.J != before.J
 """),
-    "04_prototype": Expected(images=14, html=1, checks="""
+    "04_prototype": Expected(images=16, html=1, checks="""
 assert robot.name == "prototype" and result.feasible and result.J < 1.0
 assert max(summary["tracking_max"].values()) < 0.01
 assert summary["peak_rotor_speed_rad_s"] <= summary["planning_speed_limit_rad_s"]
+assert set(margins) == set(result.report.constraints) and not broken(margins)
+# the take-off from rest shows the jump of J_phi of Fig. 3.50, the start on the plan does not
+assert ratio_rest > 2 * max(ratio_on, 1.0) and claims[-1].agree
+assert (OUT / "takeoff" / "sim_energy.png").is_file()
 """),
-    "05_singularity_crossing": Expected(images=8, html=1, checks="""
+    "05_singularity_crossing": Expected(images=10, html=2, checks="""
 assert result.feasible and ours.crossings == 1 and abs(ours.criterion_residual(robot)) < 1e-9
 assert not seed[1].feasible and not seed[2].feasible
 assert q2[0] > 0 > q2[-1] and np.count_nonzero(np.diff(np.sign(q2))) == 1 and summary["saturated_ticks"] == 0
+assert set(margins) == set(result.report.constraints) and not broken(margins)  # no physical limit broken
+assert not claims[2].agree and claims[2].why and all(c.agree for c in claims[:2])
+from PIL import Image as _PIL
+with _PIL.open(gif) as frames:
+    assert frames.n_frames > 5  # an animation, not a still
 """),
 }
 

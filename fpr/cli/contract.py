@@ -28,8 +28,9 @@ OK, LIMIT_BROKEN, BAD_INPUT, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 130
 
 EXIT_CODES = """exit codes:
   0    success: every constraint holds (and, with --simulate, the robot was not lost)
-  1    the result breaks a limit: the plan violates a constraint, or the simulation lost the robot
-       (the output folder is still written; the message names the constraint, or what happened and when)
+  1    the result breaks a limit: the plan violates a constraint, or the simulation lost the robot or broke
+       a physical limit (ground, singularity, rotor speeds, fixed point; eating into a design margin is only
+       reported) (the output folder is still written; the message names the constraint, or what happened and when)
   2    bad input: an option, the mission file, a robot parameter, a size of work over the limits, or an
        --out folder that cannot be written (nothing is written; a previous --out folder is left as it was)
   3    internal error: a bug in fpr (one line says so; --debug shows the traceback)

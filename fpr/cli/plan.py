@@ -14,7 +14,9 @@ solve time, then the worst value of every constraint. Into ``--out`` (default
 * ``manifest.json``: the command line, fpr's version, a hash of the inputs (the mission as planned and
   the options), the start time, the duration, the exit code and the wall-clock timings;
 * PNG figures of the thesis' planning chapter (``fpr.views.figures``);
-* with ``--simulate``: ``simulation.npz`` (the :class:`fpr.sim.closed_loop.SimulationLog`), ``sim_*``
+* with ``--simulate``: ``simulation.npz`` (the :class:`fpr.sim.closed_loop.SimulationLog`), ``simulation.json``
+  (its summary and every planned constraint's closed-loop margin against the planning and the physical limit,
+  :mod:`fpr.sim.margins`), ``sim_*``
   columns in ``trajectory.csv`` and the simulation figures; the summary adds tracking errors,
   out-of-plane motion, rotor speeds in the plant, allocation saturations and the real-time factor;
 * with ``--meshcat``: ``scene.html``, the 3D scene of :mod:`fpr.views.scene` (the robot following the plan;
@@ -26,7 +28,7 @@ Every file goes into a temporary folder beside ``--out``, swapped in when comple
 timings); a failed or interrupted run leaves the previous folder as it was (:mod:`fpr.cli.output`).
 
 Exit codes (:mod:`fpr.cli.contract`): 0 every constraint holds; 1 the result breaks a limit (the planned
-motion violates a constraint, or the simulation lost the robot; the files are still written and the message
+motion violates a constraint, or the simulation lost the robot or broke a physical limit; the files are still written and the message
 names what broke); 2 bad input (mission file or option, unreachable way point, way point on a singularity,
 a robot parameter out of its range, work over the size limits of :mod:`fpr.cli.checks`, an ``--out`` that
 cannot be written); 3 internal error (a bug; ``--debug`` shows the traceback); 130 interrupted.
@@ -49,8 +51,11 @@ from fpr.cli.output import OutputFolder, inputs_hash, manifest, write_manifest
 from fpr.cli.plan_files import csv_columns, plan_document, split_timings, write_csv
 from fpr.model.errors import FprError, MissionError
 from fpr.sim.closed_loop import SimulationSettings, simulate
+from fpr.sim.margins import (broken_message, closed_loop_margins, margin_lines, margin_series,
+                             eaten, simulation_document, thrust_floor)
 from fpr.sim.plant import PlantDivergedError
-from fpr.views.figures import plan_figures, simulation_figures
+from fpr.views.figures import margins_figure, plan_figures, simulation_figures
+from fpr.views.figures.all_figures import CROSSING_FIGURES
 from fpr.views.scene import view
 from planners.methods import METHODS, method_for
 from planners.mission import BUILTIN_MISSIONS, load_mission
@@ -124,6 +129,9 @@ def parser() -> argparse.ArgumentParser:
     sim.add_argument("--noise", type=lambda t: _floats(t, "--noise"), default=None, metavar="SQ,SV",
                      help="standard deviations of the measurement noise on q and v")
     sim.add_argument("--hold", type=float, default=1.0, help="time simulated after the plan's end [s]")
+    sim.add_argument("--takeoff", action="store_true",
+                     help="start at rest on the take-off pose, drones level (as the thesis' drones did), "
+                          "instead of on the plan")
     scene = p.add_argument_group("3D scene (meshcat)")
     scene.add_argument("--meshcat", action="store_true",
                        help="write scene.html: the robot following the plan (with --simulate: the simulated "
@@ -216,18 +224,27 @@ class _Progress:
             self.stream.write("\n")
 
 
+def _figure_options(final) -> dict:
+    """What the figures must know of the motion: a singularity crossing gets chapter 4's titles, no assembly-mode
+    bounds it crosses, and its thrust floor."""
+    crossing = final.crossing is not None
+    return {"figure_numbers": CROSSING_FIGURES if crossing else None, "crossing": crossing,
+            "min_thrust": thrust_floor(final.report)}
+
+
 def _simulate(args, robot, final, out, sampled, written):
     """Run the closed-loop simulation and write its files.
 
     Returns:
-        (log, lost): the :class:`fpr.sim.closed_loop.SimulationLog` (None if the plant diverged before a log
-        could be made) and one line saying how the robot was lost (None if it was not).
+        (log, lost, margins): the :class:`fpr.sim.closed_loop.SimulationLog` (None if the plant diverged before
+        a log could be made), one line saying how the robot was lost or which physical limit it broke (None
+        if neither), and the closed-loop margins of :mod:`fpr.sim.margins` (written to simulation.json).
     """
     settings = SimulationSettings(hold=args.hold, initial_error=dict(args.initial_error),
                                   model_mass_scale=args.model_mass_scale,
                                   rotor_constant_scale=args.rotor_constant_scale,
                                   measurement_noise=tuple(args.noise or (0.0, 0.0)),
-                                  wind=tuple(args.wind or (0.0, 0.0, 0.0)))
+                                  wind=tuple(args.wind or (0.0, 0.0, 0.0)), takeoff=args.takeoff)
     quiet = args.quiet
 
     def progress(t, total):
@@ -237,17 +254,24 @@ def _simulate(args, robot, final, out, sampled, written):
     try:
         log = simulate(final, settings, progress)
     except PlantDivergedError as error:
-        return None, f"the simulation lost the robot: {contract.one_line(error)}"
+        return None, f"the simulation lost the robot: {contract.one_line(error)}", None
     failure = getattr(log, "failure", None)
     log.save(out / "simulation.npz")
+    margins = closed_loop_margins(final, log)
+    (out / "simulation.json").write_text(json.dumps(simulation_document(log, margins), indent=1), encoding="utf-8")
+    written.append("simulation.json")
     write_csv(out / "trajectory.csv", robot, sampled, log)
     written.append("simulation.npz")
     if not args.no_plots:
         try:
-            written += [f.name for f in simulation_figures(out, robot, log, sampled)]
+            options = _figure_options(final)
+            options.pop("min_thrust")
+            written += [f.name for f in simulation_figures(out, robot, log, sampled, **options)]
+            written.append(margins_figure(out / "sim_margins.png", margin_series(final, log)).name)
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the results
             print(f"warning: simulation figures not written: {contract.one_line(error)}", file=sys.stderr)
-    return log, (f"the simulation lost the robot: {contract.one_line(failure)}" if failure else None)
+    lost = f"the simulation lost the robot: {contract.one_line(failure)}" if failure else broken_message(margins)
+    return log, lost, margins
 
 
 def _simulation_table(log) -> str:
@@ -349,11 +373,11 @@ def _work(args, mission, robot, tmp, say):
         written.append("reference.csv")
     if not args.no_plots:
         try:
-            figures = plan_figures(tmp, robot, sampled, reference_sampled)
+            figures = plan_figures(tmp, robot, sampled, reference_sampled, **_figure_options(final))
             written += [f.name for f in figures]
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the computed plan
             print(f"warning: figures not written: {contract.one_line(error)}", file=sys.stderr)
-    log, lost = _simulate(args, robot, final, tmp, sampled, written) if args.simulate else (None, None)
+    log, lost, margins = _simulate(args, robot, final, tmp, sampled, written) if args.simulate else (None,) * 3
     if log is not None:
         timings["simulation"] = log.wall_time
     visualizer = _scene(args, robot, final, log, tmp, written) if args.meshcat or args.serve else None
@@ -367,6 +391,8 @@ def _work(args, mission, robot, tmp, say):
             f"KKT residual {stage.kkt:.2g})")
     if log is not None:
         say(_simulation_table(log))
+    if margins is not None:
+        say("\n".join(margin_lines(margins)))
     problems = []
     if not final.feasible:
         names = ", ".join(f"{c.name} (margin {c.margin:.4g} {c.unit} at t = {c.time:.3f} s)"
@@ -378,6 +404,8 @@ def _work(args, mission, robot, tmp, say):
     for problem in problems:
         print(f"error: {problem}", file=sys.stderr)
     outcome = "; ".join(problems) or "every constraint holds" + (", the robot was not lost" if args.simulate else "")
+    if margins is not None and eaten(margins):  # reported, not a failure
+        outcome += "; the closed loop ate into the design margin of " + ", ".join(m.name for m in eaten(margins))
     return (contract.LIMIT_BROKEN if problems else contract.OK), outcome, timings, visualizer
 
 

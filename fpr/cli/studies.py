@@ -26,6 +26,7 @@ import numpy as np
 from fpr.cli import contract
 from fpr.cli.output import OutputFolder, inputs_hash, manifest, write_manifest
 from fpr.views.figures import alpha_study_figure, plan_figures, via_point_study_figure
+from fpr.views.figures.studies import APPENDIX_FIGURES
 from planners.mission import load_mission
 from planners.studies import (
     ALPHAS,
@@ -91,7 +92,7 @@ def write_study_figures(out_dir: str | Path, via: ViaPointStudy | None = None,
     * ``via_points.png``: Fig. 3.7-3.8 (:func:`fpr.views.figures.via_point_study_figure`);
     * ``alpha.png``: Fig. 3.9-3.10 (:func:`fpr.views.figures.alpha_study_figure`);
     * ``<mission>-<method>/*.png``: for each optimised method of ``comparison``, the figures of
-      :func:`fpr.views.figures.plan_figures` (Fig. 3.11-3.18) against the stop-at-way-points motion
+      :func:`fpr.views.figures.plan_figures` (appendix, Fig. 4.11-4.18) against the stop-at-way-points motion
       (when ``"none"`` is among its methods).
 
     Returns:
@@ -114,7 +115,8 @@ def write_study_figures(out_dir: str | Path, via: ViaPointStudy | None = None,
             if method == "none":
                 continue
             folder = out / f"{comparison.mission}-{method}"
-            written += plan_figures(folder, result.robot, result.sampled(rate), reference)
+            written += plan_figures(folder, result.robot, result.sampled(rate), reference,
+                                    figure_numbers=APPENDIX_FIGURES.get(method))
     return written
 
 

@@ -52,6 +52,9 @@ class SimulationSettings:
         measurement_noise: standard deviations of the noise on the measured (q, v) [m or rad, per s].
         wind: constant force on each drone's centre, world frame (x, y, z) [N].
         seed: noise seed.
+        takeoff: start at rest on the take-off pose, as the thesis' drones did (seed 3.3.2, Fig. 3.50): every
+            drone level (roll 0) instead of at its planned roll, its four rotors at one speed giving the
+            planned thrust (no torque); False: start on the plan (planned rolls and rotor speeds).
 
     Bounds of the watch for a lost robot (:mod:`fpr.sim.watch`); the reference missions (square,
     prototype tour, singularity crossing) stay far inside them:
@@ -78,6 +81,7 @@ class SimulationSettings:
     measurement_noise: tuple[float, float] = (0.0, 0.0)
     wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
     seed: int = 0
+    takeoff: bool = False
     ground_tolerance: float = 0.05
     max_closure_error: float = 1e-3
     max_drone_speed: float = 30.0
@@ -290,7 +294,11 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
     q0 = q_plan[0].copy()
     for name, offset in st.initial_error.items():
         q0[robot.index[name]] += offset
-    plant = Plant.from_minimal(robot, q0, np.zeros(robot.nq), planned.rotor_speed[0],
+    w0 = planned.rotor_speed[0]
+    if st.takeoff:  # at rest on the take-off pose: drones level, rotors at one speed each
+        q0[[robot.index[c] for c in robot.layout.rolls]] = 0.0
+        w0 = np.repeat(np.sqrt(np.mean(planned.rotor_speed_squared[0], axis=-1, keepdims=True)), 4, axis=-1)
+    plant = Plant.from_minimal(robot, q0, np.zeros(robot.nq), w0,
                                rotor_constant_scale=st.rotor_constant_scale)
     watch = Watch(robot, st)
     rng = np.random.default_rng(st.seed)

@@ -7,6 +7,8 @@ One module per family of figures:
 :mod:`~fpr.views.figures.simulation`         a simulation against its plan: Fig. 3.19-3.32, 3.42-3.51
 :mod:`~fpr.views.figures.studies`            the parameter studies: Fig. 3.7-3.10
 :mod:`~fpr.views.figures.crossing`           crossing the prototype's singularity: Fig. 4.2-4.9
+:mod:`~fpr.views.figures.margins`            closed-loop margins of the planned constraints, both limits
+:mod:`~fpr.views.figures.chain`              the chain at a few instants (stroboscopic) and as a GIF / MP4
 :mod:`~fpr.views.figures.all_figures`        :func:`figure_set`, every figure of a motion at once
 :mod:`~fpr.views.figures.style`              :data:`STYLE`, styling context, saving, limit lines, markers
 :mod:`~fpr.views.figures.sampled`            checks of a sampled plan, :func:`cumulative_integral`
@@ -26,6 +28,8 @@ Entry points (all importable from here):
   :data:`SIMULATION_FIGURES`).
 * :func:`via_point_study_figure` and :func:`alpha_study_figure` draw the parameter studies of
   seed 3.2.5 (Fig. 3.7-3.10); :func:`crossing_comparison_figure` the approaches of seed ch. 4.
+* :func:`margins_figure` draws :func:`fpr.sim.margins.margin_series` (every planned constraint in closed loop
+  against the planning and the physical limit).
 
 Every ``_<name>_figure`` / ``_sim_<name>`` builder returns a :class:`matplotlib.figure.Figure`
 without writing it, so that tests (and users) can inspect the axes.
@@ -60,6 +64,7 @@ Wrong inputs raise :class:`fpr.model.errors.FigureError` or :class:`fpr.model.er
 
 from fpr.views.figures.all_figures import FIGURE_SET, figure_set
 from fpr.views.figures.crossing import _crossing_comparison, crossing_comparison_figure  # noqa: F401
+from fpr.views.figures.margins import margins_figure
 from fpr.views.figures.planning import PLAN_FIGURES, plan_figures
 from fpr.views.figures.sampled import cumulative_integral
 from fpr.views.figures.simulation import SIMULATION_FIGURES, simulated_indices, simulation_figures
@@ -78,6 +83,7 @@ __all__ = [
     "crossing_comparison_figure",
     "cumulative_integral",
     "figure_set",
+    "margins_figure",
     "plan_figures",
     "simulated_indices",
     "simulation_figures",

@@ -10,10 +10,15 @@ from fpr.model.errors import FigureError
 from fpr.views.figures.planning import PLAN_FIGURES, plan_figures
 from fpr.views.figures.sampled import _traces
 from fpr.views.figures.simulation import SIMULATION_FIGURES, _simulated, simulation_figures
+from fpr.sim.margins import thrust_floor
 from planners.optimize import SampledPlan
 
 #: File names written by :func:`figure_set` with a simulation log, in order.
 FIGURE_SET = PLAN_FIGURES + SIMULATION_FIGURES
+
+#: Titles of a singularity crossing's figures: the thesis' chapter 4 has no figure of a successful crossing; its
+#: failed approaches are Fig. 4.2-4.9.
+CROSSING_FIGURES = "Singularity crossing (thesis ch. 4; cf. Fig. 4.2-4.9)"
 
 
 def _as_sampled(what: str, plan, robot, rate: float) -> SampledPlan:
@@ -27,7 +32,7 @@ def _as_sampled(what: str, plan, robot, rate: float) -> SampledPlan:
 
 
 def figure_set(out_dir: str | Path, plan, log=None, reference=None, *, robot=None,
-               rate: float = 200.0) -> dict[str, Path]:
+               rate: float = 200.0, figure_numbers=None) -> dict[str, Path]:
     """Write every figure of the thesis that applies to a planned (and possibly simulated) motion.
 
     FPR: Fig. 3.11-3.18 and the rotor limits of eq. 3.48 (:data:`PLAN_FIGURES`), and with ``log``
@@ -48,6 +53,9 @@ def figure_set(out_dir: str | Path, plan, log=None, reference=None, *, robot=Non
             way point): a PlanResult or a sampled plan, or None.
         robot: the robot; default ``plan.robot`` (required for a sampled plan).
         rate: sampling rate of PlanResults [Hz].
+        figure_numbers: the thesis figure(s) in the titles instead of the robot's (see
+            :func:`fpr.views.figures.robot_info.figure_context`); a singularity crossing (a PlanResult with
+            ``crossing``) gets :data:`CROSSING_FIGURES`, the bounds it crosses are left out and its thrust floor drawn.
 
     Returns:
         name -> path of every written PNG file, in the order of :data:`FIGURE_SET` (the ``sim_``
@@ -69,7 +77,15 @@ def figure_set(out_dir: str | Path, plan, log=None, reference=None, *, robot=Non
     _traces(robot, sampled, sampled_reference)  # check everything before writing anything
     if log is not None:
         _simulated(robot, log)
-    paths = dict(zip(PLAN_FIGURES, plan_figures(out_dir, robot, sampled, sampled_reference), strict=True))
+    crossing = getattr(plan, "crossing", None) is not None
+    if crossing and figure_numbers is None:
+        figure_numbers = CROSSING_FIGURES
+    floor = thrust_floor(plan.report) if hasattr(plan, "report") else None
+    paths = dict(zip(PLAN_FIGURES, plan_figures(out_dir, robot, sampled, sampled_reference,
+                                                figure_numbers=figure_numbers, crossing=crossing, min_thrust=floor),
+                     strict=True))
     if log is not None:
-        paths.update(zip(SIMULATION_FIGURES, simulation_figures(out_dir, robot, log, sampled), strict=True))
+        paths.update(zip(SIMULATION_FIGURES, simulation_figures(out_dir, robot, log, sampled,
+                                                                figure_numbers=figure_numbers, crossing=crossing),
+                         strict=True))
     return paths

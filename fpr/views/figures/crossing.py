@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from fpr.model.errors import FigureError
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
+from fpr.sim.margins import thrust_floor
 from fpr.views.figures.style import STYLE, _finish, _limit, _new_figure, _png_path, _save_to_file, _styled
 
 if TYPE_CHECKING:
@@ -39,6 +40,10 @@ def _crossing_comparison(robot, outcomes: Sequence, rate: float) -> Figure:
         axes[0].axhline(0.0, color=STYLE["reference_color"], linewidth=STYLE["thin_width"], zorder=1)
         axes[0].set_ylabel(r"$q_2$ [rad]")
         _limit(axes[1], max_thrust)
+        floors = [f for f in (thrust_floor(out.report) for out in outcomes if hasattr(out, "report")) if f is not None]
+        if floors:  # the least thrust the crossings are planned with (the controller steers the thrust's direction)
+            axes[1].axhline(floors[0], color=STYLE["limit_color"], linestyle="-.", linewidth=STYLE["thin_width"],
+                            label=f"thrust floor {floors[0]:.2f} N", gid="thrust floor", zorder=1)
         axes[1].set_ylabel(r"thrust $|F|$ [N]")
         _limit(axes[2], limit)
         _limit(axes[2], 0.0)

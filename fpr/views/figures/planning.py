@@ -14,9 +14,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fpr.views.figures.robot_info import _coordinate_axes, _robot_sizes, _task_space_joints, _title
+from fpr.views.figures.robot_info import (
+    _applicable_bounds,
+    _context,
+    _coordinate_axes,
+    _robot_sizes,
+    _task_space_joints,
+    _title,
+    figure_context,
+)
 from fpr.views.figures.sampled import _Trace, _traces
-from fpr.views.figures.style import STYLE, _finish, _limit, _new_figure, _point_markers, _save, _styled
+from fpr.views.figures.style import ROTOR_STYLES, STYLE, _finish, _limit, _new_figure, _point_markers, _save, _styled
 from planners.optimize import SampledPlan
 
 if TYPE_CHECKING:
@@ -77,7 +85,26 @@ def _path_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None)
             if not tr.is_reference:
                 markers = _task_space_joints(robot, tr.point_positions)[0]
                 _point_markers(ax, markers[:, 0], markers[:, 1], tr.is_way)
+                _direction_marks(ax, tr.t, main, markers[tr.is_way], tr.knots[tr.is_way])
         return _finish(fig, _title(robot, "path"), [ax], legend_below=True)
+
+
+def _direction_marks(ax, t: np.ndarray, path: np.ndarray, way: np.ndarray, way_times: np.ndarray) -> None:
+    """Arrows along ``path`` (N, 2) showing the direction of motion, and each way point's time."""
+    length = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    if length[-1] <= 0:
+        return
+    for s in np.linspace(0.0, length[-1], 14)[1:-1]:
+        k = min(int(np.searchsorted(length, s)), len(path) - 2)
+        ax.annotate("", xy=path[k + 1], xytext=path[k], gid="direction",
+                    arrowprops={"arrowstyle": "-|>", "color": STYLE["plan_color"], "lw": 0.8, "mutation_scale": 9})
+    seen = {}
+    for (y, z), time in zip(way, way_times, strict=True):
+        key = (round(float(y), 3), round(float(z), 3))
+        seen[key] = seen.get(key, ()) + (time,)
+    for (y, z), times in seen.items():
+        ax.annotate(", ".join(f"{x:g} s" for x in times), (y, z), textcoords="offset points", xytext=(5, -10),
+                    fontsize=STYLE["legend_size"], color="0.25", gid="time mark")
 
 
 def _coordinates_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:
@@ -92,9 +119,8 @@ def _coordinates_figure(robot, plan: SampledPlan, reference: SampledPlan | None 
                 ax.plot(tr.t, tr.s[:, j], label=tr.label, **tr.line)
             first = traces[0]
             _point_markers(ax, first.knots, first.point_positions[:, j], first.is_way, label=False)
-            if bounds is not None:
-                for b in bounds:
-                    _limit(ax, b)
+            for b in _applicable_bounds(bounds, traces[0].s[:, j]):
+                _limit(ax, b)
             ax.set_ylabel(ylabel)
         axes[-1].set_xlabel("t [s]")
         return _finish(fig, _title(robot, "coordinates"), axes)
@@ -147,6 +173,7 @@ def _per_drone_figure(robot, traces: list[_Trace], which: str, ylabel: Callable[
                         kw["linewidth"] = STYLE["thin_width"]
                     else:
                         kw["color"] = STYLE["rotor_colors"][k % len(STYLE["rotor_colors"])]
+                        kw["linestyle"] = ROTOR_STYLES[k % len(ROTOR_STYLES)]  # visible where rotors coincide
                     label = tr.label if tr.is_reference else f"rotor {k + 1}"
                     ax.plot(tr.t, v[:, k], label=label, **kw)
             for b in limits:
@@ -160,8 +187,10 @@ def _per_drone_figure(robot, traces: list[_Trace], which: str, ylabel: Callable[
 
 def _thrust_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:
     """Fig. 3.15-3.16 / 3.40: thrust norm |F_i| of each drone [N]."""
+    floor = _context("min_thrust")
     return _per_drone_figure(robot, _traces(robot, plan, reference), "thrust",
-                             lambda i: f"$|F_{i + 1}|$ [N]", lambda tr, i: tr.thrust[:, i], ())
+                             lambda i: f"$|F_{i + 1}|$ [N]", lambda tr, i: tr.thrust[:, i],
+                             () if floor is None else (floor,))
 
 
 def _roll_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:
@@ -206,7 +235,8 @@ _BUILDERS: dict[str, Callable[..., Figure]] = {
 
 
 def plan_figures(out_dir: str | Path, robot, plan: SampledPlan,
-                 reference: SampledPlan | None = None) -> list[Path]:
+                 reference: SampledPlan | None = None, *, figure_numbers=None, crossing: bool = False,
+                 min_thrust: float | None = None) -> list[Path]:
     """Write the figures of one planned motion (seed Fig. 3.11-3.18 for the FPR, 3.36-3.41 for the prototype).
 
     Files, in ``out_dir`` (created if needed), in this order: ``path.png``, ``coordinates.png``,
@@ -226,6 +256,8 @@ def plan_figures(out_dir: str | Path, robot, plan: SampledPlan,
         robot: the :class:`~fpr.model.robot.Robot` the plan is for (``robot.name`` "fpr" or "prototype").
         plan: the sampled plan to show (see :mod:`fpr.views.figures`).
         reference: an optional sampled plan to compare with.
+        figure_numbers, crossing, min_thrust: what the motion is (:func:`figure_context`): the thesis figure
+            numbers of its titles, a singularity crossing (the bounds it crosses are not drawn), its thrust floor.
 
     Returns:
         The paths of the written PNG files.
@@ -238,6 +270,7 @@ def plan_figures(out_dir: str | Path, robot, plan: SampledPlan,
     _traces(robot, plan, reference)  # fail before writing anything
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return [_save(_BUILDERS[name](robot, plan, reference), out / f"{name}.png") for name in PLAN_FIGURES]
+    with figure_context(figure_numbers, crossing, min_thrust):
+        return [_save(_BUILDERS[name](robot, plan, reference), out / f"{name}.png") for name in PLAN_FIGURES]
 
 

@@ -7,6 +7,10 @@ The figures never test a robot's name: everything specific to a robot comes from
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+from collections.abc import Mapping
+
 import numpy as np
 
 from fpr.model.errors import FigureError
@@ -31,9 +35,58 @@ def _robot_sizes(robot) -> tuple[int, int]:
     return len(robot.layout.chain), robot.n_drones
 
 
+#: What the figures being drawn show besides the robot (:func:`figure_context`).
+_CONTEXT: contextvars.ContextVar[dict] = contextvars.ContextVar("figure_context", default={})
+
+
+@contextlib.contextmanager
+def figure_context(figure_numbers: Mapping[str, str] | str | None = None, crossing: bool = False,
+                   min_thrust: float | None = None):
+    """Draw the figures inside this block for a particular motion.
+
+    Args:
+        figure_numbers: the thesis figure(s) the motion reproduces, instead of the robot's default ones (e.g. the
+            appendix' 1-step / 2-step runs are Fig. 4.11-4.18, not 3.11-3.18): one text for every figure, or
+            figure name -> text; the title becomes "<text> — <what the figure shows>".
+        crossing: the motion crosses the Type-2 singularity on purpose: the assembly-mode bounds it crosses are not
+            drawn (they do not apply to it).
+        min_thrust: the thrust floor the motion was planned with [N] (drawn on the thrust figures), or None.
+    """
+    token = _CONTEXT.set({"figure_numbers": figure_numbers, "crossing": crossing, "min_thrust": min_thrust})
+    try:
+        yield
+    finally:
+        _CONTEXT.reset(token)
+
+
+def _context(key: str):
+    """A value of the current :func:`figure_context` (None / False outside one)."""
+    return _CONTEXT.get().get(key)
+
+
 def _title(robot, which: str) -> str:
-    """The title of figure ``which`` ("path", "sim_heights"...) for ``robot``; the figure's name if it has none."""
-    return _kind(robot).titles.get(which, which)
+    """The title of figure ``which`` ("path", "sim_heights"...) for ``robot``; the figure's name if it has none.
+
+    Inside a :func:`figure_context` with ``figure_numbers``, the thesis figure number is replaced.
+    """
+    title = _kind(robot).titles.get(which, which)
+    numbers = _context("figure_numbers")
+    if isinstance(numbers, Mapping):
+        numbers = numbers.get(which)
+    if numbers:
+        title = f"{numbers} — {title.split(' — ', 1)[-1]}"
+    return title
+
+
+def _applicable_bounds(bounds, values: np.ndarray):
+    """The bounds of a coordinate that apply to a motion taking ``values``: all of them, except, for a motion
+    that crosses its singularity on purpose (:func:`figure_context`), those it crosses."""
+    if not bounds:
+        return ()
+    if not _context("crossing"):
+        return tuple(bounds)
+    low, high = float(np.nanmin(values)), float(np.nanmax(values))
+    return tuple(b for b in bounds if not (low < b < high))
 
 
 def _task_space_joints(robot, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -17,14 +17,16 @@ import numpy as np
 from fpr.model.errors import FigureError
 from fpr.views.figures.planning import _path_axes
 from fpr.views.figures.robot_info import (
+    _applicable_bounds,
     _coordinate_axes,
     _drone_joint_velocities,
     _robot_sizes,
     _task_space_joints,
     _title,
+    figure_context,
 )
 from fpr.views.figures.sampled import _field, _trace, cumulative_integral
-from fpr.views.figures.style import STYLE, _finish, _limit, _new_figure, _point_markers, _save, _styled
+from fpr.views.figures.style import ROTOR_STYLES, STYLE, _finish, _limit, _new_figure, _point_markers, _save, _styled
 from planners.optimize import SampledPlan
 
 if TYPE_CHECKING:
@@ -104,6 +106,16 @@ def _simulated(robot, log) -> _Simulated:
     )
 
 
+#: Largest out-of-plane motion drawn as numerical noise rather than as a result [m or rad].
+NOISE_LEVEL = 1e-5  # the closure numerics and round-off stay below it (tests/test_simulate.py)
+
+
+def _physical_line(label: str = "physical limit") -> dict[str, Any]:
+    """Keyword arguments of ``Axes.axhline`` for a physical limit (black dash-dot; the planning limit is red dotted)."""
+    return {"color": "black", "linestyle": "-.", "linewidth": STYLE["thin_width"], "label": label,
+            "gid": "physical limit", "zorder": 1}
+
+
 def _planned_line(width: float | None = None) -> dict[str, Any]:
     """Keyword arguments of ``Axes.plot`` for the plan in a simulation figure (dashed grey)."""
     return {"color": STYLE["reference_color"], "linestyle": STYLE["reference_style"],
@@ -156,7 +168,7 @@ def _sim_coordinates(robot, log, plan: SampledPlan | None = None) -> Figure:
                     **_planned_line())
             ax.plot(sim.t, sim.simulated[:, j], label="simulated" if j == 0 else None, gid="simulated",
                     **_simulated_line())
-            for b in bounds or ():
+            for b in _applicable_bounds(bounds, sim.planned[:, j]):
                 _limit(ax, b)
             ax.set_ylabel(ylabel)
             symbol, unit = ylabel.rsplit(" [", 1)
@@ -178,8 +190,14 @@ def _sim_out_of_plane(robot, log, plan: SampledPlan | None = None) -> Figure:
         fig, axes = _new_figure(len(specs))
         for ax, (name, ylabel) in zip(axes, specs, strict=True):
             ax.axhline(0.0, label="planned", gid="planned", **_planned_line())
-            ax.plot(sim.t, sim.out_of_plane[name], label="simulated", gid="simulated", **_simulated_line())
+            values = sim.out_of_plane[name]
+            ax.plot(sim.t, values, label="simulated", gid="simulated", **_simulated_line())
             ax.set_ylabel(ylabel)
+            largest = float(np.abs(values).max())
+            if largest < NOISE_LEVEL:  # round-off only: do not blow it up into a result
+                ax.set_ylim(-10 * NOISE_LEVEL, 10 * NOISE_LEVEL)
+                ax.text(0.02, 0.85, f"numerical noise only: |{name}| <= {largest:.1e} (nothing pushes the robot out "
+                                    "of its plane)", transform=ax.transAxes, fontsize=STYLE["legend_size"], gid="noise")
         axes[-1].set_xlabel("t [s]")
         return _finish(fig, _title(robot, "sim_out_of_plane"), axes)
 
@@ -201,6 +219,8 @@ def _sim_roll(robot, log, plan: SampledPlan | None = None) -> Figure:
             ax.plot(sim.t, sim.roll[:, i], label="simulated", gid="simulated", **_simulated_line())
             _limit(ax, -bound)
             _limit(ax, bound)
+            for side in (-1.0, 1.0):  # the physical limit: a drone on its side
+                ax.axhline(side * np.pi / 2, **_physical_line())
             ax.set_ylabel(rf"$\varphi_{i + 1}$ [rad]")
             if n_d > 1:
                 ax.set_title(f"drone {i + 1}")
@@ -230,6 +250,7 @@ def _sim_heights(robot, log, plan: SampledPlan | None = None) -> Figure:
                 ax.plot(sim.t, sim.drone_height[:, drone], label="simulated: drone centre of mass", gid="com",
                         **dict(_simulated_line(STYLE["thin_width"]), color=STYLE["drone_colors"][drone]))
             _limit(ax, ground)
+            ax.axhline(robot.kind.ground_height, **_physical_line("ground (physical limit)"))
             ax.set_ylabel(ylabel)
         axes[-1].set_xlabel("t [s]")
         return _finish(fig, _title(robot, "sim_heights"), axes)
@@ -269,7 +290,8 @@ def _sim_rotors(robot, log, plan: SampledPlan | None, which: str) -> Figure:
                             **_planned_line(STYLE["thin_width"]))
             for k in range(4):
                 ax.plot(sim.t, value(sim.speed[:, i, k]), label=f"rotor {k + 1}", gid="simulated",
-                        color=STYLE["rotor_colors"][k], linewidth=STYLE["thin_width"] * 1.25, zorder=3)
+                        color=STYLE["rotor_colors"][k], linestyle=ROTOR_STYLES[k], linewidth=STYLE["thin_width"] * 1.25,
+                        zorder=3)
             _limit(ax, 0.0)
             _limit(ax, float(value(upper)))
             ax.axhline(float(value(sim.max_speed)), color=STYLE["reference_color"], linestyle="-",
@@ -348,7 +370,8 @@ _SIM_BUILDERS: dict[str, Callable[..., Figure]] = {
 }
 
 
-def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None = None) -> list[Path]:
+def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None = None, *, figure_numbers=None,
+                       crossing: bool = False) -> list[Path]:
     """Write the thesis' simulation figures of a :class:`fpr.sim.closed_loop.SimulationLog` as PNG files.
 
     Files, in ``out_dir`` (created if needed), in the order of :data:`SIMULATION_FIGURES`:
@@ -370,6 +393,7 @@ def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None
         log: the :class:`fpr.sim.closed_loop.SimulationLog`.
         plan: the sampled plan that was tracked (optional): adds its rotor speeds, rotor forces,
             J_e(t), J_phi(t) and way/via points to the figures.
+        figure_numbers, crossing: what the motion is (:func:`fpr.views.figures.robot_info.figure_context`).
 
     Returns:
         The paths of the written PNG files.
@@ -384,6 +408,7 @@ def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None
         _trace(robot, plan, "plan", False)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return [_save(_SIM_BUILDERS[name](robot, log, plan), out / f"{name}.png") for name in SIMULATION_FIGURES]
+    with figure_context(figure_numbers, crossing):
+        return [_save(_SIM_BUILDERS[name](robot, log, plan), out / f"{name}.png") for name in SIMULATION_FIGURES]
 
 

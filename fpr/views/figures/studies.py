@@ -31,6 +31,16 @@ def _study_arrays(x_name: str, x, energy_ratio, perturbation_ratio) -> tuple[np.
     return tuple(arrays)
 
 
+def _value_labels(values) -> list[str]:
+    """Bar labels with enough decimals to tell the bars apart and from 1 (0.9996 is not "1"): at least 3
+    significant digits, and as many decimals as the smallest difference between two values or from 1 needs."""
+    v = np.asarray(values, dtype=float)
+    gaps = np.abs(np.diff(np.sort(np.append(v, 1.0))))
+    gaps = gaps[gaps > 0]
+    decimals = 3 if gaps.size == 0 else int(np.clip(np.ceil(-np.log10(gaps.min())) + 1, 3, 6))
+    return [f"{x:.{decimals}f}" for x in v]
+
+
 def _via_point_study(n_via: Sequence[int], energy_ratio, perturbation_ratio) -> Figure:
     counts, e, p = _study_arrays("n_via", n_via, energy_ratio, perturbation_ratio)
     if np.any(counts < 0) or np.any(counts != np.round(counts)):
@@ -44,7 +54,7 @@ def _via_point_study(n_via: Sequence[int], energy_ratio, perturbation_ratio) -> 
             ax.axhline(1.0, color=STYLE["reference_color"], linestyle=STYLE["reference_style"],
                        linewidth=STYLE["thin_width"], label="no via point (ratio 1)", zorder=1)
             bars = ax.bar(counts, ratio, width=0.6, color=STYLE["plan_color"], zorder=2)
-            ax.bar_label(bars, fmt="%.3g", fontsize=STYLE["legend_size"])
+            ax.bar_label(bars, labels=_value_labels(ratio), fontsize=STYLE["legend_size"])
             ax.set_xticks(counts)
             ax.set_xlabel(r"number of via points per segment $n_{vp}$ [-]")
             ax.set_ylabel(ylabel)
@@ -113,3 +123,16 @@ def alpha_study_figure(path: str | Path, alphas, energy_ratio, perturbation_rati
     return _save_to_file(_alpha_study(alphas, energy_ratio, perturbation_ratio), target)
 
 
+
+
+def _appendix(path: str, coordinates: str, energy: str, perturbation: str) -> dict[str, str]:
+    other = "Appendix (cf. 3.2.6, Fig. 3.15-3.18)"
+    return {"path": f"Appendix, Fig. {path}", "coordinates": f"Appendix, Fig. {coordinates}",
+            "energy": f"Appendix, Fig. {energy}", "perturbation": f"Appendix, Fig. {perturbation}",
+            "thrust": other, "roll": other, "rotor_speeds": "Appendix (eq. 3.48)", "rotor_forces": "Appendix (eq. 3.48)"}
+
+
+#: The thesis figures of the appendix' comparison (the square mission planned by the original 1-step method and by
+#: the 2-step one), by method, for :func:`fpr.views.figures.plan_figures`'s ``figure_numbers``.
+APPENDIX_FIGURES = {"one-step": _appendix("4.11", "4.13", "4.15", "4.17"),
+                    "two-step": _appendix("4.12", "4.14", "4.16", "4.18")}

@@ -49,6 +49,9 @@ STYLE = MappingProxyType({
     "dpi": 120,
 })
 
+#: Line styles of rotors 1-4 (with their colours), so that rotors with equal speeds stay visible.
+ROTOR_STYLES = ("-", "--", "-.", ":")
+
 #: Legend label of every limit line (also its matplotlib gid, so that tests and users can find them).
 LIMIT_LABEL = "limit"
 
@@ -112,8 +115,9 @@ def _finish(fig: Figure, title: str, axes: Sequence[Axes], legend_below: bool = 
         if legend_below:
             ax.legend(unique.values(), unique.keys(), loc="upper center", bbox_to_anchor=(0.5, -0.12),
                       ncol=ncol)
-        else:
-            ax.legend(unique.values(), unique.keys(), loc="best", ncol=ncol)
+        else:  # beside the axes: never over the data or the limit lines
+            ax.legend(unique.values(), unique.keys(), loc="upper left", bbox_to_anchor=(1.01, 1.0), ncol=1,
+                      borderaxespad=0.0)
     fig.tight_layout()
     fig.set_layout_engine(None)  # laid out once here; savefig then draws only once
     return fig
