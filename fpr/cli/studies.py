@@ -156,14 +156,26 @@ def _split_times(value, times: list, path: str = ""):
     return value
 
 
+def _exit_codes() -> str:
+    """fpr.plan's exit codes, with 1 unused: an infeasible case is a finding of a study, not a failure."""
+    lines, out, skipping = contract.EXIT_CODES.splitlines(), [], False
+    for line in lines:
+        if line.startswith("  1 "):
+            skipping = True
+            out.append("  1    not used: an infeasible case is a finding of the study, shown in its table")
+        elif skipping and line.startswith("       "):
+            continue
+        else:
+            skipping = False
+            out.append(line)
+    return "\n".join(out)
+
+
 def parser() -> contract.Parser:
     """The argument parser of ``python -m fpr.studies``."""
     p = contract.Parser(prog="python -m fpr.studies", description=__doc__.split("\n\n")[0],
                         formatter_class=contract.HelpFormatter,
-                        epilog=contract.EXIT_CODES.replace(
-                            "  1    the result breaks a limit",
-                            "  1    (not used: an infeasible case is a finding of the study, shown in its table)\n"
-                            "       for fpr.plan: the result breaks a limit", 1))
+                        epilog=_exit_codes())
     p.add_argument("--out", type=Path, default=Path("fpr-out") / "studies",
                    help="output folder, replaced atomically when the studies are done")
     p.add_argument("--quick", action="store_true",
