@@ -245,7 +245,7 @@ def _simulate(args, robot, final, out, sampled, written):
     failure = getattr(log, "failure", None)
     done = replanning.executed(final, hooks)
     sampled = sampled if done is None else done.sampled(args.rate)  # planned columns: the plan in force
-    log.replanning = (hooks, done, replanning.write(out, hooks, done, written))
+    log.replanning = (hooks, done, replanning.write(out, hooks, done, written, None if args.no_plots else log, final))
     log.save(out / "simulation.npz")
     write_csv(out / "trajectory.csv", robot, sampled, log)
     written.append("simulation.npz")
@@ -366,7 +366,8 @@ def _work(args, mission, robot, tmp, say):
     if log is not None:
         timings["simulation"] = log.wall_time
         timings.update(replan_timings)
-    visualizer = _scene(args, robot, final, log, tmp, written) if args.meshcat or args.serve else None
+    shown = final if done is None else done  # after replanning, the ghost follows the plan in force
+    visualizer = _scene(args, robot, shown, log, tmp, written) if args.meshcat or args.serve else None
     say(comparison_table(reference, result))
     say("constraints of the " + ("optimised" if result is not None else "stop-at-way-points") + " motion "
         "(dense grid, margin >= 0 holds):")

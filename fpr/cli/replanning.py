@@ -21,6 +21,7 @@ import numpy as np
 
 from fpr.cli.checks import CommandLineError
 from fpr.sim.replanning import InFlight, TriggerSettings
+from fpr.views.figures.replanning import write_replanning_figure
 from planners.replan import TIMINGS, ReplanOptions, Replanner
 from planners.report import evaluate_motion
 
@@ -68,8 +69,7 @@ def in_flight(args, final, settings):
         return None
     replanner = None
     if replan:
-        replanner = Replanner(final, ReplanOptions(deadline=args.replan_deadline, timing=args.replan_timing,
-                                                   samples_per_segment=9))
+        replanner = Replanner(final, ReplanOptions(deadline=args.replan_deadline, timing=args.replan_timing))
     triggers = TriggerSettings(tracking_bound=args.replan_bound, rate=args.replan_rate)
     return InFlight(mission, replanner, triggers, settings.controller,
                     [robot.index[c] for c in robot.layout.chain])
@@ -87,8 +87,9 @@ def executed(final, hooks):
     return dataclasses.replace(final, trajectory=trajectory, is_way=is_way, report=report, stages=[])
 
 
-def write(out, hooks, done, written) -> dict:
-    """Write ``replans.json``; returns the solves' wall times for ``manifest.json`` (by ``replan i``)."""
+def write(out, hooks, done, written, log=None, final=None) -> dict:
+    """Write ``replans.json`` (and, given the log and the offline plan, ``replanning.png``); returns the solves'
+    wall times for ``manifest.json`` (by ``replan i``)."""
     if hooks is None or hooks.replanner is None:
         return {}
     records = [r.to_dict() for r in hooks.replans]
@@ -108,6 +109,11 @@ def write(out, hooks, done, written) -> dict:
     }
     (out / "replans.json").write_text(json.dumps(document, indent=1), encoding="utf-8")
     written.append("replans.json")
+    if log is not None and final is not None:
+        moved = [hooks.replanner.moves[i] for i in sorted(hooks.replanner.moves)]
+        write_replanning_figure(out / "replanning.png", final.robot, final.trajectory, hooks.replanner.revisions,
+                                log, moved=moved)
+        written.append("replanning.png")
     return timings
 
 

@@ -104,11 +104,13 @@ class TriggerSettings:
             state [m or rad] (None: no such trigger).
         min_interval: least simulated time between two tracking-error replans [s].
         rate: fixed replanning rate [Hz], or None.
+        after_gust: replan from the robot's state when a gust event ends.
     """
 
     tracking_bound: float | None = 0.05
     min_interval: float = 0.25
     rate: float | None = None
+    after_gust: bool = True
 
 
 class InFlight:
@@ -167,11 +169,15 @@ class InFlight:
             return None
         rp, before = self.replanner, self.replanner.trajectory
         for i, event in enumerate(self.events):
-            if i in self._done or event.kind != "move" or event.at > t + 1e-9:
+            if i in self._done:
                 continue
-            self._done.add(i)
-            rp.move(i)
-            rp.replan(t, f"event: way point {event.way_point} moved to {list(event.to)}")
+            if event.kind == "move" and event.at <= t + 1e-9:
+                self._done.add(i)
+                rp.move(i)
+                rp.replan(t, f"event: way point {event.way_point} moved to {list(event.to)}")
+            elif event.kind == "gust" and self.triggers.after_gust and event.at + event.duration <= t + 1e-9:
+                self._done.add(i)
+                rp.replan(t, "event: the gust is over", start=self._robot_start(t, q, v, reference))
         bound = self.triggers.tracking_bound
         if bound is not None and t - self._last_tracking >= self.triggers.min_interval:
             error = np.abs(q[self.chain] - reference[0])
