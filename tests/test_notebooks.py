@@ -62,6 +62,13 @@ assert result.feasible and ours.crossings == 1 and abs(ours.criterion_residual(r
 assert not seed[1].feasible and not seed[2].feasible
 assert q2[0] > 0 > q2[-1] and np.count_nonzero(np.diff(np.sign(q2))) == 1 and summary["saturated_ticks"] == 0
 """),
+    "06_replanning": Expected(images=1, html=0, checks="""
+assert result.feasible and miss > 0.2 and hit < 0.02  # without replanning it misses, with it within 2 cm
+assert [r.used for r in replanner.replans] == [True] and executed_report.feasible
+assert log_with.failure is None and log_with.speed.max() <= log_with.speed_limit
+assert splice_step <= 1.5 * normal_step  # no rotor-speed jump at the splice
+assert not late_record.used and "late" in late_record.why and late.trajectory is result.trajectory
+"""),
 }
 
 
