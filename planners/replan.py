@@ -44,9 +44,10 @@ from planners.report import evaluate_motion
 from planners.solving import Grid, solve_stage
 
 #: Cost of the solver's work for the deterministic latency [s]: (per derivative evaluation per grid node,
-#: per value evaluation per grid node, fixed per solve incl. the dense check per second of motion).
-#: Measured here (python -m fpr.bench --section replan prints the fit against the wall times).
-WORK_COST = (5.0e-5, 4.0e-6, 2.0e-3)
+#: per value evaluation per grid node, per second of re-optimised motion: the dense check and the set-up).
+#: Fitted by ``python -m fpr.bench --section replan`` to the wall times measured on this machine, scaled to
+#: the speed at which it plans the square (two-step) in 0.4 s (see the bench's module docstring).
+WORK_COST = (2.2e-4, 0.0, 2.2e-3)
 TIMINGS = ("work", "wall")
 
 
@@ -102,6 +103,8 @@ class Replan:
         used: it was spliced into the plan; why: one line saying why (not) used.
         violated: the constraints it breaks (dense grid).
         start: "plan" (the plan in force's jet) or "robot" (a start from the robot's state).
+        work: what the deterministic latency counts: grid ``nodes``, ``derivative_evaluations``,
+            ``value_evaluations``, ``horizon_s`` (the re-optimised duration [s]).
     """
 
     time: float
@@ -118,6 +121,7 @@ class Replan:
     why: str = ""
     violated: list = field(default_factory=list)
     start: str = "plan"
+    work: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """JSON-friendly."""
@@ -240,12 +244,11 @@ class Replanner:
                                 windows_per_segment=self.grid.windows_per_segment)
         return problem, problem.x_of(points), times, j_end
 
-    def latency(self, problem, stage, duration: float) -> float:
-        """The deterministic latency of a solve [s] (:data:`WORK_COST`)."""
-        per_grad, per_value, fixed = self.options.work_cost
-        nodes = problem.t.size
-        values = max(stage.evaluations - stage.gradient_evaluations, 0)
-        return nodes * (per_grad * stage.gradient_evaluations + per_value * values) + fixed * max(duration, 1.0)
+    def latency(self, work: dict) -> float:
+        """The deterministic latency of a solve [s] from its ``work`` (:class:`Replan`, :data:`WORK_COST`)."""
+        per_grad, per_value, per_second = self.options.work_cost
+        return (work["nodes"] * (per_grad * work["derivative_evaluations"] + per_value * work["value_evaluations"])
+                + per_second * work["horizon_s"])
 
     def replan(self, t_0: float, trigger: str, start: np.ndarray | None = None) -> Replan:
         """Re-optimise from t_s = t_0 + deadline, and splice the result in when it is feasible and on time.
@@ -269,12 +272,16 @@ class Replanner:
             record.why = "not used: no way point ahead of the splice"
             return record
         problem, x0, times, j_end = built
+        problem.evaluate(x0, derivatives=True)  # cached: serves the solver's first value and derivatives
         x, stage = solve_stage(problem, x0, f"replan at {t_0:.3f} s", max_iterations=opt.max_iterations,
                                tolerance=opt.tolerance, solver="sqp")
         part = PiecewisePolynomial(problem.points_of(x), problem.durations)
         report = evaluate_motion(self.robot, part, opt.dense_rate)
         record.solve_wall_s = time.perf_counter() - begin
-        modelled = self.latency(problem, stage, float(times[-1] - times[0]))
+        record.work = {"nodes": int(problem.t.size), "derivative_evaluations": int(max(stage.gradient_evaluations, 1)),
+                       "value_evaluations": int(max(stage.evaluations - stage.gradient_evaluations, 0)),
+                       "horizon_s": float(times[-1] - times[0])}
+        modelled = self.latency(record.work)
         record.latency_s = modelled if opt.timing == "work" else record.solve_wall_s
         record.iterations, record.n_variables, record.J = stage.iterations, problem.n_x, float(stage.J_end)
         record.feasible = bool(report.feasible)

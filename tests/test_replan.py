@@ -14,9 +14,9 @@ S0 = [0.0, 0.0, 3.9269908169872414, 1.5707963267948966]
 
 @pytest.fixture(scope="module")
 def moving():
-    """The moving-target mission planned by the stop-at-way-points method (fast; a valid plan in force)."""
+    """The moving-target mission and its offline two-step plan (the plan in force before the event)."""
     mission = load_mission("moving-target")
-    return mission, plan(mission, "none")
+    return mission, plan(mission, "two-step")
 
 
 def _replanned(result, **options):
