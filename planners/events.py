@@ -76,8 +76,13 @@ class GustEvent:
 
     def to_dict(self) -> dict:
         """Plain types, the keys of the file format."""
-        return {"at": self.at, "kind": self.kind, "force": list(self.force), "duration": self.duration,
-                "body": self.body}
+        return {
+            "at": self.at,
+            "kind": self.kind,
+            "force": list(self.force),
+            "duration": self.duration,
+            "body": self.body,
+        }
 
     def active(self, t: float) -> bool:
         """The gust pushes at time t [s] (at <= t < at + duration)."""
@@ -115,6 +120,7 @@ def parse_events(value, mission) -> tuple:
     Raises:
         MissionError: a field named ``events[i].<key>`` that is missing, unknown or out of range.
     """
+
     def error(name: str, reason: str) -> MissionError:
         return MissionError(name, reason, mission.source)
 
@@ -139,24 +145,40 @@ def parse_events(value, mission) -> tuple:
         allowed = ("at", "kind", *required, *optional)
         for key in item:
             if key not in allowed:
-                raise error(f"{where}.{key}", f"unknown key for a {kind!r} event: its keys are {', '.join(allowed)}")
+                raise error(
+                    f"{where}.{key}", f"unknown key for a {kind!r} event: its keys are {', '.join(allowed)}"
+                )
         for key in ("at", *required):
             if key not in item:
-                raise error(f"{where}.{key}", f"missing: a {kind!r} event needs {', '.join(('at', *required))}")
+                raise error(
+                    f"{where}.{key}", f"missing: a {kind!r} event needs {', '.join(('at', *required))}"
+                )
         at = item["at"]
         if not _number(at) or not (np.isfinite(at) and 0.0 <= at < ends[-1]):
-            raise error(f"{where}.at", f"{at!r}: give a time [s] in [0, {ends[-1]:g}) (the motion's duration)")
+            raise error(
+                f"{where}.at", f"{at!r}: give a time [s] in [0, {ends[-1]:g}) (the motion's duration)"
+            )
         at = float(at)
         if kind == "move":
             wp = item["way_point"]
             if not isinstance(wp, (int, np.integer)) or isinstance(wp, bool) or not 1 <= wp <= k - 1:
-                raise error(f"{where}.way_point", f"{wp!r}: give the index of a way point, 1..{k - 1} (the start "
-                                                  "cannot move)")
+                raise error(
+                    f"{where}.way_point",
+                    f"{wp!r}: give the index of a way point, 1..{k - 1} (the start cannot move)",
+                )
             if at >= ends[wp]:
-                raise error(f"{where}.at", f"{at:g} s: way point {wp} is reached at {ends[wp]:g} s; a move must "
-                                           "happen before the robot gets there")
-            to = _finite_list(error, f"{where}.to", item["to"], len(coords),
-                              f"[{', '.join(coords)}] in {mission.space} space")
+                raise error(
+                    f"{where}.at",
+                    f"{at:g} s: way point {wp} is reached at {ends[wp]:g} s; a move must "
+                    "happen before the robot gets there",
+                )
+            to = _finite_list(
+                error,
+                f"{where}.to",
+                item["to"],
+                len(coords),
+                f"[{', '.join(coords)}] in {mission.space} space",
+            )
             events.append(MoveEvent(at, int(wp), to))
         else:
             force = _finite_list(error, f"{where}.force", item["force"], 3, "[x, y, z] in N, world axes")
@@ -165,7 +187,7 @@ def parse_events(value, mission) -> tuple:
                 raise error(f"{where}.duration", f"{duration!r}: give a finite duration > 0 [s]")
             body = item.get("body", END_EFFECTOR)
             if not isinstance(body, str) or not (body == END_EFFECTOR or _drone_name(body)):
-                raise error(f"{where}.body", f"{body!r}: use \"end_effector\" or \"drone_<i>\" (i = 1, 2...)")
+                raise error(f"{where}.body", f'{body!r}: use "end_effector" or "drone_<i>" (i = 1, 2...)')
             events.append(GustEvent(at, force, float(duration), body))
     return tuple(sorted(events, key=lambda e: e.at))
 
@@ -176,8 +198,7 @@ def _drone_name(body: str) -> bool:
 
 
 def _toml(value) -> str:
-    """TOML text of an event's value: a float (repr reads back the same double), an int, a checked name
-    (kind, body: letters, digits and underscores) or a list of floats."""
+    """TOML text of an event's value: a float (repr), an int, a checked name (kind, body) or a list."""
     if isinstance(value, list):
         return "[" + ", ".join(_toml(v) for v in value) + "]"
     if isinstance(value, str):
@@ -217,7 +238,7 @@ def moved_positions(mission, robot, events=None) -> dict:
 
 
 def gust_force(events, t: float, n_drones: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Forces of the gusts active at t [s]: (on the end-effector (3,) or None, on the drones (n_d, 3) or None)."""
+    """Forces of the gusts active at t [s]: (on the end-effector (3,), on the drones (n_d, 3)), or None."""
     tip, drones = None, None
     for event in events:
         if event.kind != "gust" or not event.active(t):
@@ -231,5 +252,13 @@ def gust_force(events, t: float, n_drones: int) -> tuple[np.ndarray | None, np.n
     return tip, drones
 
 
-__all__ = ["END_EFFECTOR", "EVENT_KEYS", "GustEvent", "MoveEvent", "events_toml", "gust_force",
-           "moved_positions", "parse_events"]
+__all__ = [
+    "END_EFFECTOR",
+    "EVENT_KEYS",
+    "GustEvent",
+    "MoveEvent",
+    "events_toml",
+    "gust_force",
+    "moved_positions",
+    "parse_events",
+]

@@ -61,7 +61,7 @@ class ReplanOptions:
         max_iterations: SQP iteration cap of one replan (explicit, independent of the offline defaults).
         tolerance: the SQP stops when an iteration improves J by less than this.
         samples_per_segment, windows_per_segment: the optimisation grid: 9 nodes per segment (the offline
-            planner uses 17) halves the solve; the dense check at ``dense_rate`` decides feasibility as offline.
+            planner uses 17) halves the solve; the dense check at ``dense_rate`` decides feasibility.
         dense_rate: rate of the dense check of the new part [Hz].
         timing: ``"work"`` (deterministic latency from the solver's work, :data:`WORK_COST`) or ``"wall"``
             (the measured wall time) for the used / not-used decision.
@@ -80,11 +80,17 @@ class ReplanOptions:
 
     def __post_init__(self):
         if not (np.isfinite(self.deadline) and self.deadline > 0):
-            raise PlannerArgumentError("deadline", self.deadline, f"deadline = {self.deadline!r}: give a time > 0 [s]")
+            raise PlannerArgumentError(
+                "deadline", self.deadline, f"deadline = {self.deadline!r}: give a time > 0 [s]"
+            )
         if not (isinstance(self.horizon, int) and self.horizon >= 1):
-            raise PlannerArgumentError("horizon", self.horizon, f"horizon = {self.horizon!r}: give an integer >= 1")
+            raise PlannerArgumentError(
+                "horizon", self.horizon, f"horizon = {self.horizon!r}: give an integer >= 1"
+            )
         if self.timing not in TIMINGS:
-            raise PlannerArgumentError("timing", self.timing, f"timing = {self.timing!r}: use one of {TIMINGS}")
+            raise PlannerArgumentError(
+                "timing", self.timing, f"timing = {self.timing!r}: use one of {TIMINGS}"
+            )
 
 
 @dataclass
@@ -133,8 +139,13 @@ def jet(trajectory: PiecewisePolynomial, t: float) -> np.ndarray:
     return trajectory.evaluate_held(np.array([t]), order=N_DERIVS - 1)[:, 0, :]
 
 
-def splice(before: PiecewisePolynomial, t_s: float, part: PiecewisePolynomial,
-           after: PiecewisePolynomial | None = None, t_end: float | None = None) -> PiecewisePolynomial:
+def splice(
+    before: PiecewisePolynomial,
+    t_s: float,
+    part: PiecewisePolynomial,
+    after: PiecewisePolynomial | None = None,
+    t_end: float | None = None,
+) -> PiecewisePolynomial:
     """``before`` up to t_s, then ``part`` (starting at t_s), then ``after`` from t_end (if given).
 
     ``before`` is cut exactly: its segment through t_s is replaced by the degree-9 Hermite segment
@@ -143,7 +154,7 @@ def splice(before: PiecewisePolynomial, t_s: float, part: PiecewisePolynomial,
     """
     knots = before.knots
     a = int(np.searchsorted(knots, t_s + 1e-9, side="right") - 1)
-    points, durations = list(before.points[:a + 1]), list(before.durations[:a])
+    points, durations = list(before.points[: a + 1]), list(before.durations[:a])
     if t_s - knots[a] > 1e-9:
         points.append(jet(before, t_s))
         durations.append(t_s - knots[a])
@@ -151,7 +162,7 @@ def splice(before: PiecewisePolynomial, t_s: float, part: PiecewisePolynomial,
     durations += list(part.durations)
     if after is not None and t_end is not None and t_end < after.total_duration - 1e-9:
         b = int(np.argmin(np.abs(after.knots - t_end)))
-        points += list(after.points[b + 1:])
+        points += list(after.points[b + 1 :])
         durations += list(after.durations[b:])
     return PiecewisePolynomial(np.array(points), np.array(durations))
 
@@ -227,10 +238,12 @@ class Replanner:
         current = self.trajectory
         points = np.moveaxis(current.evaluate_held(times, order=N_DERIVS - 1), 0, 1).copy()  # (m+1, 5, n)
         # first guess: the plan in force, shifted by the way points' moves (linear in time between them)
-        delta = self.way_positions[j0 - 1:j_end + 1] - np.moveaxis(
-            current.evaluate_held(self.way_times[j0 - 1:j_end + 1], order=0), 0, 1)[:, 0]
+        delta = (
+            self.way_positions[j0 - 1 : j_end + 1]
+            - np.moveaxis(current.evaluate_held(self.way_times[j0 - 1 : j_end + 1], order=0), 0, 1)[:, 0]
+        )
         delta[0] = 0.0  # nothing moves behind the robot
-        anchors = np.concatenate([[t_s], self.way_times[j0:j_end + 1]])
+        anchors = np.concatenate([[t_s], self.way_times[j0 : j_end + 1]])
         for c in range(points.shape[2]):
             points[:, 0, c] += np.interp(times, anchors, delta[:, c])
         points[0] = jet(current, t_s) if start is None else start
@@ -239,16 +252,26 @@ class Replanner:
         free = np.zeros(points.shape, dtype=bool)
         free[1:-1] = True
         free[1:-1, 0][is_way[1:-1]] = False  # way points keep their value
-        problem = MotionProblem(self.robot, points, np.diff(times), free, self.mission.alpha, self.normalisation,
-                                samples_per_segment=self.grid.samples_per_segment,
-                                windows_per_segment=self.grid.windows_per_segment)
+        problem = MotionProblem(
+            self.robot,
+            points,
+            np.diff(times),
+            free,
+            self.mission.alpha,
+            self.normalisation,
+            samples_per_segment=self.grid.samples_per_segment,
+            windows_per_segment=self.grid.windows_per_segment,
+        )
         return problem, problem.x_of(points), times, j_end
 
     def latency(self, work: dict) -> float:
         """The deterministic latency of a solve [s] from its ``work`` (:class:`Replan`, :data:`WORK_COST`)."""
         per_grad, per_value, per_second = self.options.work_cost
-        return (work["nodes"] * (per_grad * work["derivative_evaluations"] + per_value * work["value_evaluations"])
-                + per_second * work["horizon_s"])
+        return (
+            work["nodes"]
+            * (per_grad * work["derivative_evaluations"] + per_value * work["value_evaluations"])
+            + per_second * work["horizon_s"]
+        )
 
     def replan(self, t_0: float, trigger: str, start: np.ndarray | None = None) -> Replan:
         """Re-optimise from t_s = t_0 + deadline, and splice the result in when it is feasible and on time.
@@ -264,7 +287,9 @@ class Replanner:
         """
         opt = self.options
         t_s = t_0 + opt.deadline
-        record = Replan(t_0, trigger, t_s, deadline_s=opt.deadline, start="plan" if start is None else "robot")
+        record = Replan(
+            t_0, trigger, t_s, deadline_s=opt.deadline, start="plan" if start is None else "robot"
+        )
         self.replans.append(record)
         begin = time.perf_counter()
         built = self.problem(t_s, start)
@@ -273,14 +298,23 @@ class Replanner:
             return record
         problem, x0, times, j_end = built
         problem.evaluate(x0, derivatives=True)  # cached: serves the solver's first value and derivatives
-        x, stage = solve_stage(problem, x0, f"replan at {t_0:.3f} s", max_iterations=opt.max_iterations,
-                               tolerance=opt.tolerance, solver="sqp")
+        x, stage = solve_stage(
+            problem,
+            x0,
+            f"replan at {t_0:.3f} s",
+            max_iterations=opt.max_iterations,
+            tolerance=opt.tolerance,
+            solver="sqp",
+        )
         part = PiecewisePolynomial(problem.points_of(x), problem.durations)
         report = evaluate_motion(self.robot, part, opt.dense_rate)
         record.solve_wall_s = time.perf_counter() - begin
-        record.work = {"nodes": int(problem.t.size), "derivative_evaluations": int(max(stage.gradient_evaluations, 1)),
-                       "value_evaluations": int(max(stage.evaluations - stage.gradient_evaluations, 0)),
-                       "horizon_s": float(times[-1] - times[0])}
+        record.work = {
+            "nodes": int(problem.t.size),
+            "derivative_evaluations": int(max(stage.gradient_evaluations, 1)),
+            "value_evaluations": int(max(stage.evaluations - stage.gradient_evaluations, 0)),
+            "horizon_s": float(times[-1] - times[0]),
+        }
         modelled = self.latency(record.work)
         record.latency_s = modelled if opt.timing == "work" else record.solve_wall_s
         record.iterations, record.n_variables, record.J = stage.iterations, problem.n_x, float(stage.J_end)
@@ -289,14 +323,18 @@ class Replanner:
         if not record.feasible:
             record.why = f"not used: infeasible ({', '.join(record.violated)}); the plan in force stays"
         elif record.latency_s > opt.deadline:
-            record.why = (f"not used: late ({record.latency_s * 1e3:.1f} ms > deadline {opt.deadline * 1e3:.0f} ms, "
-                          f"{opt.timing}); the plan in force stays")
+            record.why = (
+                f"not used: late ({record.latency_s * 1e3:.1f} ms > deadline {opt.deadline * 1e3:.0f} ms, "
+                f"{opt.timing}); the plan in force stays"
+            )
         else:
             self.trajectory = splice(self.trajectory, t_s, part, self.trajectory, float(times[-1]))
             self.revisions.append((t_s, self.trajectory))
             self.changed = None if j_end >= (self.changed or 0) else self.changed
             record.used = True
-            record.why = f"used: spliced at {t_s:.3f} s, re-optimised up to way point {j_end} at {times[-1]:.3f} s"
+            record.why = (
+                f"used: spliced at {t_s:.3f} s, re-optimised up to way point {j_end} at {times[-1]:.3f} s"
+            )
         return record
 
 

@@ -7,7 +7,7 @@ from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from planners.mission import load_mission
 from planners.optimize import plan
 from planners.polynomial import PiecewisePolynomial
-from planners.replan import ReplanOptions, Replanner, jet, splice
+from planners.replan import Replanner, ReplanOptions, jet, splice
 
 S0 = [0.0, 0.0, 3.9269908169872414, 1.5707963267948966]
 
@@ -59,12 +59,18 @@ def test_no_rotor_speed_jump_at_the_splice(moving):
     speeds = inverse_dynamics(robot, replanner.trajectory.evaluate(ticks, MOTION_ORDER)).rotor_speed
     steps = np.abs(np.diff(speeds, axis=0)).max(axis=(1, 2))
     k = int(np.searchsorted(ticks, t_s))
-    across = np.abs(inverse_dynamics(robot, replanner.trajectory.evaluate(np.array([t_s - 1e-6, t_s + 1e-6]),
-                                                                          MOTION_ORDER)).rotor_speed[1]
-                    - inverse_dynamics(robot, replanner.trajectory.evaluate(np.array([t_s - 1e-6]),
-                                                                            MOTION_ORDER)).rotor_speed[0]).max()
+    across = np.abs(
+        inverse_dynamics(
+            robot, replanner.trajectory.evaluate(np.array([t_s - 1e-6, t_s + 1e-6]), MOTION_ORDER)
+        ).rotor_speed[1]
+        - inverse_dynamics(
+            robot, replanner.trajectory.evaluate(np.array([t_s - 1e-6]), MOTION_ORDER)
+        ).rotor_speed[0]
+    ).max()
     assert across < 1e-3  # rad/s over 2 us: continuous
-    assert steps[k - 1] <= 1.5 * np.median(steps[k - 50:k + 50])  # the tick over the splice is an ordinary one
+    assert steps[k - 1] <= 1.5 * np.median(
+        steps[k - 50 : k + 50]
+    )  # the tick over the splice is an ordinary one
 
 
 def test_splice_reproduces_the_cut_segment_exactly():
@@ -92,8 +98,12 @@ def test_a_late_plan_is_not_used_and_the_plan_in_force_stays(moving):
 
 def test_an_infeasible_plan_is_not_used(moving):
     mission, result = moving
-    far = mission.replace(events=[{"at": 5.5, "kind": "move", "way_point": 2, "to": [-0.5, 1.0, S0[2], S0[3]]}])
-    replanner = Replanner(type(result)(**{**vars(result), "mission": far}), ReplanOptions(samples_per_segment=9))
+    far = mission.replace(
+        events=[{"at": 5.5, "kind": "move", "way_point": 2, "to": [-0.5, 1.0, S0[2], S0[3]]}]
+    )
+    replanner = Replanner(
+        type(result)(**{**vars(result), "mission": far}), ReplanOptions(samples_per_segment=9)
+    )
     replanner.move(0)
     record = replanner.replan(5.5, "event")  # 1.7 m in 0.45 s: beyond the rotors
     assert not record.feasible and not record.used
@@ -105,4 +115,6 @@ def test_work_latency_is_deterministic(moving):
     mission, result = moving
     first = _replanned(result)[1]
     second = _replanned(result)[1]
-    assert first.latency_s == second.latency_s and first.J == second.J and first.iterations == second.iterations
+    assert (
+        first.latency_s == second.latency_s and first.J == second.J and first.iterations == second.iterations
+    )

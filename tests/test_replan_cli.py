@@ -32,15 +32,35 @@ def _run(tmp_path, name, *extra):
     mission = tmp_path / "short.toml"
     mission.write_text(MISSION, encoding="utf-8")
     out = tmp_path / name
-    code = main(["--mission", str(mission), "--method", "none", "--simulate", "--hold", "0", "--no-plots", "--quiet",
-                 "--rate", "100", "--out", str(out), *extra])
+    code = main(
+        [
+            "--mission",
+            str(mission),
+            "--method",
+            "none",
+            "--simulate",
+            "--hold",
+            "0",
+            "--no-plots",
+            "--quiet",
+            "--rate",
+            "100",
+            "--out",
+            str(out),
+            *extra,
+        ]
+    )
     return code, out
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("replan")
-    return {"replan": _run(tmp, "a", "--replan"), "again": _run(tmp, "b", "--replan"), "plain": _run(tmp, "c")}
+    return {
+        "replan": _run(tmp, "a", "--replan"),
+        "again": _run(tmp, "b", "--replan"),
+        "plain": _run(tmp, "c"),
+    }
 
 
 def test_replanned_run_follows_the_moved_way_point(runs):
@@ -49,7 +69,9 @@ def test_replanned_run_follows_the_moved_way_point(runs):
     document = json.loads((out / "replans.json").read_text())
     [record] = document["replans"]
     assert record["used"] and record["feasible"] and record["start"] == "plan"
-    assert record["splice_time"] == pytest.approx(2.55) and "solve_wall_s" not in record  # wall times: manifest
+    assert (
+        record["splice_time"] == pytest.approx(2.55) and "solve_wall_s" not in record
+    )  # wall times: manifest
     assert "replan 0" in json.loads((out / "manifest.json").read_text())["timings_s"]
     names, data = _csv(out / "trajectory.csv")
     at = int(np.argmin(np.abs(data[:, 0] - 4.0)))
@@ -75,14 +97,27 @@ def test_same_command_same_bytes(runs):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
 
 
-@pytest.mark.parametrize("argv, words", [
-    (["--replan"], "add --simulate"),
-    (["--simulate", "--replan", "--replan-deadline", "0"], "--replan-deadline"),
-    (["--simulate", "--replan", "--replan-rate", "nan"], "--replan-rate"),
-    (["--simulate", "--replan", "--mission", "cross-singularity"], "singularity-crossing"),
-])
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["--replan"], "add --simulate"),
+        (["--simulate", "--replan", "--replan-deadline", "0"], "--replan-deadline"),
+        (["--simulate", "--replan", "--replan-rate", "nan"], "--replan-rate"),
+        (["--simulate", "--replan", "--mission", "cross-singularity"], "singularity-crossing"),
+    ],
+)
 def test_bad_replan_options_exit_2_with_one_line(tmp_path, capsys, argv, words):
     code = main([*argv, "--out", str(tmp_path / "x"), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2 and words in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_moved_way_point_out_of_reach_exits_2_before_any_work(tmp_path, capsys):
+    mission = tmp_path / "bad.toml"
+    mission.write_text(MISSION.replace("to = [0.6, 0.4,", "to = [0.6, 0.4, 3.0, 1.5]  # phi out of range\n# "),
+                       encoding="utf-8")
+    code = main(["--mission", str(mission), "--simulate", "--out", str(tmp_path / "x"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and "events[0].to" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()

@@ -245,7 +245,8 @@ def _simulate(args, robot, final, out, sampled, written):
     failure = getattr(log, "failure", None)
     done = replanning.executed(final, hooks)
     sampled = sampled if done is None else done.sampled(args.rate)  # planned columns: the plan in force
-    log.replanning = (hooks, done, replanning.write(out, hooks, done, written, None if args.no_plots else log, final))
+    shown_log = None if args.no_plots else log  # replans.json, and replanning.png unless --no-plots
+    log.replanning = (hooks, done, replanning.write(out, hooks, done, written, shown_log, final))
     log.save(out / "simulation.npz")
     write_csv(out / "trajectory.csv", robot, sampled, log)
     written.append("simulation.npz")
@@ -311,7 +312,7 @@ def _inputs(args):
         robot = mission.load_robot()
         mission.positions(robot)  # every way point reachable and away from singularities
         method_for(mission, args.method)  # a method that can plan this mission
-        replanning.check_options(args, mission)
+        replanning.check_options(args, mission, robot)
         checks.check_work(args, mission, robot, optimised=args.method != "none")
     except MissionError as error:  # a --set value is the option's fault, not the mission file's
         key = error.field.removeprefix("robot_parameters.")
@@ -377,8 +378,8 @@ def _work(args, mission, robot, tmp, say):
         say(f"  solver {stage.name}: {stage.message} ({stage.iterations} iterations, {stage.wall_time:.3f} s)")
     if log is not None:
         say(_simulation_table(log))
-    if hooks is not None and hooks.replanner is not None:
-        say(replanning.summary(hooks, done))
+    if hooks is not None and replanning.summary(hooks, done, log):
+        say(replanning.summary(hooks, done, log))
     problems = []
     if not final.feasible:
         names = ", ".join(f"{c.name} (margin {c.margin:.4g} {c.unit} at t = {c.time:.3f} s)"

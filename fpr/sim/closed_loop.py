@@ -250,7 +250,8 @@ def _check_settings(st: SimulationSettings, robot) -> None:
                                      f"initial_error {name} = {offset!r}: give a finite number [m or rad]")
 
 
-def simulate(result, settings: SimulationSettings | None = None, progress=None, in_flight=None) -> SimulationLog:
+def simulate(result, settings: SimulationSettings | None = None, progress=None,
+             in_flight=None) -> SimulationLog:
     """Track the planned motion of ``result`` in closed loop, until its end or until the robot is lost.
 
     Args:

@@ -34,7 +34,7 @@ import pinocchio as pin
 
 from fpr.model.errors import ModelArgumentError
 from fpr.sim.plant import Plant
-from planners.events import gust_force
+from planners.events import gust_force, moved_positions
 from planners.replan import Replanner, jet
 
 
@@ -74,13 +74,15 @@ class ForcedPlant(Plant):
         """:meth:`Plant.generalized_force` plus J^T F of an end-effector gust (J: world-aligned, at qc)."""
         tau = super().generalized_force(qc, w, wind_forces)
         if self._tip_force is not None:  # the Jacobians at qc were computed by the call above
-            jac = pin.getJointJacobian(self.closed.model, self.closed.data, self.tip_joint, pin.LOCAL_WORLD_ALIGNED)
+            jac = pin.getJointJacobian(
+                self.closed.model, self.closed.data, self.tip_joint, pin.LOCAL_WORLD_ALIGNED
+            )
             tau = tau + self._tip_force @ jac[:3]
         return tau
 
 
 def _task_point_joint(plant: Plant, robot, q) -> int:
-    """The closed-chain joint whose origin is the robot's task point at q (found by position, robot-agnostic)."""
+    """The closed-chain joint whose origin is the robot's task point at q (found by position: any robot)."""
     data = robot.model.createData()
     pin.framesForwardKinematics(robot.model, data, robot.to_pinocchio(q))
     target = data.oMf[robot.model.getFrameId(robot.kind.task_frame)].translation
@@ -89,9 +91,12 @@ def _task_point_joint(plant: Plant, robot, q) -> int:
     distances = [np.linalg.norm(cdata.oMi[j].translation - target) for j in range(1, model.njoints)]
     best = int(np.argmin(distances))
     if distances[best] > 1e-6:
-        raise ModelArgumentError("events", robot.kind.task_frame,
-                                 f"no joint of the closed chain sits at the task point {robot.kind.task_frame!r} "
-                                 f"(nearest {distances[best]:.3g} m away): give the gust a body = \"drone_<i>\"")
+        raise ModelArgumentError(
+            "events",
+            robot.kind.task_frame,
+            f"no joint of the closed chain sits at the task point {robot.kind.task_frame!r} "
+            f'(nearest {distances[best]:.3g} m away): give the gust a body = "drone_<i>"',
+        )
     return best + 1
 
 
@@ -105,12 +110,16 @@ class TriggerSettings:
         min_interval: least simulated time between two tracking-error replans [s].
         rate: fixed replanning rate [Hz], or None.
         after_gust: replan from the robot's state when a gust event ends.
+        bumpless: a replan from the robot's state starts with the acceleration the controller commands
+            (continuous command); False: with the plan in force's acceleration (the controller's error terms
+            drop at the splice: a step in the command, towards the plan).
     """
 
     tracking_bound: float | None = 0.05
     min_interval: float = 0.25
     rate: float | None = None
     after_gust: bool = True
+    bumpless: bool = True
 
 
 class InFlight:
@@ -123,13 +132,24 @@ class InFlight:
         controller: the controller's :class:`controllers.ctc.ControllerSettings` (its chain gains make the
             bumpless start of a tracking-error replan).
         chain: indices of the planning coordinates in q.
+        robot: the robot (default the replanner's, else ``mission.load_robot()``): its kind places the moved
+            way points (:attr:`moves`).
+
+    Attributes:
+        moves: {event index: the moved way point in planning coordinates} of the move events, checked
+            (:func:`planners.events.moved_positions`).
     """
 
-    def __init__(self, mission, replanner: Replanner | None, triggers: TriggerSettings, controller, chain):
+    def __init__(
+        self, mission, replanner: Replanner | None, triggers: TriggerSettings, controller, chain, robot=None
+    ):
+        self.mission = mission
+        self.robot = robot or (replanner.robot if replanner is not None else mission.load_robot())
+        self.moves = replanner.moves if replanner is not None else moved_positions(mission, self.robot)
         self.events = tuple(mission.events)
         self.replanner = replanner
         self.triggers = triggers
-        self.kp = controller.chain_frequency ** 2
+        self.kp = controller.chain_frequency**2
         self.kd = 2 * controller.chain_damping * controller.chain_frequency
         self.chain = np.asarray(chain)
         self._done = set()
@@ -149,7 +169,8 @@ class InFlight:
         """The bumpless start at the splice from the measured state (module docstring), shape (5, n_s)."""
         s, ds = q[self.chain], v[self.chain]
         start = np.array(reference[:5], dtype=float)
-        start[2] = reference[2] - self.kp * (s - reference[0]) - self.kd * (ds - reference[1])
+        if self.triggers.bumpless:
+            start[2] = reference[2] - self.kp * (s - reference[0]) - self.kd * (ds - reference[1])
         start[0], start[1] = s, ds
         delta = self.replanner.options.deadline
         out = np.zeros_like(start)
@@ -162,7 +183,8 @@ class InFlight:
 
         Args:
             t: the tick's time [s].
-            q, v: the measured state (thesis coordinates).
+            q: the measured configuration (thesis coordinates) [m, rad].
+            v: the measured velocity [m/s, rad/s].
             reference: the plan in force's s and its derivatives 0..4 at t, shape (>= 5, n_s).
         """
         if self.replanner is None:
@@ -183,8 +205,11 @@ class InFlight:
             error = np.abs(q[self.chain] - reference[0])
             if error.max() > bound:
                 self._last_tracking = t
-                rp.replan(t, f"tracking error {error.max():.4f} > {bound:g} (coordinate {int(np.argmax(error))})",
-                          start=self._robot_start(t, q, v, reference))
+                rp.replan(
+                    t,
+                    f"tracking error {error.max():.4f} > {bound:g} (coordinate {int(np.argmax(error))})",
+                    start=self._robot_start(t, q, v, reference),
+                )
         if self._next_rate is not None and t >= self._next_rate - 1e-9:
             self._next_rate += 1.0 / self.triggers.rate
             rp.replan(t, "rate")

@@ -41,15 +41,25 @@ def replanning_figure(robot, offline, revisions, log, log_without=None, moved=()
         for i, (t_s, plan) in enumerate(revisions):
             tt = np.linspace(t_s, plan.total_duration, 300)
             p = _task_space_joints(robot, plan.evaluate(tt, 0)[0])[0]
-            path.plot(*p.T, linewidth=STYLE["thin_width"], color=colors[i % len(colors)],
-                      label=f"revision {i + 1} (from {t_s:.2f} s)" if i < 6 else None, gid=f"revision {i + 1}")
+            path.plot(
+                *p.T,
+                linewidth=STYLE["thin_width"],
+                color=colors[i % len(colors)],
+                label=f"revision {i + 1} (from {t_s:.2f} s)" if i < 6 else None,
+                gid=f"revision {i + 1}",
+            )
         chain = [log.coordinates.index(c) for c in log.chain]
         sim = _task_space_joints(robot, log.q[:, chain])[0]
         path.plot(*sim.T, color="k", label="simulated", gid="simulated")
         if log_without is not None:
             other = _task_space_joints(robot, log_without.q[:, chain])[0]
-            path.plot(*other.T, color="tab:red", linewidth=STYLE["thin_width"], label="simulated without replanning",
-                      gid="without")
+            path.plot(
+                *other.T,
+                color="tab:red",
+                linewidth=STYLE["thin_width"],
+                label="simulated without replanning",
+                gid="without",
+            )
         path.plot(*way.T, "o", color="k", markersize=4, label="way and via points of the offline plan")
         for point in moved:
             p = _task_space_joints(robot, np.asarray(point)[None])[0][0]
@@ -59,16 +69,22 @@ def replanning_figure(robot, offline, revisions, log, log_without=None, moved=()
         path.set_aspect("equal", adjustable="datalim")
         speed.plot(log.t, log.speed.max(axis=(1, 2)), color="k", label="largest rotor speed, replanning")
         if log_without is not None:
-            speed.plot(log_without.t, log_without.speed.max(axis=(1, 2)), color="tab:red",
-                       linewidth=STYLE["thin_width"], label="largest rotor speed, without replanning")
+            speed.plot(
+                log_without.t,
+                log_without.speed.max(axis=(1, 2)),
+                color="tab:red",
+                linewidth=STYLE["thin_width"],
+                label="largest rotor speed, without replanning",
+            )
         _limit(speed, log.speed_limit)
         _limit(speed, log.max_speed)
         for i, (t_s, _) in enumerate(revisions):
             speed.axvline(t_s, color="0.7", linewidth=0.8, label="splice" if i == 0 else None)
         speed.set_xlabel("t [s]")
         speed.set_ylabel("rotor speed [rad/s]")
-        return _finish(fig, "Replanning in flight: plan revisions and rotor speeds", [path, speed],
-                       legend_below=True)
+        return _finish(
+            fig, "Replanning in flight: plan revisions and rotor speeds", [path, speed], legend_below=True
+        )
 
 
 def write_replanning_figure(path: str | Path, *args, **kwargs) -> Path:
