@@ -11,14 +11,21 @@ from planners.events import GustEvent
 
 @pytest.mark.parametrize("body", ["end_effector", "drone_1", "drone_2"])
 def test_a_gust_changes_the_centre_of_mass_acceleration_by_force_over_mass(body):
-    """Newton for the whole (free-flying) FPR: the chain's internal forces cancel, so an external force F adds
-    F / m_total to the acceleration of its centre of mass, wherever it acts (an independent check of J^T F)."""
+    """Newton for the whole (free-flying) FPR: an external force F adds F / m_total to its CoM acceleration.
+
+    The chain's internal forces cancel wherever F acts: an independent check of the J^T F of the plant.
+    """
     robot = load("fpr")
     rng = np.random.default_rng(1)
     q = robot.configuration(**dict(zip(robot.layout.chain, robot.kind.reference_chain, strict=True)))
     force = np.array([0.5, -3.0, 2.0])
-    plant = ForcedPlant.with_events((GustEvent(0.0, tuple(force), 1.0, body),), robot, q,
-                                    rng.normal(scale=0.2, size=robot.nq), np.full((robot.n_drones, 4), 500.0))
+    plant = ForcedPlant.with_events(
+        (GustEvent(0.0, tuple(force), 1.0, body),),
+        robot,
+        q,
+        rng.normal(scale=0.2, size=robot.nq),
+        np.full((robot.n_drones, 4), 500.0),
+    )
     model, data = plant.closed.model, plant.closed.data
 
     def com_acceleration(tip, drones):
