@@ -6,10 +6,11 @@ a fixed rate, decided by the caller: :mod:`fpr.sim.replanning`) at time t_0, :me
 builds and solves the NLP of :class:`planners.problem.MotionProblem` for the motion from the *splice*
 t_s = t_0 + deadline to the end of the horizon:
 
-* the start point at t_s is given: by default the plan in force's own [s, s', s'', s''', s''''] at
-  t_s (the splice is then C4, so the planned rotor speeds, which depend on s up to its 4th derivative
-  through the roll acceleration, do not jump), or a start the caller computes from the robot's state
-  (``start``);
+* the start point at t_s is the plan in force's own [s, s', s'', s''', s''''] at t_s: the splice is C4,
+  so the planned rotor speeds, which depend on s up to its 4th derivative through the roll acceleration,
+  do not jump. (A ``start`` off the plan, e.g. from the robot's state, can be solved, to time it, but is
+  not spliced in: the plan in force would jump there, and :class:`~planners.polynomial.PiecewisePolynomial`
+  holds C4 motions only);
 * then the way points still ahead, up to ``horizon`` travels past the last one that changed (or the
   end), with the mission's via points inside each travel (the travel cut by t_s keeps its count);
   their values are fixed (moved way points at their new place), their derivatives 1..4 and every via
@@ -279,7 +280,8 @@ class Replanner:
         Args:
             t_0: the trigger's time [s].
             trigger: what asked for it (logged).
-            start: the start point [s, s', ..., s''''] at t_s (5, n_s), or None for the plan in force's.
+            start: the start point [s, s', ..., s''''] at t_s (5, n_s), or None for the plan in force's;
+                a start off the plan in force is solved (timed) but never used (the splice must be C4).
 
         Returns:
             the :class:`Replan` record (also appended to :attr:`replans`); when ``used``,
@@ -322,6 +324,11 @@ class Replanner:
         record.violated = [c.name for c in report.violations]
         if not record.feasible:
             record.why = f"not used: infeasible ({', '.join(record.violated)}); the plan in force stays"
+        elif start is not None and not np.allclose(start, jet(self.trajectory, t_s), rtol=0.0, atol=1e-12):
+            record.why = (
+                "not used: its start is off the plan in force (the robot's state), and a splice must be "
+                "C4; the plan in force stays"
+            )
         elif record.latency_s > opt.deadline:
             record.why = (
                 f"not used: late ({record.latency_s * 1e3:.1f} ms > deadline {opt.deadline * 1e3:.0f} ms, "

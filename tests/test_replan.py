@@ -118,3 +118,14 @@ def test_work_latency_is_deterministic(moving):
     assert (
         first.latency_s == second.latency_s and first.J == second.J and first.iterations == second.iterations
     )
+
+
+def test_a_start_off_the_plan_is_solved_but_not_spliced(moving):
+    """A splice must be C4: a start from the robot's state (off the plan in force) would make the plan jump."""
+    mission, result = moving
+    replanner = Replanner(result, ReplanOptions())
+    start = jet(result.trajectory, 2.05)
+    start[0, 0] += 0.05  # 5 cm off along y
+    record = replanner.replan(2.0, "tracking error", start=start)
+    assert record.start == "robot" and record.iterations >= 1 and not record.used
+    assert "off the plan" in record.why and replanner.trajectory is result.trajectory

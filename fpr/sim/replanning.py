@@ -13,11 +13,10 @@ Triggers (with a :class:`planners.replan.Replanner`, ``--replan``):
 * **event**: a ``move`` event at its time: the way point moves and the rest of the motion is re-optimised
   from the plan in force's own state at the splice (C4 with it: the planned rotor speeds do not jump);
 * **tracking error**: |measured - planned| of a chain coordinate past ``tracking_bound`` (at most once every
-  ``min_interval``): the rest is re-optimised from the *robot's* state. Its start at the splice is
-  bumpless for the controller: the measured s and s', and as s'' the acceleration the controller
-  commands at that instant (s_d'' - K_p e - K_d e', seed 2.14-2.16), s''' and s'''' from the plan in force,
-  extrapolated to the splice (a Taylor polynomial over the deadline). The planned motion then jumps by
-  the tracking error, but the controller's command does not: its error terms are taken into the plan;
+  ``min_interval``), and **the end of a gust**: re-optimised from the plan in force's state at the splice too
+  (C4). A start from the robot's own state was tried (bumpless for the controller: measured s, s', the
+  commanded acceleration) and left out: the plan in force would jump at the splice, which a C4 piecewise
+  polynomial cannot hold, and on the gust mission it did not remove the saturation (README);
 * **rate** (optional, ``rate`` Hz): from the plan in force's state, like an event.
 
 Without a replanner the gusts still push and the ``move`` events are ignored: the robot flies the offline
@@ -110,16 +109,12 @@ class TriggerSettings:
         min_interval: least simulated time between two tracking-error replans [s].
         rate: fixed replanning rate [Hz], or None.
         after_gust: replan from the robot's state when a gust event ends.
-        bumpless: a replan from the robot's state starts with the acceleration the controller commands
-            (continuous command); False: with the plan in force's acceleration (the controller's error terms
-            drop at the splice: a step in the command, towards the plan).
     """
 
     tracking_bound: float | None = 0.05
     min_interval: float = 0.25
     rate: float | None = None
     after_gust: bool = True
-    bumpless: bool = True
 
 
 class InFlight:
@@ -129,8 +124,8 @@ class InFlight:
         mission: the mission (its events).
         replanner: a :class:`planners.replan.Replanner`, or None (gusts only; move events ignored).
         triggers: :class:`TriggerSettings`.
-        controller: the controller's :class:`controllers.ctc.ControllerSettings` (its chain gains make the
-            bumpless start of a tracking-error replan).
+        controller: the controller's :class:`controllers.ctc.ControllerSettings` (kept as ``controller`` for
+            what a trigger may need of it; the triggers of today do not use it).
         chain: indices of the planning coordinates in q.
         robot: the robot (default the replanner's, else ``mission.load_robot()``): its kind places the moved
             way points (:attr:`moves`).
@@ -149,8 +144,7 @@ class InFlight:
         self.events = tuple(mission.events)
         self.replanner = replanner
         self.triggers = triggers
-        self.kp = controller.chain_frequency**2
-        self.kd = 2 * controller.chain_damping * controller.chain_frequency
+        self.controller = controller
         self.chain = np.asarray(chain)
         self._done = set()
         self._last_tracking = -math.inf
@@ -164,19 +158,6 @@ class InFlight:
     def make_plant(self, robot, q, v=None, w=None, rotor_constant_scale: float = 1.0) -> ForcedPlant:
         """The plant (:class:`ForcedPlant`)."""
         return ForcedPlant.with_events(self.events, robot, q, v, w, rotor_constant_scale)
-
-    def _robot_start(self, t: float, q, v, reference) -> np.ndarray:
-        """The bumpless start at the splice from the measured state (module docstring), shape (5, n_s)."""
-        s, ds = q[self.chain], v[self.chain]
-        start = np.array(reference[:5], dtype=float)
-        if self.triggers.bumpless:
-            start[2] = reference[2] - self.kp * (s - reference[0]) - self.kd * (ds - reference[1])
-        start[0], start[1] = s, ds
-        delta = self.replanner.options.deadline
-        out = np.zeros_like(start)
-        for k in range(5):  # Taylor polynomial of the start's jet over the deadline
-            out[k] = sum(start[k + j] * delta**j / math.factorial(j) for j in range(5 - k))
-        return out
 
     def after_tick(self, t: float, q, v, reference):
         """Replan when a trigger fires at the inner-loop tick t [s]; the new plan in force, or None.
@@ -199,17 +180,14 @@ class InFlight:
                 rp.replan(t, f"event: way point {event.way_point} moved to {list(event.to)}")
             elif event.kind == "gust" and self.triggers.after_gust and event.at + event.duration <= t + 1e-9:
                 self._done.add(i)
-                rp.replan(t, "event: the gust is over", start=self._robot_start(t, q, v, reference))
+                rp.replan(t, "event: the gust is over")
         bound = self.triggers.tracking_bound
         if bound is not None and t - self._last_tracking >= self.triggers.min_interval:
             error = np.abs(q[self.chain] - reference[0])
             if error.max() > bound:
                 self._last_tracking = t
-                rp.replan(
-                    t,
-                    f"tracking error {error.max():.4f} > {bound:g} (coordinate {int(np.argmax(error))})",
-                    start=self._robot_start(t, q, v, reference),
-                )
+                worst = int(np.argmax(error))
+                rp.replan(t, f"tracking error {error.max():.4f} > {bound:g} (coordinate {worst})")
         if self._next_rate is not None and t >= self._next_rate - 1e-9:
             self._next_rate += 1.0 / self.triggers.rate
             rp.replan(t, "rate")
