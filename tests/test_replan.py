@@ -121,7 +121,7 @@ def test_work_latency_is_deterministic(moving):
 
 
 def test_a_start_off_the_plan_is_solved_but_not_spliced(moving):
-    """A splice must be C4: a start from the robot's state (off the plan in force) would make the plan jump."""
+    """A splice must be C4: a start from the robot's state (off the plan in force) makes the plan jump."""
     mission, result = moving
     replanner = Replanner(result, ReplanOptions())
     start = jet(result.trajectory, 2.05)
