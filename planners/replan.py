@@ -48,7 +48,7 @@ from planners.solving import Grid, solve_stage
 #: per value evaluation per grid node, per second of re-optimised motion: the dense check and the set-up).
 #: Fitted by ``python -m fpr.bench --section replan`` to the wall times measured on this machine, scaled to
 #: the speed at which it plans the square (two-step) in 0.4 s (see the bench's module docstring).
-#: The most favourable of three fits under a load of 7-9 on 2 cores; the others were 3-4 times higher (README).
+#: The most favourable of three fits under a load of 7-9 on 2 cores; the others were 3-4 times higher.
 WORK_COST = (2.2e-4, 0.0, 2.2e-3)
 TIMINGS = ("work", "wall")
 
