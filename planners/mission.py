@@ -59,6 +59,9 @@ File format (every key at the top level, except the optional ``[robot_parameters
     Overrides of the robot description's xacro arguments (keys of ``urdf/parameters.yaml`` that
     the URDF uses, e.g. ``link_length``), passed to ``fpr.load(robot, **robot_parameters)``.
     Default: none (the committed URDF).
+``[[events]]`` (array of tables, optional)
+    What happens during the flight: a way point that moves (``kind = "move"``), a gust
+    (``kind = "gust"``); every key is documented in :mod:`planners.events`. Default: none.
 
 Full example (the built-in ``square`` mission, with a longer link)::
 
@@ -108,6 +111,7 @@ import numpy as np
 from fpr import robots
 from fpr.model import description
 from fpr.model.errors import MissionError
+from planners.events import events_toml, parse_events
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -118,12 +122,12 @@ logger = logging.getLogger(__name__)
 
 SPACES = ("task", "joint")
 ARMS = ("down", "up")
-BUILTIN_MISSIONS = ("square", "study", "prototype-tour", "cross-singularity")
+BUILTIN_MISSIONS = ("square", "study", "prototype-tour", "cross-singularity", "moving-target", "gust")
 """Names of the built-in missions, files ``planners/missions/<name>.toml``."""
 
 _REQUIRED_KEYS = ("robot", "way_points", "times")
 _FILE_KEYS = ("name", "description", "robot", "space", "arm", "way_points", "times", "via_points", "alpha",
-              "cross_singularity", "robot_parameters")
+              "cross_singularity", "robot_parameters", "events")
 
 
 def _is_number(x) -> bool:
@@ -167,6 +171,8 @@ class Mission:
         description: free text.
         robot_parameters: xacro overrides for ``fpr.load(robot, **robot_parameters)``, e.g.
             ``{"link_length": 1.0}`` [SI units]; stored as a read-only mapping.
+        events: what happens in flight, a tuple of :class:`planners.events.MoveEvent` /
+            :class:`planners.events.GustEvent` sorted by time (:mod:`planners.events`).
         source: where the mission came from (file path or ``"built-in <name>"``), for messages.
 
     Raises:
@@ -184,6 +190,7 @@ class Mission:
     description: str = ""
     robot_parameters: Mapping[str, float] = field(default_factory=dict)
     cross_singularity: bool = False
+    events: tuple = ()
     source: str = ""
 
     # ------------------------------------------------------------------ validation
@@ -204,6 +211,7 @@ class Mission:
         self._set("alpha", self._alpha(self.alpha))
         self._set("robot_parameters", self._robot_parameters(self.robot_parameters))
         self._check_arm_signs()
+        self._set("events", parse_events(self.events, self))  # [[events]]: planners/events.py
 
     def _set(self, name: str, value) -> None:
         object.__setattr__(self, name, value)
@@ -485,6 +493,7 @@ class Mission:
             "alpha": float(self.alpha),
             "cross_singularity": bool(self.cross_singularity),
             "robot_parameters": dict(self.robot_parameters),
+            **({"events": [e.to_dict() for e in self.events]} if self.events else {}),
         }
 
     def to_toml(self) -> str:
@@ -512,7 +521,7 @@ class Mission:
             "[robot_parameters]  # overrides of urdf/parameters.yaml for the URDF [SI units]",
             *(f"{key} = {_toml_value(value)}" for key, value in d["robot_parameters"].items()),
         ]
-        return "\n".join(lines) + "\n"
+        return "\n".join(lines) + "\n" + events_toml(self.events)
 
 
 def _text_of(values: np.ndarray) -> str:

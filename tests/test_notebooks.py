@@ -92,6 +92,13 @@ from PIL import Image as _PIL
 with _PIL.open(gif) as frames:
     assert frames.n_frames > 5  # an animation, not a still
 """),
+    "06_replanning": Expected(images=1, html=0, checks="""
+assert result.feasible and miss > 0.2 and hit < 0.02  # without replanning it misses, with it within 2 cm
+assert [r.used for r in replanner.replans] == [True] and executed_report.feasible
+assert log_with.failure is None and log_with.speed.max() <= log_with.speed_limit
+assert splice_step <= 1.5 * normal_step  # no rotor-speed jump at the splice
+assert not late_record.used and "late" in late_record.why and late.trajectory is result.trajectory
+"""),
 }
 
 

@@ -19,6 +19,8 @@ solve time, then the worst value of every constraint. Into ``--out`` (default
   :mod:`fpr.sim.margins`), ``sim_*``
   columns in ``trajectory.csv`` and the simulation figures; the summary adds tracking errors,
   out-of-plane motion, rotor speeds in the plant, allocation saturations and the real-time factor;
+* with ``--simulate --replan``: ``replans.json`` and the executed plan in ``trajectory.csv``
+  (:mod:`fpr.cli.replanning`); a mission's gusts push the simulated robot with or without ``--replan``;
 * with ``--meshcat``: ``scene.html``, the 3D scene of :mod:`fpr.views.scene` (the robot following the plan;
   with ``--simulate``, the simulated robot and the plan as a ghost), a standalone page; ``--serve``
   also sends it to a live meshcat server, prints its URL and waits for Ctrl-C.
@@ -46,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from fpr import robots
-from fpr.cli import checks, contract
+from fpr.cli import checks, contract, replanning
 from fpr.cli.output import OutputFolder, inputs_hash, manifest, write_manifest
 from fpr.cli.plan_files import csv_columns, plan_document, split_timings, write_csv
 from fpr.model.errors import FprError, MissionError
@@ -132,6 +134,7 @@ def parser() -> argparse.ArgumentParser:
     sim.add_argument("--takeoff", action="store_true",
                      help="start at rest on the take-off pose, drones level (as the thesis' drones did), "
                           "instead of on the plan")
+    replanning.add_arguments(sim)
     scene = p.add_argument_group("3D scene (meshcat)")
     scene.add_argument("--meshcat", action="store_true",
                        help="write scene.html: the robot following the plan (with --simulate: the simulated "
@@ -251,11 +254,16 @@ def _simulate(args, robot, final, out, sampled, written):
         if not quiet:
             print(f"  simulating: {t:6.1f} / {total:.1f} s", file=sys.stderr, flush=True)
 
+    hooks = replanning.in_flight(args, final, settings)  # events and --replan (fpr/cli/replanning.py)
     try:
-        log = simulate(final, settings, progress)
+        log = simulate(final, settings, progress, hooks)
     except PlantDivergedError as error:
         return None, f"the simulation lost the robot: {contract.one_line(error)}", None
     failure = getattr(log, "failure", None)
+    done = replanning.executed(final, hooks)
+    sampled = sampled if done is None else done.sampled(args.rate)  # planned columns: the plan in force
+    shown_log = None if args.no_plots else log  # replans.json, and replanning.png unless --no-plots
+    log.replanning = (hooks, done, replanning.write(out, hooks, done, written, shown_log, final))
     log.save(out / "simulation.npz")
     margins = closed_loop_margins(final, log)
     (out / "simulation.json").write_text(json.dumps(simulation_document(log, margins), indent=1), encoding="utf-8")
@@ -328,6 +336,7 @@ def _inputs(args):
         robot = mission.load_robot()
         mission.positions(robot)  # every way point reachable and away from singularities
         method_for(mission, args.method)  # a method that can plan this mission
+        replanning.check_options(args, mission, robot)
         checks.check_work(args, mission, robot, optimised=args.method != "none")
     except MissionError as error:  # a --set value is the option's fault, not the mission file's
         key = error.field.removeprefix("robot_parameters.")
@@ -378,9 +387,12 @@ def _work(args, mission, robot, tmp, say):
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the computed plan
             print(f"warning: figures not written: {contract.one_line(error)}", file=sys.stderr)
     log, lost, margins = _simulate(args, robot, final, tmp, sampled, written) if args.simulate else (None,) * 3
+    hooks, done, replan_timings = getattr(log, "replanning", (None, None, {}))
     if log is not None:
         timings["simulation"] = log.wall_time
-    visualizer = _scene(args, robot, final, log, tmp, written) if args.meshcat or args.serve else None
+        timings.update(replan_timings)
+    shown = final if done is None else done  # after replanning, the ghost follows the plan in force
+    visualizer = _scene(args, robot, shown, log, tmp, written) if args.meshcat or args.serve else None
     say(comparison_table(reference, result))
     say("constraints of the " + ("optimised" if result is not None else "stop-at-way-points") + " motion "
         "(dense grid, margin >= 0 holds):")
@@ -393,6 +405,8 @@ def _work(args, mission, robot, tmp, say):
         say(_simulation_table(log))
     if margins is not None:
         say("\n".join(margin_lines(margins)))
+    if hooks is not None and replanning.summary(hooks, done, log):
+        say(replanning.summary(hooks, done, log))
     problems = []
     if not final.feasible:
         names = ", ".join(f"{c.name} (margin {c.margin:.4g} {c.unit} at t = {c.time:.3f} s)"
@@ -401,6 +415,7 @@ def _work(args, mission, robot, tmp, say):
                         "(--via-points) or move the way points")
     if lost is not None:
         problems.append(lost)
+    problems += replanning.problems(done)
     for problem in problems:
         print(f"error: {problem}", file=sys.stderr)
     outcome = "; ".join(problems) or "every constraint holds" + (", the robot was not lost" if args.simulate else "")

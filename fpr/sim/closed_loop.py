@@ -254,13 +254,17 @@ def _check_settings(st: SimulationSettings, robot) -> None:
                                      f"initial_error {name} = {offset!r}: give a finite number [m or rad]")
 
 
-def simulate(result, settings: SimulationSettings | None = None, progress=None) -> SimulationLog:
+def simulate(result, settings: SimulationSettings | None = None, progress=None,
+             in_flight=None) -> SimulationLog:
     """Track the planned motion of ``result`` in closed loop, until its end or until the robot is lost.
 
     Args:
         result: a :class:`planners.optimize.PlanResult` (its ``trajectory`` and ``robot``).
         settings: :class:`SimulationSettings`.
         progress: called as ``progress(simulated_time, total_time)`` about every simulated second.
+        in_flight: events and replanning (:class:`fpr.sim.replanning.InFlight`): its ``make_plant`` builds the
+            plant (gusts), its ``after_tick(t, q, v, reference)`` may return a new plan in force, tracked from
+            the next tick on (the log's reference is then the plan in force at each tick). None: neither.
 
     Returns:
         the :class:`SimulationLog`; when the robot is lost (:mod:`fpr.sim.watch`, or a state that turns
@@ -298,8 +302,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
     if st.takeoff:  # at rest on the take-off pose: drones level, rotors at one speed each
         q0[[robot.index[c] for c in robot.layout.rolls]] = 0.0
         w0 = np.repeat(np.sqrt(np.mean(planned.rotor_speed_squared[0], axis=-1, keepdims=True)), 4, axis=-1)
-    plant = Plant.from_minimal(robot, q0, np.zeros(robot.nq), w0,
-                               rotor_constant_scale=st.rotor_constant_scale)
+    make_plant = Plant.from_minimal if in_flight is None else in_flight.make_plant
+    plant = make_plant(robot, q0, np.zeros(robot.nq), w0, rotor_constant_scale=st.rotor_constant_scale)
     watch = Watch(robot, st)
     rng = np.random.default_rng(st.seed)
     noise_q, noise_v = st.measurement_noise
@@ -339,6 +343,11 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None) 
             break
         if k == n_t - 1:
             break
+        if in_flight is not None:  # replanning (fpr.sim.replanning): a new plan in force from the next tick
+            new = in_flight.after_tick(float(t), q, v, motion[:5, k])
+            if new is not None:
+                motion = new.evaluate_held(ticks, order=MOTION_ORDER)
+                planned = inverse_dynamics(robot, motion)
         command = np.minimum(np.maximum(out.speeds, 0.0), robot.rotor_constants.max_speed)  # np.clip, cheaper
         try:
             for _ in range(steps_per_tick):

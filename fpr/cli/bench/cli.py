@@ -12,7 +12,9 @@ a reference's). The sections, each in its own module:
   baseline in the manner of the thesis' fmincon runs (:mod:`planners.baseline`), re-optimising one
   segment, the singularity crossing;
 * ``control`` (:mod:`fpr.cli.bench.control`): the rotor allocation's QP solvers side by side, and the
-  closed-loop simulation's real-time factor.
+  closed-loop simulation's real-time factor;
+* ``replan`` (:mod:`fpr.cli.bench.replan`): the latency of a replan in flight (median, 95th percentile,
+  worst) on the built-in missions.
 
 Timings depend on the machine and its load: no test asserts them.
 """
@@ -30,6 +32,7 @@ import pinocchio as pin
 from fpr.cli.bench.control import control_table, run_control
 from fpr.cli.bench.model import model_targets, run_residuals, run_timings
 from fpr.cli.bench.planning import planning_table, run_planning
+from fpr.cli.bench.replan import replan_table, run_replan
 from fpr.cli.bench.timing import Bench, fmt
 
 
@@ -48,13 +51,13 @@ def main(argv=None) -> int:
                         help="3 repeats of ~20 ms loops instead of 7 of ~50 ms; planning: 1 run per item, "
                              "baseline capped at 15 s instead of 120 s; control: 32 states instead of 64, "
                              "1 simulation run instead of 3")
-    parser.add_argument("--section", choices=("all", "model", "planning", "control"), default="all",
+    parser.add_argument("--section", choices=("all", "model", "planning", "control", "replan"), default="all",
                         help="which part to run (default all)")
     args = parser.parse_args(argv)
     bench = Bench(repeats=3 if args.quick else 7, target=0.02 if args.quick else 0.05, progress=not args.json)
     info = dict(python=platform.python_version(), numpy=np.__version__, pinocchio=pin.__version__,
                 cpu_count=os.cpu_count(), platform=platform.platform())
-    residuals, planning, control = [], None, None
+    residuals, planning, control, replan = [], None, None, None
     if args.section in ("all", "model"):
         run_timings(bench)
         residuals = run_residuals()
@@ -63,6 +66,8 @@ def main(argv=None) -> int:
     if args.section in ("all", "control"):  # its own Bench: its rows are not the model table's
         control = run_control(Bench(bench.repeats, bench.target, bench.progress), args.quick,
                               progress=not args.json)
+    if args.section in ("all", "replan"):  # replanning latency (fpr/cli/bench/replan.py)
+        replan = run_replan(args.quick, progress=not args.json)
     goals = _goals(bench, planning, control)
     if args.json:
         doc = dict(machine=info, repeats=bench.repeats, loop_target_s=bench.target, timings=bench.results,
@@ -71,6 +76,8 @@ def main(argv=None) -> int:
             doc["planning"] = planning
         if control is not None:
             doc["control"] = control
+        if replan is not None:
+            doc["replan"] = replan
         print(json.dumps(doc, indent=2))
         return 0
     print(" ".join(f"{k} {v}" for k, v in info.items()))
@@ -92,6 +99,9 @@ def main(argv=None) -> int:
     if control is not None:
         print()
         print(control_table(control))
+    if replan is not None:
+        print()
+        print(replan_table(replan))
     if goals:
         print("\ngoals (issue 13)")
         for g in goals:

@@ -1,0 +1,221 @@
+"""``python -m fpr.plan --simulate --replan``: the options, the closed loop's hooks, the files of replanning.
+
+* options: ``--replan``, ``--replan-deadline`` (default 0.05 s of simulated time), ``--replan-bound``
+  (tracking error that triggers a replan from the robot's state, default 0.05 m or rad), ``--replan-rate``
+  (an optional fixed rate [Hz]), ``--replan-timing`` (``work``: the deterministic latency, default;
+  ``wall``: the measured solve time, not reproducible bit for bit);
+* the simulation gets a :class:`fpr.sim.replanning.InFlight` when the mission has events or ``--replan``
+  is given (gusts always push; ``move`` events need ``--replan``);
+* files: ``replans.json`` (each replan: time, trigger, splice time, latency against the deadline, J,
+  feasible, used or not and why; the executed plan's points and knots), the executed plan (the plan in
+  force at each instant) in the planned columns of ``trajectory.csv``, and ``replanning.png``
+  (:mod:`fpr.views.figures.replanning`). The solves' wall times go to ``manifest.json`` only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+
+from fpr.cli.checks import CommandLineError
+from fpr.sim.replanning import InFlight, TriggerSettings
+from fpr.views.figures.replanning import write_replanning_figure
+from planners.events import moved_positions
+from planners.replan import TIMINGS, Replanner, ReplanOptions
+from planners.report import evaluate_motion
+
+
+def add_arguments(group) -> None:
+    """The replanning options, in the simulation's argument group."""
+    group.add_argument(
+        "--replan",
+        action="store_true",
+        help="replan in flight (with --simulate): on a move event, a tracking error past "
+        "--replan-bound, and optionally at --replan-rate; see README 'Replanning in flight'",
+    )
+    group.add_argument(
+        "--replan-deadline",
+        type=float,
+        default=0.05,
+        help="simulated time between a trigger and the splice; a later solve is not used [s]",
+    )
+    group.add_argument(
+        "--replan-bound",
+        type=float,
+        default=0.05,
+        help="tracking error of a chain coordinate that triggers a replan [m or rad]",
+    )
+    group.add_argument("--replan-rate", type=float, default=None, help="also replan at this fixed rate [Hz]")
+    group.add_argument(
+        "--replan-timing",
+        choices=list(TIMINGS),
+        default="work",
+        help="what is compared with the deadline: the solver's work times a measured cost "
+        "(deterministic) or the measured wall time (not reproducible)",
+    )
+
+
+def check_options(args, mission, robot) -> None:
+    """Refuse replanning options that cannot work, and moved way points out of reach (exit 2).
+
+    Raises:
+        CommandLineError: --replan without --simulate or on a singularity-crossing mission, a deadline,
+            bound or rate that is not a finite number > 0.
+        WorkspaceError, SingularityError: a move event's ``to`` out of the workspace or on a singularity.
+    """
+    moved_positions(mission, robot)
+    if not getattr(args, "replan", False):
+        return
+    if not args.simulate:
+        raise CommandLineError("--replan", "", "replanning happens in flight: add --simulate")
+    if mission.cross_singularity:
+        raise CommandLineError(
+            "--replan",
+            "",
+            "a singularity-crossing mission cannot be replanned (its crossing "
+            "is optimised as a whole): drop --replan",
+        )
+    for option, value in (
+        ("--replan-deadline", args.replan_deadline),
+        ("--replan-bound", args.replan_bound),
+        ("--replan-rate", args.replan_rate),
+    ):
+        if value is not None and not (np.isfinite(value) and value > 0):
+            raise CommandLineError(option, value, "give a finite number > 0")
+
+
+def in_flight(args, final, settings):
+    """The closed loop's :class:`InFlight` for this run, or None (no events, no --replan)."""
+    mission, robot = final.mission, final.robot
+    replan = getattr(args, "replan", False)
+    if not mission.events and not replan:
+        return None
+    replanner = None
+    if replan:
+        replanner = Replanner(final, ReplanOptions(deadline=args.replan_deadline, timing=args.replan_timing))
+    triggers = TriggerSettings(tracking_bound=args.replan_bound, rate=args.replan_rate)
+    return InFlight(
+        mission, replanner, triggers, settings.controller, [robot.index[c] for c in robot.layout.chain], robot
+    )
+
+
+def executed(final, hooks):
+    """The executed plan as a :class:`planners.result.PlanResult`, or None when nothing was replanned.
+
+    The executed plan is the plan in force at each instant, checked on the dense grid.
+    """
+    if hooks is None or hooks.replanner is None or hooks.replanner.trajectory is final.trajectory:
+        return None
+    trajectory = hooks.replanner.trajectory
+    ways = np.concatenate([[0.0], np.cumsum(final.mission.times)])
+    is_way = np.array([bool(np.isclose(ways, k, atol=1e-9).any()) for k in trajectory.knots])
+    report = evaluate_motion(final.robot, trajectory, 500.0)
+    return dataclasses.replace(final, trajectory=trajectory, is_way=is_way, report=report, stages=[])
+
+
+def write(out, hooks, done, written, log=None, final=None) -> dict:
+    """Write ``replans.json`` (and, given the log and the offline plan, ``replanning.png``).
+
+    Returns:
+        the solves' wall times for ``manifest.json`` (by ``replan i``) [s].
+    """
+    if hooks is None or hooks.replanner is None:
+        return {}
+    records = [r.to_dict() for r in hooks.replans]
+    timings = {f"replan {i}": r.pop("solve_wall_s") for i, r in enumerate(records)}
+    document = {
+        "deadline_s": hooks.replanner.options.deadline,
+        "timing": hooks.replanner.options.timing,
+        "replans": records,
+        "used": sum(r["used"] for r in records),
+        "executed_plan": None
+        if done is None
+        else {
+            "feasible": bool(done.report.feasible),
+            "violated": [c.name for c in done.report.violations],
+            "knots_s": done.trajectory.knots.tolist(),
+            "points": done.trajectory.points.tolist(),
+            "points_layout": "points[p][k][j]: k-th time derivative (k = 0..4) of coordinate j at point p",
+        },
+    }
+    (out / "replans.json").write_text(json.dumps(document, indent=1), encoding="utf-8")
+    written.append("replans.json")
+    if log is not None and final is not None:
+        moved = [hooks.replanner.moves[i] for i in sorted(hooks.replanner.moves)]
+        write_replanning_figure(
+            out / "replanning.png", final.robot, final.trajectory, hooks.replanner.revisions, log, moved=moved
+        )
+        written.append("replanning.png")
+    return timings
+
+
+def passes(hooks, log) -> list[dict]:
+    """For each move event: how close the simulated task point passes to the moved way point at its time [m].
+
+    The task point is the robot kind's (the FPR's end-effector); the time is when the mission reaches the
+    way point. Without replanning (the move ignored) the same distance shows by how much the robot misses.
+    """
+    if hooks is None or log is None:
+        return []
+    mission, out = hooks.mission, []
+    robot = hooks.robot
+    ways = np.concatenate([[0.0], np.cumsum(mission.times)])
+    chain = [log.coordinates.index(c) for c in log.chain]
+    for i, event in enumerate(mission.events):
+        if event.kind != "move":
+            continue
+        k = int(np.argmin(np.abs(log.t - ways[event.way_point])))
+        target = robot.kind.task_points(hooks.moves[i][None])[0][0]
+        where = robot.kind.task_points(log.q[k, chain][None])[0][0]
+        out.append(
+            {
+                "event": i,
+                "way_point": event.way_point,
+                "time_s": float(log.t[k]),
+                "distance_m": float(np.linalg.norm(where - target)),
+            }
+        )
+    return out
+
+
+def summary(hooks, done, log=None) -> str:
+    """Lines for stdout: each replan, how close the robot passed to moved way points, the executed plan."""
+    if hooks is None:
+        return ""
+    lines = [
+        f"  move event {p['event']}: the simulated {hooks.robot.kind.task_point_labels[0]} passes "
+        f"{p['distance_m'] * 100:.2f} cm from the moved way point {p['way_point']} at t = {p['time_s']:.3f} s"
+        for p in passes(hooks, log)
+    ]
+    if hooks.replanner is None:
+        return "\n".join(["events in flight (no --replan: move events ignored):", *lines]) if lines else ""
+    moved = lines
+    lines = [
+        f"replanning in flight (deadline {hooks.replanner.options.deadline * 1e3:.0f} ms, "
+        f"{hooks.replanner.options.timing} timing):"
+    ]
+    for r in hooks.replans:
+        lines.append(
+            f"  t = {r.time:.3f} s, {r.trigger}: {r.why} (latency {r.latency_s * 1e3:.1f} ms, "
+            f"solve {r.solve_wall_s * 1e3:.0f} ms wall, {r.iterations} iterations)"
+        )
+    if done is not None:
+        state = (
+            "holds every constraint"
+            if done.report.feasible
+            else "violates " + ", ".join(c.name for c in done.report.violations)
+        )
+        lines.append(f"  the executed plan (the plan in force at each instant) {state}")
+    return "\n".join(lines + moved)
+
+
+def problems(done) -> list[str]:
+    """Why the run breaks a limit after replanning (exit 1): an executed plan that breaks a constraint."""
+    if done is None or done.report.feasible:
+        return []
+    names = ", ".join(
+        f"{c.name} (margin {c.margin:.4g} {c.unit} at t = {c.time:.3f} s)" for c in done.report.violations
+    )
+    return [f"the executed plan (after replanning) violates {names}"]

@@ -1,0 +1,197 @@
+"""Events and replanning in the closed loop: gusts pushing the plant, a replanner changing the plan in force.
+
+:func:`fpr.sim.closed_loop.simulate` takes an ``in_flight`` object (:class:`InFlight`) with two hooks:
+
+* ``make_plant(...)``: the plant, a :class:`ForcedPlant` that adds the mission's gusts
+  (:mod:`planners.events`) to the rotors' and the wind's forces: on the end-effector (the robot kind's
+  task point) through J^T F of that point, or on a drone's centre of mass like the wind;
+* ``after_tick(t, q, v, reference)`` after every inner-loop tick: returns a new plan in force (a
+  :class:`~planners.polynomial.PiecewisePolynomial` that equals the old one up to the splice time) or None.
+
+Triggers (with a :class:`planners.replan.Replanner`, ``--replan``):
+
+* **event**: a ``move`` event at its time: the way point moves and the rest of the motion is re-optimised
+  from the plan in force's own state at the splice (C4 with it: the planned rotor speeds do not jump);
+* **tracking error**: |measured - planned| of a chain coordinate past ``tracking_bound`` (at most once every
+  ``min_interval``), and **the end of a gust**: re-optimised from the plan in force's state at the splice too
+  (C4). A start from the robot's own state was tried (bumpless for the controller: measured s, s', the
+  commanded acceleration) and left out: the plan in force would jump at the splice, which a C4 piecewise
+  polynomial cannot hold, and on the gust mission it did not remove the saturation (README);
+* **rate** (optional, ``rate`` Hz): from the plan in force's state, like an event.
+
+Without a replanner the gusts still push and the ``move`` events are ignored: the robot flies the offline
+plan, so both runs can be compared.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from fpr.model.errors import ModelArgumentError
+from fpr.sim.plant import Plant
+from planners.events import gust_force, moved_positions
+from planners.replan import Replanner, jet
+
+
+class ForcedPlant(Plant):
+    """A :class:`~fpr.sim.plant.Plant` pushed by the gust events of a mission.
+
+    Attributes:
+        events: the mission's events (only the gusts act here).
+        tip_joint: the closed-chain joint whose origin is the robot kind's task point (the FPR's
+            end-effector hinge, the prototype's drone joint), where an ``end_effector`` gust pushes.
+    """
+
+    events: tuple = ()
+    tip_joint: int = 0
+    _tip_force = None
+
+    @classmethod
+    def with_events(cls, events, robot, q, v=None, w=None, rotor_constant_scale: float = 1.0) -> ForcedPlant:
+        """A plant at the thesis state (q, v) (:meth:`Plant.from_minimal`) pushed by ``events``."""
+        plant = cls.from_minimal(robot, q, v, w, rotor_constant_scale=rotor_constant_scale)
+        plant.events = tuple(events)
+        plant.tip_joint = _task_point_joint(plant, robot, q)
+        return plant
+
+    def step(self, w_command, dt: float, wind=None) -> None:
+        """:meth:`Plant.step` with the gusts active at the step's start added (held over the step)."""
+        tip, drones = gust_force(self.events, self.time, self.robot.n_drones)
+        self._tip_force = tip
+        if tip is None and drones is None:
+            return super().step(w_command, dt, wind)
+        forces = np.zeros((self.robot.n_drones, 3)) if wind is None else np.array(self._wind_forces(wind))
+        if drones is not None:
+            forces = forces + drones
+        return super().step(w_command, dt, forces)
+
+    def generalized_force(self, qc, w, wind_forces=None) -> np.ndarray:
+        """:meth:`Plant.generalized_force` plus J^T F of an end-effector gust (J: world-aligned, at qc)."""
+        tau = super().generalized_force(qc, w, wind_forces)
+        if self._tip_force is not None:  # the Jacobians at qc were computed by the call above
+            jac = pin.getJointJacobian(
+                self.closed.model, self.closed.data, self.tip_joint, pin.LOCAL_WORLD_ALIGNED
+            )
+            tau = tau + self._tip_force @ jac[:3]
+        return tau
+
+
+def _task_point_joint(plant: Plant, robot, q) -> int:
+    """The closed-chain joint whose origin is the robot's task point at q (found by position: any robot)."""
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, robot.to_pinocchio(q))
+    target = data.oMf[robot.model.getFrameId(robot.kind.task_frame)].translation
+    model, cdata = plant.closed.model, plant.closed.data
+    pin.forwardKinematics(model, cdata, plant.qc)
+    distances = [np.linalg.norm(cdata.oMi[j].translation - target) for j in range(1, model.njoints)]
+    best = int(np.argmin(distances))
+    if distances[best] > 1e-6:
+        raise ModelArgumentError(
+            "events",
+            robot.kind.task_frame,
+            f"no joint of the closed chain sits at the task point {robot.kind.task_frame!r} "
+            f'(nearest {distances[best]:.3g} m away): give the gust a body = "drone_<i>"',
+        )
+    return best + 1
+
+
+@dataclass(frozen=True)
+class TriggerSettings:
+    """When the closed loop asks for a replan.
+
+    Attributes:
+        tracking_bound: largest |measured - planned| of a chain coordinate before a replan from the robot's
+            state [m or rad] (None: no such trigger).
+        min_interval: least simulated time between two tracking-error replans [s].
+        rate: fixed replanning rate [Hz], or None.
+        after_gust: replan from the robot's state when a gust event ends.
+    """
+
+    tracking_bound: float | None = 0.05
+    min_interval: float = 0.25
+    rate: float | None = None
+    after_gust: bool = True
+
+
+class InFlight:
+    """The closed loop's hooks for events and replanning (module docstring).
+
+    Args:
+        mission: the mission (its events).
+        replanner: a :class:`planners.replan.Replanner`, or None (gusts only; move events ignored).
+        triggers: :class:`TriggerSettings`.
+        controller: the controller's :class:`controllers.ctc.ControllerSettings` (kept as ``controller`` for
+            what a trigger may need of it; the triggers of today do not use it).
+        chain: indices of the planning coordinates in q.
+        robot: the robot (default the replanner's, else ``mission.load_robot()``): its kind places the moved
+            way points (:attr:`moves`).
+
+    Attributes:
+        moves: {event index: the moved way point in planning coordinates} of the move events, checked
+            (:func:`planners.events.moved_positions`).
+    """
+
+    def __init__(
+        self, mission, replanner: Replanner | None, triggers: TriggerSettings, controller, chain, robot=None
+    ):
+        self.mission = mission
+        self.robot = robot or (replanner.robot if replanner is not None else mission.load_robot())
+        self.moves = replanner.moves if replanner is not None else moved_positions(mission, self.robot)
+        self.events = tuple(mission.events)
+        self.replanner = replanner
+        self.triggers = triggers
+        self.controller = controller
+        self.chain = np.asarray(chain)
+        self._done = set()
+        self._last_tracking = -math.inf
+        self._next_rate = None if not triggers.rate else 1.0 / triggers.rate
+
+    @property
+    def replans(self) -> list:
+        """The :class:`planners.replan.Replan` records so far."""
+        return [] if self.replanner is None else self.replanner.replans
+
+    def make_plant(self, robot, q, v=None, w=None, rotor_constant_scale: float = 1.0) -> ForcedPlant:
+        """The plant (:class:`ForcedPlant`)."""
+        return ForcedPlant.with_events(self.events, robot, q, v, w, rotor_constant_scale)
+
+    def after_tick(self, t: float, q, v, reference):
+        """Replan when a trigger fires at the inner-loop tick t [s]; the new plan in force, or None.
+
+        Args:
+            t: the tick's time [s].
+            q: the measured configuration (thesis coordinates) [m, rad].
+            v: the measured velocity [m/s, rad/s].
+            reference: the plan in force's s and its derivatives 0..4 at t, shape (>= 5, n_s).
+        """
+        if self.replanner is None:
+            return None
+        rp, before = self.replanner, self.replanner.trajectory
+        for i, event in enumerate(self.events):
+            if i in self._done:
+                continue
+            if event.kind == "move" and event.at <= t + 1e-9:
+                self._done.add(i)
+                rp.move(i)
+                rp.replan(t, f"event: way point {event.way_point} moved to {list(event.to)}")
+            elif event.kind == "gust" and self.triggers.after_gust and event.at + event.duration <= t + 1e-9:
+                self._done.add(i)
+                rp.replan(t, "event: the gust is over")
+        bound = self.triggers.tracking_bound
+        if bound is not None and t - self._last_tracking >= self.triggers.min_interval:
+            error = np.abs(q[self.chain] - reference[0])
+            if error.max() > bound:
+                self._last_tracking = t
+                worst = int(np.argmax(error))
+                rp.replan(t, f"tracking error {error.max():.4f} > {bound:g} (coordinate {worst})")
+        if self._next_rate is not None and t >= self._next_rate - 1e-9:
+            self._next_rate += 1.0 / self.triggers.rate
+            rp.replan(t, "rate")
+        return None if rp.trajectory is before else rp.trajectory
+
+
+__all__ = ["ForcedPlant", "InFlight", "TriggerSettings", "jet"]

@@ -1,0 +1,349 @@
+"""Replanning in flight: re-optimise the rest of the motion and splice it into the plan in force.
+
+The thesis ends on making the optimisation fast enough to plan online; this module does it on a
+receding horizon. At a trigger (an event that changes the mission, a tracking error past a bound, or
+a fixed rate, decided by the caller: :mod:`fpr.sim.replanning`) at time t_0, :meth:`Replanner.replan`
+builds and solves the NLP of :class:`planners.problem.MotionProblem` for the motion from the *splice*
+t_s = t_0 + deadline to the end of the horizon:
+
+* the start point at t_s is the plan in force's own [s, s', s'', s''', s''''] at t_s: the splice is C4,
+  so the planned rotor speeds, which depend on s up to its 4th derivative through the roll acceleration,
+  do not jump. (A ``start`` off the plan, e.g. from the robot's state, can be solved, to time it, but is
+  not spliced in: the plan in force would jump there, and :class:`~planners.polynomial.PiecewisePolynomial`
+  holds C4 motions only);
+* then the way points still ahead, up to ``horizon`` travels past the last one that changed (or the
+  end), with the mission's via points inside each travel (the travel cut by t_s keeps its count);
+  their values are fixed (moved way points at their new place), their derivatives 1..4 and every via
+  point free, as in the 1-step method (seed 3.2.4);
+* the end of the horizon keeps the plan in force's jet (C4 with the rest of it), or rest at the end;
+* the same objective as the offline plan (alpha, and the offline normalisation J_e0, J_phi0 of the
+  mission's stop motion, 3.26) and the same constraints (margins, rolls, rotor speeds 3.48); the result
+  is checked on the dense grid (:func:`planners.report.evaluate_motion`) like every plan.
+
+**Deadline.** The solve must end before t_s in simulated time. Its wall time is measured on the
+machine and reported, but by default (``timing = "work"``) the used / not-used decision compares the
+deadline with a deterministic latency: the solver's work (derivative and value evaluations times grid
+nodes) times a cost per unit of work measured on this machine (:data:`WORK_COST`), so that the same
+command gives the same bytes. ``timing = "wall"`` compares the measured wall time instead (not
+reproducible bit for bit). A plan that is late or infeasible is not used: the plan in force stays, and
+the :class:`Replan` record says why.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fpr.model.errors import PlannerArgumentError
+from planners.events import moved_positions
+from planners.methods.way_points import WayPointTask
+from planners.polynomial import N_DERIVS, PiecewisePolynomial
+from planners.problem import MotionProblem
+from planners.report import evaluate_motion
+from planners.solving import Grid, solve_stage
+
+#: Cost of the solver's work for the deterministic latency [s]: (per derivative evaluation per grid node,
+#: per value evaluation per grid node, per second of re-optimised motion: the dense check and the set-up).
+#: Fitted by ``python -m fpr.bench --section replan`` to the wall times measured on this machine, scaled to
+#: the speed at which it plans the square (two-step) in 0.4 s (see the bench's module docstring).
+#: The most favourable of three fits under a load of 7-9 on 2 cores; the others were 3-4 times higher.
+WORK_COST = (2.2e-4, 0.0, 2.2e-3)
+TIMINGS = ("work", "wall")
+
+
+@dataclass(frozen=True)
+class ReplanOptions:
+    """How :class:`Replanner` replans.
+
+    Attributes:
+        deadline: simulated time between the trigger and the splice, within which the solve must end [s].
+        horizon: travels re-optimised past the last way point that changed (or past the next one).
+        max_iterations: SQP iteration cap of one replan (explicit, independent of the offline defaults).
+        tolerance: the SQP stops when an iteration improves J by less than this.
+        samples_per_segment, windows_per_segment: the optimisation grid: 9 nodes per segment (the offline
+            planner uses 17) halves the solve; the dense check at ``dense_rate`` decides feasibility.
+        dense_rate: rate of the dense check of the new part [Hz].
+        timing: ``"work"`` (deterministic latency from the solver's work, :data:`WORK_COST`) or ``"wall"``
+            (the measured wall time) for the used / not-used decision.
+        work_cost: the costs of the ``"work"`` latency model [s] (:data:`WORK_COST`).
+    """
+
+    deadline: float = 0.05
+    horizon: int = 1
+    max_iterations: int = 12
+    tolerance: float = 1e-3
+    samples_per_segment: int = 9
+    windows_per_segment: int = 4
+    dense_rate: float = 500.0
+    timing: str = "work"
+    work_cost: tuple = WORK_COST
+
+    def __post_init__(self):
+        if not (np.isfinite(self.deadline) and self.deadline > 0):
+            raise PlannerArgumentError(
+                "deadline", self.deadline, f"deadline = {self.deadline!r}: give a time > 0 [s]"
+            )
+        if not (isinstance(self.horizon, int) and self.horizon >= 1):
+            raise PlannerArgumentError(
+                "horizon", self.horizon, f"horizon = {self.horizon!r}: give an integer >= 1"
+            )
+        if self.timing not in TIMINGS:
+            raise PlannerArgumentError(
+                "timing", self.timing, f"timing = {self.timing!r}: use one of {TIMINGS}"
+            )
+
+
+@dataclass
+class Replan:
+    """One replan, as ``replans.json`` lists it.
+
+    Attributes:
+        time: the trigger's time t_0 [s]; splice_time: t_s = t_0 + deadline [s].
+        trigger: what asked for it ("event: way point 2 moved", "tracking error ...", "rate").
+        solve_wall_s: measured wall time of the solve and its dense check [s].
+        latency_s: the latency compared with the deadline [s] (the work model's, or the wall time).
+        deadline_s: the deadline [s].
+        iterations: SQP iterations; n_variables: size of the NLP.
+        J: objective of the re-optimised part on its grid (3.26, the offline normalisation).
+        feasible: the re-optimised part holds every constraint on the dense grid.
+        used: it was spliced into the plan; why: one line saying why (not) used.
+        violated: the constraints it breaks (dense grid).
+        start: "plan" (the plan in force's jet) or "robot" (a start from the robot's state).
+        work: what the deterministic latency counts: grid ``nodes``, ``derivative_evaluations``,
+            ``value_evaluations``, ``horizon_s`` (the re-optimised duration [s]).
+    """
+
+    time: float
+    trigger: str
+    splice_time: float
+    solve_wall_s: float = 0.0
+    latency_s: float = 0.0
+    deadline_s: float = 0.0
+    iterations: int = 0
+    n_variables: int = 0
+    J: float = float("nan")
+    feasible: bool = False
+    used: bool = False
+    why: str = ""
+    violated: list = field(default_factory=list)
+    start: str = "plan"
+    work: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """JSON-friendly."""
+        return dict(vars(self))
+
+
+def jet(trajectory: PiecewisePolynomial, t: float) -> np.ndarray:
+    """[s, s', s'', s''', s''''] of ``trajectory`` at t [s], shape (5, n) (held at rest past its end)."""
+    return trajectory.evaluate_held(np.array([t]), order=N_DERIVS - 1)[:, 0, :]
+
+
+def splice(
+    before: PiecewisePolynomial,
+    t_s: float,
+    part: PiecewisePolynomial,
+    after: PiecewisePolynomial | None = None,
+    t_end: float | None = None,
+) -> PiecewisePolynomial:
+    """``before`` up to t_s, then ``part`` (starting at t_s), then ``after`` from t_end (if given).
+
+    ``before`` is cut exactly: its segment through t_s is replaced by the degree-9 Hermite segment
+    between its own points at the segment's start and at t_s, which is the same polynomial (10 conditions
+    fix it). Knots of ``before`` / ``after`` closer than 1e-9 s to t_s / t_end are used as they are.
+    """
+    knots = before.knots
+    a = int(np.searchsorted(knots, t_s + 1e-9, side="right") - 1)
+    points, durations = list(before.points[: a + 1]), list(before.durations[:a])
+    if t_s - knots[a] > 1e-9:
+        points.append(jet(before, t_s))
+        durations.append(t_s - knots[a])
+    points += list(part.points[1:])
+    durations += list(part.durations)
+    if after is not None and t_end is not None and t_end < after.total_duration - 1e-9:
+        b = int(np.argmin(np.abs(after.knots - t_end)))
+        points += list(after.points[b + 1 :])
+        durations += list(after.durations[b:])
+    return PiecewisePolynomial(np.array(points), np.array(durations))
+
+
+class Replanner:
+    """Re-optimises the rest of a planned way-point mission while it is flown.
+
+    Args:
+        result: the offline :class:`planners.result.PlanResult` (its mission, robot and trajectory).
+        options: :class:`ReplanOptions`.
+
+    Attributes:
+        trajectory: the plan in force (the executed plan so far, then its future), absolute time [s].
+        way_positions: the way points in planning coordinates, moved ones at their new place (k, n_s).
+        way_times: when the plan passes each way point [s] (k,).
+        changed: index of the last way point moved since the plan in force was made, or None.
+        replans: every :class:`Replan`, in order.
+        revisions: (splice time [s], the plan in force from then on) of every replan used, in order.
+
+    Raises:
+        WorkspaceError, SingularityError: a move event's ``to`` out of the workspace
+            (:func:`planners.events.moved_positions`).
+    """
+
+    def __init__(self, result, options: ReplanOptions | None = None):
+        self.options = options or ReplanOptions()
+        self.mission, self.robot = result.mission, result.robot
+        self.trajectory = result.trajectory
+        task = WayPointTask.of(self.mission, self.robot)
+        self.way_positions = np.array(self.mission.positions(self.robot), dtype=float)
+        self.way_times = np.concatenate([[0.0], np.cumsum(self.mission.times)])
+        self.n_via = np.asarray(task.n_via, dtype=int)
+        self.grid = Grid(self.options.samples_per_segment, self.options.windows_per_segment)
+        self.normalisation = task.normalisation(self.grid)
+        self.moves = moved_positions(self.mission, self.robot)
+        self.changed: int | None = None
+        self.replans: list[Replan] = []
+        self.revisions: list[tuple[float, PiecewisePolynomial]] = []
+
+    def move(self, event_index: int) -> None:
+        """Apply the move event ``mission.events[event_index]``: its way point is at its new place."""
+        event = self.mission.events[event_index]
+        self.way_positions[event.way_point] = self.moves[event_index]
+        self.changed = max(event.way_point, self.changed or 0)
+
+    def _layout(self, t_s: float, j0: int, j_end: int):
+        """Knot times and the way-point flag of the horizon t_s -> way point j_end."""
+        times, is_way = [t_s], [False]
+        for j in range(j0, j_end + 1):
+            begin = max(self.way_times[j - 1], t_s)
+            n = int(self.n_via[j - 1])
+            times += list(begin + (self.way_times[j] - begin) * np.arange(1, n + 1) / (n + 1))
+            times.append(self.way_times[j])
+            is_way += [False] * n + [True]
+        return np.array(times), np.array(is_way)
+
+    def problem(self, t_s: float, start: np.ndarray | None = None):
+        """The horizon's NLP from t_s (see the module docstring), or None when no way point is ahead.
+
+        Returns:
+            (problem, x0, times, j_end) or None.
+        """
+        ahead = np.flatnonzero(self.way_times > t_s + 1e-6)
+        if ahead.size == 0:
+            return None
+        j0 = int(ahead[0])
+        k = len(self.way_times)
+        if self.changed is not None and self.changed >= j0:  # through the moved way point, horizon travels on
+            j_end = min(k - 1, self.changed + self.options.horizon)
+        else:  # horizon travels from the robot's
+            j_end = min(k - 1, j0 + self.options.horizon - 1)
+        times, is_way = self._layout(t_s, j0, j_end)
+        current = self.trajectory
+        points = np.moveaxis(current.evaluate_held(times, order=N_DERIVS - 1), 0, 1).copy()  # (m+1, 5, n)
+        # first guess: the plan in force, shifted by the way points' moves (linear in time between them)
+        delta = (
+            self.way_positions[j0 - 1 : j_end + 1]
+            - np.moveaxis(current.evaluate_held(self.way_times[j0 - 1 : j_end + 1], order=0), 0, 1)[:, 0]
+        )
+        delta[0] = 0.0  # nothing moves behind the robot
+        anchors = np.concatenate([[t_s], self.way_times[j0 : j_end + 1]])
+        for c in range(points.shape[2]):
+            points[:, 0, c] += np.interp(times, anchors, delta[:, c])
+        points[0] = jet(current, t_s) if start is None else start
+        if j_end == len(self.way_times) - 1:
+            points[-1, 1:] = 0.0  # the mission ends at rest
+        free = np.zeros(points.shape, dtype=bool)
+        free[1:-1] = True
+        free[1:-1, 0][is_way[1:-1]] = False  # way points keep their value
+        problem = MotionProblem(
+            self.robot,
+            points,
+            np.diff(times),
+            free,
+            self.mission.alpha,
+            self.normalisation,
+            samples_per_segment=self.grid.samples_per_segment,
+            windows_per_segment=self.grid.windows_per_segment,
+        )
+        return problem, problem.x_of(points), times, j_end
+
+    def latency(self, work: dict) -> float:
+        """The deterministic latency of a solve [s] from its ``work`` (:class:`Replan`, :data:`WORK_COST`)."""
+        per_grad, per_value, per_second = self.options.work_cost
+        return (
+            work["nodes"]
+            * (per_grad * work["derivative_evaluations"] + per_value * work["value_evaluations"])
+            + per_second * work["horizon_s"]
+        )
+
+    def replan(self, t_0: float, trigger: str, start: np.ndarray | None = None) -> Replan:
+        """Re-optimise from t_s = t_0 + deadline, and splice the result in when it is feasible and on time.
+
+        Args:
+            t_0: the trigger's time [s].
+            trigger: what asked for it (logged).
+            start: the start point [s, s', ..., s''''] at t_s (5, n_s), or None for the plan in force's;
+                a start off the plan in force is solved (timed) but never used (the splice must be C4).
+
+        Returns:
+            the :class:`Replan` record (also appended to :attr:`replans`); when ``used``,
+            :attr:`trajectory` is the new plan in force.
+        """
+        opt = self.options
+        t_s = t_0 + opt.deadline
+        record = Replan(
+            t_0, trigger, t_s, deadline_s=opt.deadline, start="plan" if start is None else "robot"
+        )
+        self.replans.append(record)
+        begin = time.perf_counter()
+        built = self.problem(t_s, start)
+        if built is None:
+            record.why = "not used: no way point ahead of the splice"
+            return record
+        problem, x0, times, j_end = built
+        problem.evaluate(x0, derivatives=True)  # cached: serves the solver's first value and derivatives
+        x, stage = solve_stage(
+            problem,
+            x0,
+            f"replan at {t_0:.3f} s",
+            max_iterations=opt.max_iterations,
+            tolerance=opt.tolerance,
+            solver="sqp",
+        )
+        part = PiecewisePolynomial(problem.points_of(x), problem.durations)
+        report = evaluate_motion(self.robot, part, opt.dense_rate)
+        record.solve_wall_s = time.perf_counter() - begin
+        record.work = {
+            "nodes": int(problem.t.size),
+            "derivative_evaluations": int(max(stage.gradient_evaluations, 1)),
+            "value_evaluations": int(max(stage.evaluations - stage.gradient_evaluations, 0)),
+            "horizon_s": float(times[-1] - times[0]),
+        }
+        modelled = self.latency(record.work)
+        record.latency_s = modelled if opt.timing == "work" else record.solve_wall_s
+        record.iterations, record.n_variables, record.J = stage.iterations, problem.n_x, float(stage.J_end)
+        record.feasible = bool(report.feasible)
+        record.violated = [c.name for c in report.violations]
+        if not record.feasible:
+            record.why = f"not used: infeasible ({', '.join(record.violated)}); the plan in force stays"
+        elif start is not None and not np.allclose(start, jet(self.trajectory, t_s), rtol=0.0, atol=1e-12):
+            record.why = (
+                "not used: its start is off the plan in force (the robot's state), and a splice must be "
+                "C4; the plan in force stays"
+            )
+        elif record.latency_s > opt.deadline:
+            record.why = (
+                f"not used: late ({record.latency_s * 1e3:.1f} ms > deadline {opt.deadline * 1e3:.0f} ms, "
+                f"{opt.timing}); the plan in force stays"
+            )
+        else:
+            self.trajectory = splice(self.trajectory, t_s, part, self.trajectory, float(times[-1]))
+            self.revisions.append((t_s, self.trajectory))
+            self.changed = None if j_end >= (self.changed or 0) else self.changed
+            record.used = True
+            record.why = (
+                f"used: spliced at {t_s:.3f} s, re-optimised up to way point {j_end} at {times[-1]:.3f} s"
+            )
+        return record
+
+
+__all__ = ["Replan", "ReplanOptions", "Replanner", "TIMINGS", "WORK_COST", "jet", "splice"]

@@ -1,0 +1,119 @@
+"""Mission events (planners/events.py): parsing, validation with the field named, the TOML round trip."""
+
+import numpy as np
+import pytest
+
+from fpr.model.errors import MissionError, WorkspaceError
+from planners.events import GustEvent, MoveEvent, gust_force, moved_positions
+from planners.mission import load_mission, mission_from_toml
+
+S0 = [0.0, 0.0, 3.9269908169872414, 1.5707963267948966]
+
+
+def _square(events):
+    return load_mission("square").replace(events=events)
+
+
+def test_builtin_missions_carry_their_events():
+    moving = load_mission("moving-target")
+    assert moving.events == (MoveEvent(4.0, 2, (1.2, 0.8, S0[2], S0[3])),)
+    gust = load_mission("gust")
+    assert len(gust.events) == 1 and gust.events[0].kind == "gust" and gust.events[0].body == "end_effector"
+    assert gust.events[0].force[1] != 0.0 and gust.events[0].force[0] == gust.events[0].force[2] == 0.0
+
+
+def test_toml_round_trip_keeps_events_and_sorts_them_by_time():
+    mission = _square(
+        [
+            {"at": 5.0, "kind": "gust", "force": [0.0, 3.0, 0.0], "duration": 0.2, "body": "drone_2"},
+            {"at": 1.0, "kind": "move", "way_point": 1, "to": [0.9, 0.1, S0[2], S0[3]]},
+        ]
+    )
+    assert [e.kind for e in mission.events] == ["move", "gust"]  # sorted by at
+    again = mission_from_toml(mission.to_toml())
+    assert again == mission and again.events == mission.events
+    assert "[[events]]" in mission.to_toml()
+    # a mission without events writes the same text as before events existed
+    assert (
+        "events" not in load_mission("square").to_toml() and "events" not in load_mission("square").to_dict()
+    )
+
+
+@pytest.mark.parametrize(
+    "event, field, words",
+    [
+        ({"kind": "move", "way_point": 1, "to": S0}, "events[0].at", "missing"),
+        ({"at": 1.0, "kind": "jump"}, "events[0].kind", "'move', 'gust'"),
+        ({"at": -1.0, "kind": "move", "way_point": 1, "to": S0}, "events[0].at", "[0, 12)"),
+        ({"at": 12.0, "kind": "move", "way_point": 1, "to": S0}, "events[0].at", "[0, 12)"),
+        (
+            {"at": float("nan"), "kind": "gust", "force": [0, 1, 0], "duration": 1.0},
+            "events[0].at",
+            "[0, 12)",
+        ),
+        ({"at": 1.0, "kind": "move", "way_point": 0, "to": S0}, "events[0].way_point", "1..4"),
+        ({"at": 1.0, "kind": "move", "way_point": 5, "to": S0}, "events[0].way_point", "1..4"),
+        ({"at": 1.0, "kind": "move", "way_point": True, "to": S0}, "events[0].way_point", "1..4"),
+        ({"at": 4.0, "kind": "move", "way_point": 1, "to": S0}, "events[0].at", "reached at 3 s"),
+        ({"at": 1.0, "kind": "move", "way_point": 1, "to": [1.0, 0.0]}, "events[0].to", "4 numbers"),
+        ({"at": 1.0, "kind": "move", "way_point": 1, "to": [1.0, 0.0, "a", 1.0]}, "events[0].to", "entry 2"),
+        (
+            {"at": 1.0, "kind": "move", "way_point": 1, "to": S0, "force": [0, 0, 0]},
+            "events[0].force",
+            "unknown key",
+        ),
+        ({"at": 1.0, "kind": "gust", "force": [0, 1], "duration": 1.0}, "events[0].force", "3 numbers"),
+        (
+            {"at": 1.0, "kind": "gust", "force": [0, float("inf"), 0], "duration": 1.0},
+            "events[0].force",
+            "finite",
+        ),
+        ({"at": 1.0, "kind": "gust", "force": [0, 1, 0], "duration": 0.0}, "events[0].duration", "> 0"),
+        ({"at": 1.0, "kind": "gust", "force": [0, 1, 0]}, "events[0].duration", "missing"),
+        (
+            {"at": 1.0, "kind": "gust", "force": [0, 1, 0], "duration": 1.0, "body": "drone_0"},
+            "events[0].body",
+            "drone_<i>",
+        ),
+        (
+            {"at": 1.0, "kind": "gust", "force": [0, 1, 0], "duration": 1.0, "body": "wing"},
+            "events[0].body",
+            "drone_<i>",
+        ),
+        ("gust", "events[0]", "table"),
+    ],
+)
+def test_every_field_is_validated_and_named(event, field, words):
+    with pytest.raises(MissionError) as info:
+        _square([event])
+    assert info.value.field == field
+    assert words in info.value.reason
+
+
+def test_events_must_be_a_list_of_tables():
+    text = load_mission("square").to_toml().replace("[robot_parameters]", "events = 3\n[robot_parameters]")
+    with pytest.raises(MissionError) as info:
+        mission_from_toml(text)
+    assert info.value.field == "events"
+
+
+def test_moved_positions_are_checked_against_the_workspace():
+    robot = load_mission("square").load_robot()
+    mission = _square([{"at": 1.0, "kind": "move", "way_point": 2, "to": [1.0, 0.5, 3.0, S0[3]]}])
+    with pytest.raises(WorkspaceError, match=r"events\[0\]\.to"):  # phi below pi + m_ga
+        moved_positions(mission, robot)
+    fine = _square([{"at": 1.0, "kind": "move", "way_point": 2, "to": [1.2, 0.8, S0[2], S0[3]]}])
+    np.testing.assert_array_equal(moved_positions(fine, robot)[0], [1.2, 0.8, S0[2], S0[3]])
+
+
+def test_gust_force_is_on_only_during_its_window_and_adds_up():
+    events = (
+        GustEvent(1.0, (0.0, 2.0, 0.0), 0.5),
+        GustEvent(1.2, (0.0, 1.0, 0.0), 0.1),
+        GustEvent(1.0, (1.0, 0.0, 0.0), 0.5, "drone_2"),
+    )
+    assert gust_force(events, 0.999, 2) == (None, None)
+    tip, drones = gust_force(events, 1.25, 2)
+    np.testing.assert_array_equal(tip, [0.0, 3.0, 0.0])
+    np.testing.assert_array_equal(drones, [[0, 0, 0], [1.0, 0, 0]])
+    assert gust_force(events, 1.5, 2) == (None, None)  # [at, at + duration)

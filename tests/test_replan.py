@@ -1,0 +1,131 @@
+"""The replanner (planners/replan.py): C4 splices, the deadline fallback, infeasible plans kept out."""
+
+import numpy as np
+import pytest
+
+from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
+from planners.mission import load_mission
+from planners.optimize import plan
+from planners.polynomial import PiecewisePolynomial
+from planners.replan import Replanner, ReplanOptions, jet, splice
+
+S0 = [0.0, 0.0, 3.9269908169872414, 1.5707963267948966]
+
+
+@pytest.fixture(scope="module")
+def moving():
+    """The moving-target mission and its offline two-step plan (the plan in force before the event)."""
+    mission = load_mission("moving-target")
+    return mission, plan(mission, "two-step")
+
+
+def _replanned(result, **options):
+    replanner = Replanner(result, ReplanOptions(samples_per_segment=9, **options))
+    replanner.move(0)
+    return replanner, replanner.replan(4.0, "event")
+
+
+def test_splice_keeps_the_plan_before_and_is_c4_at_the_splice(moving):
+    mission, result = moving
+    replanner, record = _replanned(result)
+    assert record.used and record.feasible, record.why
+    new, old, t_s = replanner.trajectory, result.trajectory, record.splice_time
+    assert t_s == pytest.approx(4.05)
+    before = np.linspace(0.0, t_s, 400)
+    np.testing.assert_allclose(new.evaluate(before, 4), old.evaluate(before, 4), rtol=0, atol=1e-9)
+    # C4: value and derivatives 0..4 agree on both sides of the splice (each segment evaluated at its own end)
+    i = int(np.argmin(np.abs(new.knots - t_s)))
+    assert abs(new.knots[i] - t_s) < 1e-12
+    left_segment, right_segment = new.segments[i - 1], new.segments[i]
+    left = left_segment.evaluate(np.array([left_segment.duration]), 5)[:, 0]
+    right = right_segment.evaluate(np.array([0.0]), 5)[:, 0]
+    old_jet = jet(old, t_s)
+    scale = np.abs(old.evaluate(np.linspace(0, 12, 1201), 4)).max(axis=(1, 2))
+    for k in range(5):
+        assert np.abs(left[k] - right[k]).max() < 1e-9 * max(scale[k], 1.0), k
+        assert np.abs(right[k] - old_jet[k]).max() < 1e-9 * max(scale[k], 1.0), k
+    assert np.abs(left[5] - right[5]).max() > 1e-3  # the 5th derivative is free: the splice really is C4
+    # the new plan goes through the moved way point at its time, and ends at rest where the mission ends
+    np.testing.assert_allclose(new.evaluate(np.array([6.0]), 0)[0, 0], [1.2, 0.8, S0[2], S0[3]], atol=1e-9)
+    np.testing.assert_allclose(new.evaluate(np.array([12.0]), 4)[1:, 0], 0.0, atol=1e-9)
+
+
+def test_no_rotor_speed_jump_at_the_splice(moving):
+    """The planned rotor speeds across the splice step by no more than between two normal 2 ms ticks."""
+    mission, result = moving
+    replanner, record = _replanned(result)
+    robot, t_s = result.robot, record.splice_time
+    ticks = np.arange(0.0, 12.0, 0.002)
+    speeds = inverse_dynamics(robot, replanner.trajectory.evaluate(ticks, MOTION_ORDER)).rotor_speed
+    steps = np.abs(np.diff(speeds, axis=0)).max(axis=(1, 2))
+    k = int(np.searchsorted(ticks, t_s))
+    across = np.abs(
+        inverse_dynamics(
+            robot, replanner.trajectory.evaluate(np.array([t_s - 1e-6, t_s + 1e-6]), MOTION_ORDER)
+        ).rotor_speed[1]
+        - inverse_dynamics(
+            robot, replanner.trajectory.evaluate(np.array([t_s - 1e-6]), MOTION_ORDER)
+        ).rotor_speed[0]
+    ).max()
+    assert across < 1e-3  # rad/s over 2 us: continuous
+    assert steps[k - 1] <= 1.5 * np.median(
+        steps[k - 50 : k + 50]
+    )  # the tick over the splice is an ordinary one
+
+
+def test_splice_reproduces_the_cut_segment_exactly():
+    rng = np.random.default_rng(3)
+    before = PiecewisePolynomial(rng.normal(size=(3, 5, 2)), np.array([1.0, 2.0]))
+    t_s = 1.7
+    part = PiecewisePolynomial(np.stack([jet(before, t_s), rng.normal(size=(5, 2))]), np.array([0.5]))
+    joined = splice(before, t_s, part)
+    t = np.linspace(0.0, t_s, 300)
+    np.testing.assert_allclose(joined.evaluate(t, 4), before.evaluate(t, 4), atol=1e-9)
+    np.testing.assert_allclose(joined.knots, [0.0, 1.0, 1.7, 2.2])
+
+
+def test_a_late_plan_is_not_used_and_the_plan_in_force_stays(moving):
+    mission, result = moving
+    # the deterministic latency: a work cost 1000 times too high makes the same solve late
+    replanner, record = _replanned(result, work_cost=(1e-1, 1e-2, 1.0))
+    assert record.feasible and not record.used
+    assert record.latency_s > record.deadline_s and "late" in record.why
+    assert replanner.trajectory is result.trajectory
+    # the same with the measured wall time against an impossible deadline
+    replanner, record = _replanned(result, timing="wall", deadline=1e-6)
+    assert not record.used and "late" in record.why and record.latency_s == record.solve_wall_s
+
+
+def test_an_infeasible_plan_is_not_used(moving):
+    mission, result = moving
+    far = mission.replace(
+        events=[{"at": 5.5, "kind": "move", "way_point": 2, "to": [-0.5, 1.0, S0[2], S0[3]]}]
+    )
+    replanner = Replanner(
+        type(result)(**{**vars(result), "mission": far}), ReplanOptions(samples_per_segment=9)
+    )
+    replanner.move(0)
+    record = replanner.replan(5.5, "event")  # 1.7 m in 0.45 s: beyond the rotors
+    assert not record.feasible and not record.used
+    assert "infeasible" in record.why and "rotor_speed" in " ".join(record.violated)
+    assert replanner.trajectory is result.trajectory
+
+
+def test_work_latency_is_deterministic(moving):
+    mission, result = moving
+    first = _replanned(result)[1]
+    second = _replanned(result)[1]
+    assert (
+        first.latency_s == second.latency_s and first.J == second.J and first.iterations == second.iterations
+    )
+
+
+def test_a_start_off_the_plan_is_solved_but_not_spliced(moving):
+    """A splice must be C4: a start from the robot's state (off the plan in force) makes the plan jump."""
+    mission, result = moving
+    replanner = Replanner(result, ReplanOptions())
+    start = jet(result.trajectory, 2.05)
+    start[0, 0] += 0.05  # 5 cm off along y
+    record = replanner.replan(2.0, "tracking error", start=start)
+    assert record.start == "robot" and record.iterations >= 1 and not record.used
+    assert "off the plan" in record.why and replanner.trajectory is result.trajectory

@@ -1,0 +1,123 @@
+"""``python -m fpr.plan --simulate --replan`` (fpr/cli/replanning.py): files, exit codes, same bytes twice."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from fpr.cli.plan import main
+
+S0 = "3.9269908169872414, 1.5707963267948966"
+MISSION = f"""robot = "fpr"
+way_points = [[0.0, 0.0, {S0}], [0.5, 0.0, {S0}], [0.5, 0.5, {S0}]]
+times = [2.0, 2.0]
+via_points = 1
+
+[[events]]
+at = 2.5
+kind = "move"
+way_point = 2
+to = [0.6, 0.4, {S0}]
+"""
+
+
+def _csv(path):
+    with open(path, encoding="utf-8") as stream:
+        rows = list(csv.reader(stream))
+    return rows[0], np.array(rows[1:], dtype=float)
+
+
+def _run(tmp_path, name, *extra):
+    mission = tmp_path / "short.toml"
+    mission.write_text(MISSION, encoding="utf-8")
+    out = tmp_path / name
+    code = main(
+        [
+            "--mission",
+            str(mission),
+            "--method",
+            "none",
+            "--simulate",
+            "--hold",
+            "0",
+            "--no-plots",
+            "--quiet",
+            "--rate",
+            "100",
+            "--out",
+            str(out),
+            *extra,
+        ]
+    )
+    return code, out
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("replan")
+    return {
+        "replan": _run(tmp, "a", "--replan"),
+        "again": _run(tmp, "b", "--replan"),
+        "plain": _run(tmp, "c"),
+    }
+
+
+def test_replanned_run_follows_the_moved_way_point(runs):
+    code, out = runs["replan"]
+    assert code == 0
+    document = json.loads((out / "replans.json").read_text())
+    [record] = document["replans"]
+    assert record["used"] and record["feasible"] and record["start"] == "plan"
+    assert (
+        record["splice_time"] == pytest.approx(2.55) and "solve_wall_s" not in record
+    )  # wall times: manifest
+    assert "replan 0" in json.loads((out / "manifest.json").read_text())["timings_s"]
+    names, data = _csv(out / "trajectory.csv")
+    at = int(np.argmin(np.abs(data[:, 0] - 4.0)))
+    planned = data[at, [names.index("y"), names.index("z")]]
+    simulated = data[at, [names.index("sim_y"), names.index("sim_z")]]
+    np.testing.assert_allclose(planned, [0.6, 0.4], atol=1e-9)  # the planned columns: the plan in force
+    assert np.linalg.norm(simulated - [0.6, 0.4]) < 0.02
+
+
+def test_without_replan_the_move_is_ignored(runs):
+    code, out = runs["plain"]
+    assert code == 0 and not (out / "replans.json").exists()
+    names, data = _csv(out / "trajectory.csv")
+    at = int(np.argmin(np.abs(data[:, 0] - 4.0)))
+    np.testing.assert_allclose(data[at, [names.index("y"), names.index("z")]], [0.5, 0.5], atol=1e-9)
+    simulated = data[at, [names.index("sim_y"), names.index("sim_z")]]
+    assert np.linalg.norm(simulated - [0.6, 0.4]) > 0.1
+
+
+def test_same_command_same_bytes(runs):
+    (_, a), (_, b) = runs["replan"], runs["again"]
+    for name in ("replans.json", "trajectory.csv", "plan.json"):
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["--replan"], "add --simulate"),
+        (["--simulate", "--replan", "--replan-deadline", "0"], "--replan-deadline"),
+        (["--simulate", "--replan", "--replan-rate", "nan"], "--replan-rate"),
+        (["--simulate", "--replan", "--mission", "cross-singularity"], "singularity-crossing"),
+    ],
+)
+def test_bad_replan_options_exit_2_with_one_line(tmp_path, capsys, argv, words):
+    code = main([*argv, "--out", str(tmp_path / "x"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and words in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_moved_way_point_out_of_reach_exits_2_before_any_work(tmp_path, capsys):
+    mission = tmp_path / "bad.toml"
+    mission.write_text(MISSION.replace("to = [0.6, 0.4,", "to = [0.6, 0.4, 3.0, 1.5]  # phi out of range\n# "),
+                       encoding="utf-8")
+    code = main(["--mission", str(mission), "--simulate", "--out", str(tmp_path / "x"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and "events[0].to" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists()

@@ -1,0 +1,55 @@
+"""Events in the closed loop (fpr/sim/replanning.py): the gust's force, checked by the robot's momentum."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from fpr.robots import load
+from fpr.sim.replanning import ForcedPlant
+from planners.events import GustEvent
+
+
+@pytest.mark.parametrize("body", ["end_effector", "drone_1", "drone_2"])
+def test_a_gust_changes_the_centre_of_mass_acceleration_by_force_over_mass(body):
+    """Newton for the whole (free-flying) FPR: an external force F adds F / m_total to its CoM acceleration.
+
+    The chain's internal forces cancel wherever F acts: an independent check of the J^T F of the plant.
+    """
+    robot = load("fpr")
+    rng = np.random.default_rng(1)
+    q = robot.configuration(**dict(zip(robot.layout.chain, robot.kind.reference_chain, strict=True)))
+    force = np.array([0.5, -3.0, 2.0])
+    plant = ForcedPlant.with_events(
+        (GustEvent(0.0, tuple(force), 1.0, body),),
+        robot,
+        q,
+        rng.normal(scale=0.2, size=robot.nq),
+        np.full((robot.n_drones, 4), 500.0),
+    )
+    model, data = plant.closed.model, plant.closed.data
+
+    def com_acceleration(tip, drones):
+        plant._tip_force = tip
+        a = plant.acceleration(wind=drones)
+        pin.centerOfMass(model, data, plant.qc, plant.vc, a)
+        return data.acom[0].copy()
+
+    base = com_acceleration(None, None)
+    assert plant.tip_joint > 0
+    if body == "end_effector":
+        pushed = com_acceleration(force, None)
+    else:
+        drones = np.zeros((robot.n_drones, 3))
+        drones[int(body[-1]) - 1] = force
+        pushed = com_acceleration(None, drones)
+    mass = sum(inertia.mass for inertia in model.inertias)
+    np.testing.assert_allclose(pushed - base, force / mass, atol=1e-6 * np.abs(force).max() / mass + 1e-9)
+
+
+def test_the_end_effector_gust_acts_at_the_task_point():
+    """The joint found for an end-effector gust sits where the minimal model puts the end-effector."""
+    robot = load("fpr")
+    q = robot.configuration(y=0.3, z=0.2, phi=4.0, q21=1.2)
+    plant = ForcedPlant.with_events((), robot, q)
+    pin.forwardKinematics(plant.closed.model, plant.closed.data, plant.qc)
+    np.testing.assert_allclose(plant.closed.data.oMi[plant.tip_joint].translation[1:], [0.3, 0.2], atol=1e-9)
