@@ -21,7 +21,6 @@ Timings depend on the machine and its load: no test asserts them.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
@@ -29,11 +28,29 @@ import platform
 import numpy as np
 import pinocchio as pin
 
+from fpr.cli import contract
 from fpr.cli.bench.control import control_table, run_control
 from fpr.cli.bench.model import model_targets, run_residuals, run_timings
 from fpr.cli.bench.planning import planning_table, run_planning
 from fpr.cli.bench.replan import replan_table, run_replan
 from fpr.cli.bench.timing import Bench, fmt
+
+
+def parser() -> contract.Parser:
+    """The argument parser of ``python -m fpr.bench``."""
+    p = contract.Parser(prog="python -m fpr.bench", description=__doc__.splitlines()[0],
+                        formatter_class=contract.HelpFormatter,
+                        epilog="exit codes: 0 done (a goal not met is reported, not a failure), 2 bad option, "
+                               "3 internal error (a bug: --debug shows the traceback), 130 interrupted")
+    p.add_argument("--json", action="store_true", help="print a JSON document instead of the table")
+    p.add_argument("--quick", action="store_true",
+                   help="3 repeats of ~20 ms loops instead of 7 of ~50 ms; planning: 1 run per item, "
+                        "baseline capped at 15 s instead of 120 s; control: 32 states instead of 64, "
+                        "1 simulation run instead of 3")
+    p.add_argument("--section", choices=("all", "model", "planning", "control", "replan"), default="all",
+                   help="which part to run")
+    contract.add_debug(p)
+    return p
 
 
 def main(argv=None) -> int:
@@ -43,17 +60,16 @@ def main(argv=None) -> int:
         argv: command-line arguments (default: sys.argv[1:]).
 
     Returns:
-        the exit status, 0.
+        The exit code: 0, or 2 (a bad option), 3 (a bug), 130 (Ctrl-C).
     """
-    parser = argparse.ArgumentParser(prog="python -m fpr.bench", description=__doc__.splitlines()[0])
-    parser.add_argument("--json", action="store_true", help="print a JSON document instead of the table")
-    parser.add_argument("--quick", action="store_true",
-                        help="3 repeats of ~20 ms loops instead of 7 of ~50 ms; planning: 1 run per item, "
-                             "baseline capped at 15 s instead of 120 s; control: 32 states instead of 64, "
-                             "1 simulation run instead of 3")
-    parser.add_argument("--section", choices=("all", "model", "planning", "control", "replan"), default="all",
-                        help="which part to run (default all)")
-    args = parser.parse_args(argv)
+    try:
+        args = parser().parse_args(argv)
+    except SystemExit as stop:  # --help (0), or an option argparse refuses (2, one line printed)
+        return stop.code if isinstance(stop.code, int) else contract.BAD_INPUT
+    return contract.run(lambda: _run(args), debug=args.debug)
+
+
+def _run(args) -> int:
     bench = Bench(repeats=3 if args.quick else 7, target=0.02 if args.quick else 0.05, progress=not args.json)
     info = dict(python=platform.python_version(), numpy=np.__version__, pinocchio=pin.__version__,
                 cpu_count=os.cpu_count(), platform=platform.platform())
