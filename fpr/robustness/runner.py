@@ -96,13 +96,17 @@ class CampaignRun:
 
 def local_client(workers: int | None = None):
     """A Dask client of a new local cluster: ``workers`` processes (default: the number of cores), one thread
-    each, no dashboard."""
-    from distributed import Client, LocalCluster
+    each, no dashboard; closing the client closes the cluster."""
+    from distributed import Client
 
     n = int(workers or os.cpu_count() or 1)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                           silence_logs=logging.ERROR)
-    return Client(cluster)
+    return Client(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                  silence_logs=logging.ERROR)
+
+
+def open_store(folder, campaign: Campaign, description: dict | None = None) -> RunStore:
+    """The campaign's folder (:class:`fpr.robustness.store.RunStore`), keyed by the campaign and its mission."""
+    return RunStore(folder, campaign.key(mission_of(campaign).to_toml()), description or {})
 
 
 def run_campaign(campaign: Campaign, flight: Flight, store: RunStore, client, progress=None) -> CampaignRun:

@@ -102,3 +102,26 @@ def summarise(rows: list[dict], varied: list[str], outcomes: list[str]) -> dict:
         "varied": {c: _distribution([r[c] for r in rows]) for c in varied},
         "outcomes": {c: _distribution([r[c] for r in rows if not r["error"]]) for c in numeric},
     }
+
+
+def broken_margins(row: dict, tracking: float = 0.05, speed_limit: float = 750.0, clearance: float = 0.1) -> dict:
+    """Which margins a run broke: ``saturation`` (a rotor at a bound of the allocation), ``rotor speed`` (the
+    plant's peak above ``speed_limit``, w_max - m_gr [rad/s]), ``tracking`` (a coordinate off the plan by more
+    than ``tracking`` [m or rad]), ``ground`` (a drone's centre of mass closer than ``clearance`` to the
+    ground [m]), ``lost``. A run that raised breaks none (its outcomes are unknown)."""
+    if row["error"]:
+        return dict.fromkeys(("saturation", "rotor speed", "tracking", "ground", "lost"), False)
+    worst = max(v for k, v in row.items() if k.startswith("max_error_"))
+    return {"saturation": row["saturated_ticks"] > 0, "rotor speed": row["peak_rotor_speed_rad_s"] > speed_limit,
+            "tracking": worst > tracking, "ground": row["least_clearance_m"] < clearance, "lost": bool(row["lost"])}
+
+
+def first_breaks(rows: list[dict], column: str, **limits) -> dict:
+    """For a sweep of ``column``: the least value at which each margin of :func:`broken_margins` breaks (None:
+    it never does), so that the order of the values says which breaks first."""
+    first = {}
+    for row in sorted(rows, key=lambda r: r[column]):
+        for name, broken in broken_margins(row, **limits).items():
+            if broken and name not in first:
+                first[name] = float(row[column])
+    return {name: first.get(name) for name in ("saturation", "rotor speed", "tracking", "ground", "lost")}
