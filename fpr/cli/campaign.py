@@ -163,6 +163,7 @@ class Progress:
         self.last = 0.0
 
     def __call__(self, done: int, failures: int) -> None:
+        """Show ``done`` runs of the total (the first call: those reused), ``failures`` among them."""
         now = time.perf_counter()
         if self.start is None:
             self.start, self.reused = now, done
@@ -217,8 +218,9 @@ def _run(args, argv) -> int:
     write_atomic(out / "campaign.toml", campaign_to_toml(campaign, "mission.toml"))
     say(f"plan ({campaign.method}): {'every constraint holds' if result.feasible else 'VIOLATES a constraint'}")
     progress = Progress(campaign.runs, quiet=args.quiet)
-    client = _client(args)
+    client = None
     try:
+        client = _client(args)
         done = run_campaign(campaign, flight, store, client, progress)
     except KeyboardInterrupt:
         stored = len(store.load(campaign.runs))
@@ -226,7 +228,8 @@ def _run(args, argv) -> int:
               file=sys.stderr)
         return contract.INTERRUPTED
     finally:
-        _close(client)
+        if client is not None:
+            _close(client)
     varied = list(campaign.columns)
     columns = ["index", *varied, *flight.columns]
     write_table(out / "runs.parquet", done.rows, columns)
@@ -244,7 +247,8 @@ def _run(args, argv) -> int:
     low, high = summary["success_rate_wilson95"]
     say(f"{summary['successes']} of {summary['runs']} runs succeeded ({summary['success_rate']:.1%}, 95 % "
         f"Wilson interval {low:.1%} .. {high:.1%}); lost {summary['lost']}, errors {summary['errors']}; "
-        f"{done.reused} reused, {done.computed} simulated in {done.wall_time:.1f} s on {done.workers} workers")
+        f"{done.reused} reused, {done.computed} simulated in {done.wall_time:.1f} s on {done.workers} "
+        f"worker{'s' if done.workers != 1 else ''}")
     for kind, count in summary["lost_by_kind"].items():
         say(f"  lost: {kind}: {count}")
     say(f"wrote runs.parquet, summary.json{'' if args.no_plots else ', figures'} into {out}")

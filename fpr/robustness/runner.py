@@ -141,7 +141,7 @@ def run_campaign(campaign: Campaign, flight: Flight, store: RunStore, client, pr
         futures = [client.submit(fly, shipped, i, campaign.values(i), campaign.noise_seed(i), pure=False,
                                  key=f"fpr-run-{store.key[:16]}-{i}-{os.getpid()}-{time.monotonic_ns()}")
                    for i in missing]
-    index_of = {f.key: i for f, i in zip(futures, missing)}
+    index_of = {f.key: i for f, i in zip(futures, missing, strict=True)}
     try:
         for future in as_completed(futures):
             i = index_of[future.key]

@@ -252,7 +252,7 @@ class Campaign:
             dists = parse_distribution(text, len(names))
         except CampaignError as error:
             raise CampaignError(f"{name}={error.what}", error.reason) from None
-        return dataclasses.replace(self, vary={**self.vary, **dict(zip(names, dists))})
+        return dataclasses.replace(self, vary={**self.vary, **dict(zip(names, dists, strict=True))})
 
     @property
     def columns(self) -> tuple[str, ...]:

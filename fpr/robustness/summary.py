@@ -1,11 +1,11 @@
-"""A campaign's results: the table of runs (``runs.parquet``) and its summary (``summary.json``).
+r"""A campaign's results: the table of runs (``runs.parquet``) and its summary (``summary.json``).
 
 The success rate comes with its 95 % Wilson score interval: the p whose score test does not reject the
 observed x successes in n runs,
 
 .. math::
-    \\frac{\\hat p + z^2 / 2n \\pm z \\sqrt{\\hat p (1 - \\hat p) / n + z^2 / 4 n^2}}{1 + z^2 / n},
-    \\quad \\hat p = x / n,\\ z = 1.95996,
+    \frac{\hat p + z^2 / 2n \pm z \sqrt{\hat p (1 - \hat p) / n + z^2 / 4 n^2}}{1 + z^2 / n},
+    \quad \hat p = x / n,\ z = 1.95996,
 
 which, unlike the normal approximation, stays within [0, 1] and is not empty at 0 or n successes.
 """

@@ -47,7 +47,7 @@ def success_figure(rows: list[dict], varied: list[str], title: str = ""):
     ok = np.array([bool(r["success"]) for r in rows])
     jitter = np.random.default_rng(0).uniform(-0.04, 0.04, ok.size)
     bins = max(2, min(10, ok.size // 10))
-    for ax, name in zip(axes, varied):
+    for ax, name in zip(axes[:len(varied)], varied, strict=True):
         x = np.array([float(r[name]) for r in rows])
         ax.scatter(x, ok + jitter, s=6, color=np.where(ok, "tab:green", "tab:red"), alpha=0.5, linewidths=0)
         if np.ptp(x) > 0 and ok.size >= 4:
@@ -69,7 +69,7 @@ def outcomes_figure(rows: list[dict], chain: list[str], max_speed: float | None 
     cols = 2
     fig, axes = _new_figure(math.ceil(len(names) / cols), cols, sharex=False)
     good = [r for r in rows if not r["error"]]
-    for ax, name in zip(axes, names):
+    for ax, name in zip(axes[:len(names)], names, strict=True):
         values = [np.array([float(r[name]) for r in good if bool(r["success"]) == s]) for s in (True, False)]
         values = [v[np.isfinite(v)] for v in values]
         if sum(v.size for v in values):
