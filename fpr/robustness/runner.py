@@ -96,11 +96,12 @@ class CampaignRun:
 
 def local_client(workers: int | None = None):
     """A Dask client of a new local cluster: ``workers`` processes (default: the number of cores), one thread
-    each, no dashboard; closing the client closes the cluster."""
+    each, its dashboard on a free port; closing the client closes the cluster. (Worker processes are
+    spawned: in a script, call it under ``if __name__ == "__main__":``.)"""
     from distributed import Client
 
     n = int(workers or os.cpu_count() or 1)
-    return Client(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    return Client(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                   silence_logs=logging.ERROR)
 
 
