@@ -99,6 +99,17 @@ assert log_with.failure is None and log_with.speed.max() <= log_with.speed_limit
 assert splice_step <= 1.5 * normal_step  # no rotor-speed jump at the splice
 assert not late_record.used and "late" in late_record.why and late.trajectory is result.trajectory
 """),
+    "07_robustness": Expected(images=8, html=0, checks="""
+assert len(results) == 4 and all(len(rows) == RUNS == 4 for *_, rows in results.values())  # quick mode
+assert all(plan_result.feasible for _, _, plan_result, _ in results.values())
+for name in ("square", "prototype-tour"):  # no wind: the plan flies, tracked within 1 cm
+    calm = results[name, "wind_y"][3][0]
+    assert calm["wind_y"] == 0 and calm["success"] and max(v for k, v in calm.items() if k.startswith("max_error_")) < 0.01
+for key, first in breaks.items():  # each margin breaks at a value of its sweep, or not at all
+    values = [r[key[1]] for r in results[key][3]]
+    assert all(v is None or v in values for v in first.values())
+assert len(written) == 8 and all(p.is_file() and p.stat().st_size > 0 for p in written)
+"""),
 }
 
 

@@ -226,3 +226,18 @@ class NotUniformError(FprError, ValueError):
         self.values = tuple(float(v) for v in values)
         super().__init__(f"{quantity}: the robot's values differ ({', '.join(f'{v:.6g}' for v in self.values)}); "
                          f"{hint}")
+
+
+class CampaignError(FprError, ValueError):
+    """A robustness campaign that cannot run as written (:mod:`fpr.robustness`): a distribution that is not one,
+    an unknown quantity, a campaign file with a wrong field, an output folder that holds something else.
+
+    Attributes:
+        what: what was given (``model_mass_scale=uniform(2, 1)``, ``runs = 0``, a file or folder...).
+        reason: what is wrong and what to do.
+    """
+
+    def __init__(self, what: str, reason: str):
+        self.what = str(what)
+        self.reason = reason
+        super().__init__(f"{self.what}: {reason}")

@@ -1,0 +1,287 @@
+"""``python -m fpr.campaign``: a robustness campaign, many closed-loop flights of one plan under sampled
+perturbations, run on Dask.
+
+The mission is planned once; each run flies that plan through :func:`fpr.sim.closed_loop.simulate` with its own
+draw of the varied quantities (``--vary NAME=DISTRIBUTION``, :mod:`fpr.robustness.spec`), on a local Dask
+cluster (``--workers K`` processes, one thread each; default: one per core) or an existing one
+(``--scheduler ADDRESS``). Into ``--out`` (default ``fpr-out/campaign-<mission>``) it writes, as runs finish,
+one file per run (``runs/``), and at the end ``runs.parquet``, ``summary.json`` and the figures
+(:mod:`fpr.robustness.store`). The same command again reuses every stored run and simulates only the missing
+ones (after Ctrl-C, a lost worker, or with a larger ``--runs``).
+
+Exit codes (:mod:`fpr.cli.contract`): 0 the campaign is complete; 1 complete, but a limit is broken: the plan
+itself violates a constraint, or, with ``--min-success P``, the lower end of the success rate's 95 % Wilson
+interval is below P (lost robots alone are results, not a broken limit); 2 bad input (a distribution, a
+quantity, a campaign or mission file, an ``--out`` that holds something else); 3 internal error; 130
+interrupted: the runs finished so far stay stored, the same command resumes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from fpr import robots
+from fpr.cli import checks, contract
+from fpr.cli.plan import _assignment, _floats
+from fpr.model.errors import CampaignError
+from fpr.robustness.campaign_file import campaign_to_toml, load_campaign
+from fpr.robustness.runner import local_client, make_flight, mission_of, run_campaign
+from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign, components
+from fpr.robustness.store import RunStore, write_atomic
+from fpr.robustness.summary import summarise, write_table
+from fpr.views.figures.campaign import campaign_figures
+from planners.methods import METHODS
+
+MAX_RUNS = 1_000_000
+EXIT_CODES = """exit codes:
+  0    the campaign is complete (lost robots are results)
+  1    complete, but a limit is broken: the plan violates a constraint, or the success rate's 95 % Wilson
+       lower bound is below --min-success
+  2    bad input: an option, a distribution, a quantity, a campaign or mission file, an --out that holds
+       something else than this campaign
+  3    internal error: a bug in fpr (one line says so; --debug shows the traceback)
+  130  interrupted (Ctrl-C, SIGTERM): the finished runs stay in --out; the same command resumes"""
+
+
+def _vary(text: str) -> tuple[str, str]:
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip() or not value.strip():
+        raise argparse.ArgumentTypeError(f"--vary {text!r}: write NAME=DISTRIBUTION, e.g. "
+                                         "model_mass_scale=uniform(0.9,1.1)")
+    return name.strip(), value.strip()
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command-line parser."""
+    p = contract.Parser(prog="python -m fpr.campaign", description=__doc__.split("\n\n")[0],
+                        formatter_class=contract.HelpFormatter, epilog=EXIT_CODES)
+    p.add_argument("--campaign", type=Path, default=None,
+                   help="a campaign TOML file (see README); the options below override its fields")
+    p.add_argument("--mission", default=None, help="built-in mission or mission TOML file (default square)")
+    p.add_argument("--method", default=None, choices=list(METHODS), help="planning method (default two-step)")
+    p.add_argument("--runs", type=int, default=None, help="number of closed-loop runs (default 100)")
+    p.add_argument("--seed", type=int, default=None, help="campaign seed, an integer >= 0 (default 0)")
+    p.add_argument("--vary", type=_vary, action="append", default=[], metavar="NAME=DIST",
+                   help="a quantity and its distribution: uniform(lo,hi), normal(mean,sd), truncnormal(mean,sd,"
+                        "lo,hi), lognormal(median,sigma), loguniform(lo,hi), choice(a,b,...), linspace(lo,hi) "
+                        "or a number; NAME: model_mass_scale, rotor_constant_scale, wind (each axis; or "
+                        "wind_x/_y/_z), noise (or noise_q/_v), initial_error.<coordinate>, a robot parameter")
+    p.add_argument("--set", dest="robot_parameters", type=_assignment, action="append", default=[],
+                   metavar="NAME=VALUE", help="fixed robot parameter for the plan and every run, e.g. link_length=1.0")
+    p.add_argument("--hold", type=float, default=None, help="time simulated after the plan's end [s] (default 1)")
+    p.add_argument("--tracking-tolerance", type=float, default=None,
+                   help="a run succeeds only if every planning coordinate stays within this of the plan [m, rad]")
+    fixed = p.add_argument_group("fixed perturbations (as python -m fpr.plan --simulate; --vary wins)")
+    fixed.add_argument("--model-mass-scale", type=float, default=None, help="the controller's masses times this")
+    fixed.add_argument("--rotor-constant-scale", type=float, default=None, help="the plant's rotor force times this")
+    fixed.add_argument("--wind", type=lambda t: _floats(t, "--wind"), default=None, metavar="FX,FY,FZ",
+                       help="constant wind force on each drone [N]")
+    fixed.add_argument("--noise", type=lambda t: _floats(t, "--noise"), default=None, metavar="SQ,SV",
+                       help="measurement-noise standard deviations on q and v")
+    fixed.add_argument("--initial-error", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
+                       help="offset of a coordinate at the start [m or rad]")
+    engine = p.add_argument_group("engine (Dask)")
+    engine.add_argument("--workers", type=int, default=None,
+                        help="worker processes of the local cluster (default: the number of cores)")
+    engine.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="an existing Dask scheduler (tcp://host:8786) instead of a local cluster")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default fpr-out/campaign-<mission>)")
+    p.add_argument("--min-success", type=float, default=None,
+                   help="exit 1 when the success rate's 95 %% Wilson lower bound is below this, in [0, 1]")
+    p.add_argument("--no-plots", action="store_true", help="do not write the figures")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors (no progress bar)")
+    contract.add_debug(p)
+    return p
+
+
+def _campaign(args) -> Campaign:
+    """The campaign: the file's fields, the options over them, fixed perturbations as constants."""
+    campaign = load_campaign(args.campaign) if args.campaign is not None else Campaign()
+    changes = {k: getattr(args, k) for k in ("mission", "method", "runs", "seed", "hold", "tracking_tolerance")
+               if getattr(args, k) is not None}
+    if args.robot_parameters:
+        changes["robot_parameters"] = {**campaign.robot_parameters, **dict(args.robot_parameters)}
+    if "runs" in changes and not 1 <= changes["runs"] <= MAX_RUNS:
+        raise checks.CommandLineError("--runs", changes["runs"], f"give a number of runs in [1, {MAX_RUNS:,}]")
+    if "seed" in changes and changes["seed"] < 0:
+        raise checks.CommandLineError("--seed", changes["seed"], "give an integer >= 0")
+    campaign = Campaign(**{**campaign.__dict__, **changes})
+    fixed = [(name, value) for name, value in (("model_mass_scale", args.model_mass_scale),
+                                               ("rotor_constant_scale", args.rotor_constant_scale),
+                                               ("wind", args.wind), ("noise", args.noise)) if value is not None]
+    fixed += [(INITIAL_ERROR + name, value) for name, value in args.initial_error]
+    for name, value in fixed:  # constants (over the file's); --vary comes after: it wins
+        campaign = campaign.with_vary(name, value)
+    for name, text in args.vary:
+        campaign = campaign.with_vary(name, text)
+    return campaign
+
+
+def _plan_options(campaign: Campaign, values: dict) -> argparse.Namespace:
+    """The options ``python -m fpr.plan --simulate`` would get for these values (for :mod:`fpr.cli.checks`)."""
+    wind = [values.get(c, 0.0) for c in components("wind")]
+    noise = [values.get(c, 0.0) for c in components("noise")]
+    return argparse.Namespace(rate=200.0, alpha=None, times=None, via_points=None, robot_parameters=[],
+                              model_mass_scale=values.get("model_mass_scale", 1.0),
+                              rotor_constant_scale=values.get("rotor_constant_scale", 1.0), wind=wind,
+                              noise=noise, hold=campaign.hold, simulate=True,
+                              initial_error=[(k[len(INITIAL_ERROR):], v) for k, v in values.items()
+                                             if k.startswith(INITIAL_ERROR)])
+
+
+def _check_ranges(campaign: Campaign, mission, robot) -> None:
+    """Every value a distribution can give (its bounds, or its mean for an unbounded one) passes the checks of
+    ``python -m fpr.plan --simulate`` (:mod:`fpr.cli.checks`) and of ``fpr.load`` (robot parameters); the
+    simulated time is within the limit."""
+    for name in campaign.columns:
+        dist = campaign.vary[name]
+        low, high = dist.support()
+        for value in {v for v in (low, high, dist.typical()) if abs(v) != float("inf")}:
+            try:
+                if name in SETTINGS or name.startswith(INITIAL_ERROR):
+                    checks.check_options(_plan_options(campaign, {name: value}))
+                else:
+                    robots.check_parameters({name: value}, {**mission.robot_parameters, name: value})
+            except (checks.CommandLineError, ValueError) as error:
+                raise CampaignError(f"--vary {name}={dist.text()}", f"it can give {value:g}: "
+                                    f"{getattr(error, 'reason', error)}") from None
+    checks.check_work(_plan_options(campaign, {}), mission, robot, optimised=campaign.method != "none")
+
+
+class Progress:
+    """The progress bar on stderr: runs done (reused), failures, rate, time left; redrawn in place on a
+    terminal, a line every 10 s (and at the end) otherwise."""
+
+    def __init__(self, total: int, stream=None, quiet: bool = False):
+        self.total, self.stream, self.quiet = total, stream or sys.stderr, quiet
+        self.tty = self.stream.isatty()
+        self.start = self.reused = None
+        self.last = 0.0
+
+    def __call__(self, done: int, failures: int) -> None:
+        """Show ``done`` runs of the total (the first call: those reused), ``failures`` among them."""
+        now = time.perf_counter()
+        if self.start is None:
+            self.start, self.reused = now, done
+        fresh = done - self.reused
+        rate = fresh / (now - self.start) if fresh and now > self.start else 0.0
+        left = f"{(self.total - done) / rate:.0f} s left" if rate else "time left: -"
+        width = 24
+        filled = int(width * done / self.total)
+        line = (f"[{'#' * filled}{'.' * (width - filled)}] {done}/{self.total} runs ({self.reused} reused), "
+                f"{failures} failed, {rate:.2f} runs/s, {left}")
+        if self.quiet:
+            return
+        if self.tty:
+            self.stream.write("\r" + line + ("\n" if done == self.total else ""))
+        elif done == self.total or now - self.last >= 10.0 or fresh == 0:
+            self.stream.write(line + "\n")
+            self.last = now
+        self.stream.flush()
+
+
+def _client(args):
+    if args.scheduler:
+        from distributed import Client
+
+        try:
+            return Client(args.scheduler, timeout="20s")
+        except (OSError, TimeoutError) as error:
+            raise CampaignError(f"--scheduler {args.scheduler}", f"cannot reach the scheduler ({error}): start "
+                                "one (dask scheduler) or drop --scheduler for a local cluster") from None
+    if args.workers is not None and not 1 <= args.workers <= 1024:
+        raise checks.CommandLineError("--workers", args.workers, "give a number of worker processes in [1, 1024]")
+    return local_client(args.workers)
+
+
+def _run(args, argv) -> int:
+    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, flush=True))
+    if args.min_success is not None:
+        checks._number("--min-success", args.min_success, low=0.0, high=1.0, meaning="a success rate")
+    campaign = _campaign(args)
+    mission = mission_of(campaign)
+    robot = mission.load_robot()
+    _check_ranges(campaign, mission, robot)
+    safe_name = "".join(c if c.isalnum() or c in "-_." else "_" for c in mission.name).lstrip(".") or "mission"
+    out = args.out or Path("fpr-out") / f"campaign-{safe_name[:100]}"
+    key = campaign.key(mission.to_toml())
+    say(f"campaign: mission {mission.name!r} ({mission.robot}), {campaign.runs} runs, seed {campaign.seed}, "
+        f"varied: {', '.join(f'{k}={d.text()}' for k, d in sorted(campaign.vary.items())) or 'nothing'}")
+    flight, result = make_flight(campaign, mission)
+    store = RunStore(out, key, {"campaign": campaign_to_toml(campaign, "mission.toml"),
+                                "mission": mission.name, "command": ["python", "-m", "fpr.campaign", *argv]})
+    write_atomic(out / "mission.toml", mission.to_toml())
+    write_atomic(out / "campaign.toml", campaign_to_toml(campaign, "mission.toml"))
+    say(f"plan ({campaign.method}): {'every constraint holds' if result.feasible else 'VIOLATES a constraint'}")
+    progress = Progress(campaign.runs, quiet=args.quiet)
+    client = None
+    try:
+        client = _client(args)
+        done = run_campaign(campaign, flight, store, client, progress)
+    except KeyboardInterrupt:
+        stored = len(store.load(campaign.runs))
+        print(f"interrupted: {stored} of {campaign.runs} runs stored in {out}; the same command resumes",
+              file=sys.stderr)
+        return contract.INTERRUPTED
+    finally:
+        if client is not None:
+            _close(client)
+    varied = list(campaign.columns)
+    columns = ["index", *varied, *flight.columns]
+    write_table(out / "runs.parquet", done.rows, columns)
+    summary = summarise(done.rows, varied, list(flight.columns))
+    summary.update({"reused": done.reused, "computed": done.computed, "workers": done.workers,
+                    "wall_time_s": round(done.wall_time, 3),
+                    "runs_per_second": done.computed / done.wall_time if done.computed else None,
+                    "plan_feasible": bool(result.feasible)})
+    write_atomic(out / "summary.json", json.dumps(summary, indent=1) + "\n")
+    if not args.no_plots:
+        try:
+            campaign_figures(out, done.rows, varied, list(flight.chain), robot.rotor_constants.max_speed)
+        except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the table
+            print(f"warning: figures not written: {contract.one_line(error)}", file=sys.stderr)
+    low, high = summary["success_rate_wilson95"]
+    say(f"{summary['successes']} of {summary['runs']} runs succeeded ({summary['success_rate']:.1%}, 95 % "
+        f"Wilson interval {low:.1%} .. {high:.1%}); lost {summary['lost']}, errors {summary['errors']}; "
+        f"{done.reused} reused, {done.computed} simulated in {done.wall_time:.1f} s on {done.workers} "
+        f"worker{'s' if done.workers != 1 else ''}")
+    for kind, count in summary["lost_by_kind"].items():
+        say(f"  lost: {kind}: {count}")
+    say(f"wrote runs.parquet, summary.json{'' if args.no_plots else ', figures'} into {out}")
+    problems = []
+    if not result.feasible:
+        problems.append("the plan violates a constraint (every run flew it)")
+    if args.min_success is not None and low < args.min_success:
+        problems.append(f"the success rate's 95 % lower bound {low:.3f} is below --min-success {args.min_success:g}")
+    for problem in problems:
+        print(f"error: {problem}", file=sys.stderr)
+    return contract.LIMIT_BROKEN if problems else contract.OK
+
+
+def _close(client) -> None:
+    """Close the client (and its local cluster); never raises."""
+    try:
+        cluster = client.cluster
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    except Exception:  # noqa: BLE001 - closing is best effort at the end
+        pass
+
+
+def main(argv=None) -> int:
+    """Command line entry point; returns the exit code (0, 1, 2, 3 or 130: see ``--help``)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = parser().parse_args(argv)
+    except SystemExit as stop:
+        return stop.code if isinstance(stop.code, int) else contract.BAD_INPUT
+    return contract.run(lambda: _run(args, argv), debug=args.debug)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
