@@ -79,6 +79,20 @@ def _terminate_as_interrupt():
         signal.signal(signal.SIGTERM, previous)
 
 
+def command(parser: argparse.ArgumentParser, argv, work) -> int:
+    """A command line's ``main``: parse ``argv`` (default ``sys.argv[1:]``), then :func:`run` ``work(args, argv)``.
+
+    ``--help`` returns 0 and an option argparse refuses returns 2 (its one line already printed); the parser
+    must have ``--debug`` (:func:`add_debug`).
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # --help (0), or an option argparse refuses (2, one line printed)
+        return stop.code if isinstance(stop.code, int) else BAD_INPUT
+    return run(lambda: work(args, argv), debug=args.debug)
+
+
 def run(work, debug: bool = False) -> int:
     """Call ``work()`` (it returns 0 or 1) and map what it raises to an exit code and one line on stderr."""
     try:

@@ -460,12 +460,7 @@ def _run(args, argv) -> int:
 
 def main(argv=None) -> int:
     """Command line entry point; returns the exit code (0, 1, 2, 3 or 130: see ``--help``)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        args = parser().parse_args(argv)
-    except SystemExit as stop:  # --help (0), or an option argparse refuses (2, one line printed)
-        return stop.code if isinstance(stop.code, int) else contract.BAD_INPUT
-    return contract.run(lambda: _run(args, argv), debug=args.debug)
+    return contract.command(parser(), argv, _run)
 
 
 if __name__ == "__main__":

@@ -236,12 +236,7 @@ def main(argv=None) -> int:
         see ``--help``. The planning times are in ``manifest.json``, so ``studies.json`` is the same bytes
         from one run to the next.
     """
-    argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        args = parser().parse_args(argv)
-    except SystemExit as stop:  # --help (0), or an option argparse refuses (2, one line printed)
-        return stop.code if isinstance(stop.code, int) else contract.BAD_INPUT
-    return contract.run(lambda: _run(args, argv), debug=args.debug)
+    return contract.command(parser(), argv, _run)
 
 
 __all__ = [

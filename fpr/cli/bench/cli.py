@@ -62,14 +62,10 @@ def main(argv=None) -> int:
     Returns:
         The exit code: 0, or 2 (a bad option), 3 (a bug), 130 (Ctrl-C).
     """
-    try:
-        args = parser().parse_args(argv)
-    except SystemExit as stop:  # --help (0), or an option argparse refuses (2, one line printed)
-        return stop.code if isinstance(stop.code, int) else contract.BAD_INPUT
-    return contract.run(lambda: _run(args), debug=args.debug)
+    return contract.command(parser(), argv, _run)
 
 
-def _run(args) -> int:
+def _run(args, argv) -> int:
     bench = Bench(repeats=3 if args.quick else 7, target=0.02 if args.quick else 0.05, progress=not args.json)
     info = dict(python=platform.python_version(), numpy=np.__version__, pinocchio=pin.__version__,
                 cpu_count=os.cpu_count(), platform=platform.platform())
