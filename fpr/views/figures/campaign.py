@@ -43,7 +43,7 @@ def success_figure(rows: list[dict], varied: list[str], title: str = ""):
     """Success against each varied column (see the module docstring); a Figure."""
     n = max(len(varied), 1)
     cols = 2 if n > 1 else 1
-    fig, axes = _new_figure(math.ceil(n / cols), cols, sharex=False)
+    fig, axes = _new_figure(math.ceil(n / cols), cols, sharex=False, width=STYLE["width"] * 1.25)
     ok = np.array([bool(r["success"]) for r in rows])
     jitter = np.random.default_rng(0).uniform(-0.04, 0.04, ok.size)
     bins = max(2, min(10, ok.size // 10))
@@ -59,15 +59,17 @@ def success_figure(rows: list[dict], varied: list[str], title: str = ""):
         ax.set_ylabel("success")
     for ax in axes[len(varied):]:
         ax.set_visible(False)
+    # one legend, beside the last column's first panel: a legend beside a left-column panel would cover the
+    # panel on its right (every panel has the same labels)
     return _finish(fig, title or f"success against the varied quantities ({ok.sum()} of {ok.size} runs)",
-                   axes[:len(varied)])
+                   axes[cols - 1:cols] if len(varied) >= cols else axes[:1])
 
 
 def outcomes_figure(rows: list[dict], chain: list[str], max_speed: float | None = None, title: str = ""):
     """Histograms of the numeric outcomes, successes and failures stacked; a Figure."""
     names = [f"max_error_{c}" for c in chain] + list(HISTOGRAMS)
     cols = 2
-    fig, axes = _new_figure(math.ceil(len(names) / cols), cols, sharex=False)
+    fig, axes = _new_figure(math.ceil(len(names) / cols), cols, sharex=False, width=STYLE["width"] * 1.25)
     good = [r for r in rows if not r["error"]]
     for ax, name in zip(axes[:len(names)], names, strict=True):
         values = [np.array([float(r[name]) for r in good if bool(r["success"]) == s]) for s in (True, False)]
@@ -80,7 +82,7 @@ def outcomes_figure(rows: list[dict], chain: list[str], max_speed: float | None 
         ax.set_ylabel("runs")
     for ax in axes[len(names):]:
         ax.set_visible(False)
-    return _finish(fig, title or f"outcomes of {len(good)} runs", axes[:1])
+    return _finish(fig, title or f"outcomes of {len(good)} runs", axes[cols - 1:cols])  # see success_figure
 
 
 def campaign_figures(out, rows: list[dict], varied: list[str], chain: list[str],
