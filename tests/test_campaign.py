@@ -10,6 +10,7 @@ import sys
 
 import numpy as np
 import pytest
+from helpers import SHORT_HOP
 from scipy import stats
 
 from fpr.model.errors import CampaignError
@@ -20,21 +21,11 @@ from fpr.robustness.spec import Campaign, parse_distribution
 from fpr.robustness.store import RunStore
 from fpr.robustness.summary import Z95, failure_kind, summarise, wilson_interval
 
-SHORT = """description = "a short hop of the prototype's drone, for tests"
-robot = "prototype"
-space = "task"
-arm = "down"
-way_points = [[1.2, -0.45], [1.2, -0.3]]
-times = [1.0]
-via_points = 0
-alpha = 0.5
-"""
-
 
 @pytest.fixture(scope="module")
 def short_mission(tmp_path_factory):
     path = tmp_path_factory.mktemp("mission") / "short.toml"
-    path.write_text(SHORT)
+    path.write_text(SHORT_HOP)
     return str(path)
 
 

@@ -14,21 +14,13 @@ import time
 
 import pyarrow.parquet as pq
 import pytest
+from helpers import SHORT_HOP
 
 from fpr.cli.campaign import main
 from fpr.robustness.runner import local_client, make_flight, mission_of, run_campaign
 from fpr.robustness.spec import Campaign
 from fpr.robustness.store import RunStore
 
-SHORT = """description = "a short hop of the prototype's drone, for tests"
-robot = "prototype"
-space = "task"
-arm = "down"
-way_points = [[1.2, -0.45], [1.2, -0.3]]
-times = [1.0]
-via_points = 0
-alpha = 0.5
-"""
 RUNS = 4
 DASK = shutil.which("dask", path=os.path.dirname(sys.executable)) or shutil.which("dask")
 
@@ -36,7 +28,7 @@ DASK = shutil.which("dask", path=os.path.dirname(sys.executable)) or shutil.whic
 @pytest.fixture(scope="module")
 def mission(tmp_path_factory):
     path = tmp_path_factory.mktemp("mission") / "short.toml"
-    path.write_text(SHORT)
+    path.write_text(SHORT_HOP)
     return str(path)
 
 

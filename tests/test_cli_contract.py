@@ -378,10 +378,11 @@ def test_studies_refuses_a_bad_out_before_the_work(tmp_path, capsys):
 
 def test_studies_keep_wall_times_out_of_studies_json():
     """The planning times go to the manifest, so that studies.json is the same bytes from run to run."""
-    from fpr.cli.studies import _split_times
+    from fpr.cli import studies
+    from fpr.cli.plan_files import split_timings
 
-    times = []
-    doc = _split_times({"via": {"cases": [{"J": 1.0, "wall_time": 0.25}, {"J": 2.0, "wall_time": 0.5}]},
-                        "wall_time": 3.0}, times)
+    assert studies.split_timings is split_timings  # the mechanism plan.json uses
+    doc = {"via": {"cases": [{"J": 1.0, "wall_time": 0.25}, {"J": 2.0, "wall_time": 0.5}]}, "wall_time": 3.0}
+    times = split_timings(doc)
     assert doc == {"via": {"cases": [{"J": 1.0}, {"J": 2.0}]}}
-    assert times == [("via/cases[0]", 0.25), ("via/cases[1]", 0.5), ("", 3.0)]
+    assert times == {"document": 3.0, "via.cases.0": 0.25, "via.cases.1": 0.5}

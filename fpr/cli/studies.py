@@ -25,6 +25,7 @@ import numpy as np
 
 from fpr.cli import contract
 from fpr.cli.output import OutputFolder, inputs_hash, manifest, write_manifest
+from fpr.cli.plan_files import split_timings
 from fpr.views.figures import alpha_study_figure, plan_figures, via_point_study_figure
 from fpr.views.figures.studies import APPENDIX_FIGURES
 from planners.mission import load_mission
@@ -141,21 +142,6 @@ def _json_safe(value):
     return value
 
 
-def _split_times(value, times: list, path: str = ""):
-    """``value`` without its wall times (``wall_time`` keys), which go to ``times`` as (path, seconds)."""
-    if isinstance(value, dict):
-        kept = {}
-        for key, item in value.items():
-            if key == "wall_time":
-                times.append((path, item))
-            else:
-                kept[key] = _split_times(item, times, f"{path}/{key}" if path else str(key))
-        return kept
-    if isinstance(value, list):
-        return [_split_times(item, times, f"{path}[{i}]") for i, item in enumerate(value)]
-    return value
-
-
 def _exit_codes() -> str:
     """fpr.plan's exit codes, with 1 unused: an infeasible case is a finding of a study, not a failure."""
     lines, out, skipping = contract.EXIT_CODES.splitlines(), [], False
@@ -209,12 +195,12 @@ def _run(args, argv) -> int:
             print(format_table(study.rows()))
             print()
         written = [] if args.no_plots else write_study_figures(tmp, via, alpha, comparison)
-        times: list = []
-        doc = _split_times(_json_safe(studies_document(via, alpha, comparison, quick=bool(args.quick))), times)
+        doc = _json_safe(studies_document(via, alpha, comparison, quick=bool(args.quick)))
+        times = split_timings(doc)  # to the manifest: studies.json is the same bytes from run to run
         (tmp / "studies.json").write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
         files = sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file())
         options = {"quick": bool(args.quick), "no_plots": bool(args.no_plots)}
-        timings = {"planning_s": dict(times), "total_s": round(time.perf_counter() - start, 3)}
+        timings = {"planning_s": times, "total_s": round(time.perf_counter() - start, 3)}
         write_manifest(tmp, manifest(parser().prog.split() + list(argv), inputs_hash("", options), started,
                                      time.perf_counter() - start, contract.OK,
                                      f"{len(via.cases) + len(alpha.cases) + len(comparison.cases)} cases planned",
