@@ -37,12 +37,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fpr.model.errors import PlannerArgumentError
+from planners.disturbance import RISE, DisturbedProblem, dense_check
 from planners.events import moved_positions
 from planners.methods.way_points import WayPointTask
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
 from planners.problem import MotionProblem
-from planners.report import evaluate_motion
-from planners.solving import Grid, solve_stage
+from planners.replan_solver import solve_warm
+from planners.solving import Grid
 
 #: Cost of the solver's work for the deterministic latency [s]: (per derivative evaluation per grid node,
 #: per value evaluation per grid node, per second of re-optimised motion: the dense check and the set-up).
@@ -72,13 +73,14 @@ class ReplanOptions:
 
     deadline: float = 0.05
     horizon: int = 1
-    max_iterations: int = 12
+    max_iterations: int = 3
     tolerance: float = 1e-3
-    samples_per_segment: int = 9
+    samples_per_segment: int = 7
     windows_per_segment: int = 4
-    dense_rate: float = 500.0
+    dense_rate: float = 100.0
     timing: str = "work"
     work_cost: tuple = WORK_COST
+    radius: float = 0.3
 
     def __post_init__(self):
         if not (np.isfinite(self.deadline) and self.deadline > 0):
@@ -201,6 +203,7 @@ class Replanner:
         self.normalisation = task.normalisation(self.grid)
         self.moves = moved_positions(self.mission, self.robot)
         self.changed: int | None = None
+        self.gusts: list = []
         self.replans: list[Replan] = []
         self.revisions: list[tuple[float, PiecewisePolynomial]] = []
 
@@ -209,6 +212,15 @@ class Replanner:
         event = self.mission.events[event_index]
         self.way_positions[event.way_point] = self.moves[event_index]
         self.changed = max(event.way_point, self.changed or 0)
+
+    def learn(self, event_index: int) -> None:
+        """The gust event ``mission.events[event_index]`` is known from now on: plans fly against it."""
+        event = self.mission.events[event_index]
+        if event not in self.gusts:
+            self.gusts.append(event)
+
+    def _gusts_within(self, begin: float, end: float) -> tuple:
+        return tuple(g for g in self.gusts if g.at < end and g.at + g.duration + RISE > begin)
 
     def _layout(self, t_s: float, j0: int, j_end: int):
         """Knot times and the way-point flag of the horizon t_s -> way point j_end."""
@@ -254,7 +266,9 @@ class Replanner:
         free = np.zeros(points.shape, dtype=bool)
         free[1:-1] = True
         free[1:-1, 0][is_way[1:-1]] = False  # way points keep their value
-        problem = MotionProblem(
+        gusts = self._gusts_within(t_s, float(times[-1]))
+        kind, extra = (DisturbedProblem, {"gusts": gusts, "start_time": t_s}) if gusts else (MotionProblem, {})
+        problem = kind(
             self.robot,
             points,
             np.diff(times),
@@ -263,6 +277,7 @@ class Replanner:
             self.normalisation,
             samples_per_segment=self.grid.samples_per_segment,
             windows_per_segment=self.grid.windows_per_segment,
+            **extra,
         )
         return problem, problem.x_of(points), times, j_end
 
@@ -300,29 +315,24 @@ class Replanner:
             record.why = "not used: no way point ahead of the splice"
             return record
         problem, x0, times, j_end = built
-        problem.evaluate(x0, derivatives=True)  # cached: serves the solver's first value and derivatives
-        x, stage = solve_stage(
-            problem,
-            x0,
-            f"replan at {t_0:.3f} s",
-            max_iterations=opt.max_iterations,
-            tolerance=opt.tolerance,
-            solver="sqp",
-        )
+        out = solve_warm(problem, x0, opt.max_iterations, opt.tolerance, opt.radius)
+        x = out.x
         part = PiecewisePolynomial(problem.points_of(x), problem.durations)
-        report = evaluate_motion(self.robot, part, opt.dense_rate)
+        feasible, violated, _ = dense_check(
+            self.robot, part, opt.dense_rate, t_s, self._gusts_within(t_s, float(times[-1]))
+        )
         record.solve_wall_s = time.perf_counter() - begin
         record.work = {
             "nodes": int(problem.t.size),
-            "derivative_evaluations": int(max(stage.gradient_evaluations, 1)),
-            "value_evaluations": int(max(stage.evaluations - stage.gradient_evaluations, 0)),
+            "derivative_evaluations": int(out.gradient_evaluations),
+            "value_evaluations": int(out.value_evaluations),
             "horizon_s": float(times[-1] - times[0]),
         }
         modelled = self.latency(record.work)
         record.latency_s = modelled if opt.timing == "work" else record.solve_wall_s
-        record.iterations, record.n_variables, record.J = stage.iterations, problem.n_x, float(stage.J_end)
-        record.feasible = bool(report.feasible)
-        record.violated = [c.name for c in report.violations]
+        record.iterations, record.n_variables, record.J = out.iterations, problem.n_x, out.J
+        record.feasible = bool(feasible)
+        record.violated = list(violated)
         if not record.feasible:
             record.why = f"not used: infeasible ({', '.join(record.violated)}); the plan in force stays"
         elif start is not None and not np.allclose(start, jet(self.trajectory, t_s), rtol=0.0, atol=1e-12):

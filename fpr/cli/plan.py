@@ -270,7 +270,8 @@ def _simulate(args, robot, final, out, sampled, written):
     shown_log = None if args.no_plots else log  # replans.json, and replanning.png unless --no-plots
     log.replanning = (hooks, done, replanning.write(out, hooks, done, written, shown_log, final))
     log.save(out / "simulation.npz")
-    margins = closed_loop_margins(final, log)
+    flown = final if done is None else done  # margins against the executed plan when --replan changed it
+    margins = closed_loop_margins(flown, log)
     (out / "simulation.json").write_text(json.dumps(simulation_document(log, margins), indent=1), encoding="utf-8")
     written.append("simulation.json")
     write_csv(out / "trajectory.csv", robot, sampled, log)
@@ -280,7 +281,7 @@ def _simulate(args, robot, final, out, sampled, written):
             options = _figure_options(final)
             options.pop("min_thrust")
             written += [f.name for f in simulation_figures(out, robot, log, sampled, **options)]
-            written.append(margins_figure(out / "sim_margins.png", margin_series(final, log)).name)
+            written.append(margins_figure(out / "sim_margins.png", margin_series(flown, log)).name)
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the results
             print(f"warning: simulation figures not written: {contract.one_line(error)}", file=sys.stderr)
     lost = f"the simulation lost the robot: {contract.one_line(failure)}" if failure else broken_message(margins)

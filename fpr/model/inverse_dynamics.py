@@ -98,7 +98,7 @@ def _motion_array(robot, motion) -> np.ndarray:
     return m
 
 
-def thrust_vectors(robot, motion: Jet, order: int | None = None) -> Jet:
+def thrust_vectors(robot, motion: Jet, order: int | None = None, external=None) -> Jet:
     """F = J_h^-T (M_s s'' + c_s) along a motion (planning model), Jet of shape (N, n_d, 2).
 
     The generalised force b = M_s s'' + c_s comes from the point-drone planar model; the solve
@@ -109,8 +109,13 @@ def thrust_vectors(robot, motion: Jet, order: int | None = None) -> Jet:
         robot: the :class:`~fpr.model.robot.Robot`.
         motion: s as a Jet of order K >= 2, shape (N, n_s).
         order: derivative order of the result (default K - 2).
+        external: the generalised force Q_ext of external forces on the chain (a gust), shape (N, n_s)
+            [N or N m] (constant: its time derivatives 0), or a Jet of it with its time derivatives, or
+            None: then J_h^T F = M_s s'' + c_s - Q_ext.
     """
     generalized = robot.planar("point").inverse_dynamics_jet(motion)
+    if external is not None:
+        generalized = generalized - (external if isinstance(external, Jet) else np.asarray(external))
     return robot.kind.thrust_vectors(motion, generalized, order)
 
 
@@ -137,7 +142,7 @@ def solve_thrust_vectors(robot, motion: Jet, generalized: Jet, order: int | None
 MOTION_ORDER = 6
 
 
-def roll_torques(robot, q, v, thrust, roll_acceleration) -> np.ndarray:
+def roll_torques(robot, q, v, thrust, roll_acceleration, external=None) -> np.ndarray:
     """Roll torques giving the drones the roll accelerations phi_i'' in the exact planar model.
 
     .. math:: \\tau_x = (S M^{-1} S^T)^{-1} \\left(\\ddot\\phi - S M^{-1} (B_f f - c)\\right)
@@ -150,6 +155,8 @@ def roll_torques(robot, q, v, thrust, roll_acceleration) -> np.ndarray:
         q, v: planar configuration and velocity ([chain..., rolls...]), shape (N, n).
         thrust: f_i, shape (N, n_d) [N].
         roll_acceleration: phi_i'', shape (N, n_d) [rad/s^2].
+        external: generalised force of external forces on the chain coordinates, shape (N, n_s), or None
+            (added to B_f f - c; zero on the rolls).
 
     Returns:
         tau_x of each drone, shape (N, n_d) [N m].
@@ -158,6 +165,9 @@ def roll_torques(robot, q, v, thrust, roll_acceleration) -> np.ndarray:
     m, c = rigid.mass_matrix_and_bias(q, v)
     sel = np.array(rigid.drone_angles)  # (n_d, n)
     gen = -c
+    if external is not None:
+        ext = external.value if isinstance(external, Jet) else np.asarray(external)
+        gen = gen + np.concatenate([ext, np.zeros(ext.shape[:-1] + (gen.shape[-1] - ext.shape[-1],))], axis=-1)
     for i, centre in enumerate(rigid.drone_centres):
         angle = q @ sel[i]
         body_z = np.stack([-np.sin(angle), np.cos(angle)], axis=-1)
@@ -169,7 +179,7 @@ def roll_torques(robot, q, v, thrust, roll_acceleration) -> np.ndarray:
     return np.linalg.solve(a_tau, (roll_acceleration - drift)[..., None])[..., 0]
 
 
-def inverse_dynamics(robot, motion) -> MotionInputs:
+def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
     """Thrusts, rolls, torques and rotor speeds along a motion of the chain.
 
     Args:
@@ -179,6 +189,10 @@ def inverse_dynamics(robot, motion) -> MotionInputs:
             5th and 6th derivatives) are used, and needed, where the robot kind says so
             (``kind.needs_high_derivatives``: the prototype near its Type-2 singularity, where the
             link tension is a limit).
+        external: generalised force Q_ext [N or N m] of known external forces (a gust) on the chain
+            coordinates at each sample, shape (N, n_s) (constant), or a Jet of it with its time
+            derivatives (then the roll rates and accelerations follow its changes), or None (:func:`thrust_vectors`): the drones then
+            fly the motion against it (J_h^T F = M_s s'' + c_s - Q_ext, and in the torques' exact model).
 
     Returns:
         the :class:`MotionInputs` at the N samples.
@@ -186,7 +200,7 @@ def inverse_dynamics(robot, motion) -> MotionInputs:
     m = _motion_array(robot, motion)
     near = robot.kind.needs_high_derivatives(m[0])
     s = Jet(m if near else m[:5])  # higher derivatives only where the robot's solve needs them
-    force = thrust_vectors(robot, s, order=2)
+    force = thrust_vectors(robot, s, order=2, external=external)
     fy, fz = force[..., 0], force[..., 1]
     thrust = jets.sqrt(fy * fy + fz * fz)
     roll = jets.atan2(-fy, fz)
@@ -197,7 +211,7 @@ def inverse_dynamics(robot, motion) -> MotionInputs:
 
     q = np.concatenate([m[0], roll.value], axis=-1)
     v = np.concatenate([m[1], roll.d[1]], axis=-1)
-    tau_x = roll_torques(robot, q, v, thrust.value, roll.d[2])
+    tau_x = roll_torques(robot, q, v, thrust.value, roll.d[2], external)
     torque = np.zeros(tau_x.shape + (3,), tau_x.dtype)
     torque[..., 0] = tau_x
     w2 = np.stack([rotor.speeds_squared(thrust.value[:, i], torque[:, i]) for i, rotor in enumerate(robot.rotors)],

@@ -108,13 +108,17 @@ class TriggerSettings:
             state [m or rad] (None: no such trigger).
         min_interval: least simulated time between two tracking-error replans [s].
         rate: fixed replanning rate [Hz], or None.
-        after_gust: replan from the robot's state when a gust event ends.
+        after_gust: replan (from the plan in force's state) when a gust event ends.
+        known_gusts: the replanner is told a gust's force when it starts (a forecast, a wind sensor) and
+            replans at once against it (:mod:`planners.disturbance`); off by default (README: it does
+            not remove the gust mission's saturation).
     """
 
     tracking_bound: float | None = 0.05
     min_interval: float = 0.25
     rate: float | None = None
     after_gust: bool = True
+    known_gusts: bool = False
 
 
 class InFlight:
@@ -147,6 +151,7 @@ class InFlight:
         self.controller = controller
         self.chain = np.asarray(chain)
         self._done = set()
+        self._known = set()
         self._last_tracking = -math.inf
         self._next_rate = None if not triggers.rate else 1.0 / triggers.rate
 
@@ -178,6 +183,10 @@ class InFlight:
                 self._done.add(i)
                 rp.move(i)
                 rp.replan(t, f"event: way point {event.way_point} moved to {list(event.to)}")
+            elif event.kind == "gust" and self.triggers.known_gusts and i not in self._known and event.at <= t + 1e-9:
+                self._known.add(i)  # the gust's force is known from its start (forecast, wind sensor)
+                rp.learn(i)
+                rp.replan(t, f"event: a gust of {list(event.force)} N on {event.body} starts (force known)")
             elif event.kind == "gust" and self.triggers.after_gust and event.at + event.duration <= t + 1e-9:
                 self._done.add(i)
                 rp.replan(t, "event: the gust is over")

@@ -1,0 +1,177 @@
+"""A known external force in the planning problem: the replanner plans *against* a gust.
+
+A gust (:class:`planners.events.GustEvent`) pushes with a constant world force F [N] on the robot kind's
+task point (the FPR's end-effector) or on a drone. In the planning model (the seed's point-mass drones,
+3.12) it is the generalised force Q_ext = J_p(s)^T F on the chain coordinates, J_p the Jacobian of the point
+it pushes (the task point: :meth:`fpr.robots.base.RobotKind.task_points`, differentiated by complex step;
+a drone: its joint, where the planning model puts its mass), and the drones must then give
+J_h^T F_drones = M_s s'' + c_s - Q_ext (:func:`fpr.model.inverse_dynamics.inverse_dynamics`'s
+``external``): the thrusts, rolls, torques and rotor speeds (3.48) of a motion flown in the gust.
+
+:class:`DisturbedProblem` is the planning NLP (:class:`planners.problem.MotionProblem`, same objective and
+constraints) with that force at its grid nodes; :func:`dense_check` is the dense-grid check of a motion
+with it. Q_ext is evaluated at the first guess's positions and kept fixed while the NLP is solved: exact
+for the FPR's end-effector (p = [y, z], J_p constant), an approximation for a force on a drone.
+
+What the replanner knows of the gust is said by the caller (:mod:`fpr.sim.replanning`): here the force is
+*given*.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.model.jets import Jet
+from planners.polynomial import PiecewisePolynomial
+from planners.problem import (
+    CONSTRAINT_KINDS,
+    POWER_SMOOTHING,
+    MotionProblem,
+    constraint_kind,
+    constraint_rows,
+    objective_rates,
+)
+from planners.report import FEASIBILITY_TOLERANCE
+
+_STEP = 1e-30
+
+
+def task_jacobian(robot, s) -> np.ndarray:
+    """d p / d s of the robot kind's task point p at samples s (N, n_s), shape (N, 2, n_s) [m/m, m/rad]."""
+    s = np.atleast_2d(np.asarray(s, dtype=float))
+    n = s.shape[-1]
+    out = np.empty(s.shape[:-1] + (2, n))
+    for j in range(n):
+        probe = s.astype(complex)
+        probe[..., j] += 1j * _STEP
+        out[..., j] = np.imag(np.asarray(robot.kind.task_points(probe)[0])) / _STEP
+    return out
+
+
+#: Rise time of the planned gust [s]: a step in the force cannot be flown (the drones must roll into it),
+#: so the plan and the feed-forward take it as a smoothed box, rising over RISE from the gust's start and
+#: falling over RISE from its end (:func:`gust_profile`).
+RISE = 0.5
+
+
+def _ramp(u, rise: float):
+    """C2 ramp 10u^3 - 15u^4 + 6u^5 of u in [0, 1] and its first two time derivatives (u = time / rise)."""
+    u = np.clip(u, 0.0, 1.0)
+    value = u**3 * (10.0 + u * (-15.0 + 6.0 * u))
+    rate = 30.0 * u**2 * (1.0 - u) ** 2 / rise
+    curvature = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / rise**2
+    return np.stack([value, rate, curvature])
+
+
+def gust_profile(gust, t, rise: float = RISE) -> np.ndarray:
+    """The planned share (0..1) of ``gust``'s force at times t [s] and its two time derivatives, (3, N):
+    a box from ``at`` to ``at + duration`` smoothed by a C2 ramp of ``rise`` [s] at both ends, lagging the
+    true force (``rise`` 0: the box itself)."""
+    t = np.asarray(t, dtype=float)
+    if rise <= 0:
+        box = ((gust.at <= t) & (t < gust.at + gust.duration)).astype(float)
+        return np.stack([box, 0.0 * box, 0.0 * box])
+    return _ramp((t - gust.at) / rise, rise) - _ramp((t - gust.at - gust.duration) / rise, rise)
+
+
+def generalized_gust(robot, gusts, t, s, rise: float = RISE) -> np.ndarray | None:
+    """Q_ext [N or N m] of the ``gusts`` at each time t (N,) [s], at positions s (N, n_s), with its first
+    two time derivatives: shape (3, N, n_s), or None when none pushes.
+
+    Only the in-plane components (world y, z) of each force act on the planar chain; each force is
+    weighted by its :func:`gust_profile` (``rise`` [s]). The derivatives are those of the profile (J_p
+    held: exact for the FPR's end-effector).
+    """
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    s = np.atleast_2d(np.asarray(s, dtype=float))
+    out, jac_task, jac_hinges = None, None, None
+    for gust in gusts:
+        on = gust_profile(gust, t, rise)
+        if not on.any():
+            continue
+        force = np.asarray(gust.force, dtype=float)[1:]  # (y, z)
+        index = gust.drone_index()
+        if index is None:
+            jac_task = task_jacobian(robot, s) if jac_task is None else jac_task
+            jac = jac_task
+        else:
+            if jac_hinges is None:
+                jac_hinges = robot.planar("point").hinge_jacobian(s)
+            jac = jac_hinges[..., 2 * index : 2 * index + 2, :]
+        q = np.einsum("nij,i->nj", jac, force)[None] * on[:, :, None]
+        out = q if out is None else out + q
+    return out
+
+
+class DisturbedProblem(MotionProblem):
+    """:class:`planners.problem.MotionProblem` flown against known gusts (module docstring).
+
+    Args:
+        *args, **kwargs: those of :class:`~planners.problem.MotionProblem`.
+        gusts: the gust events the planner knows.
+        start_time: the absolute time of the problem's first point [s] (its node times start at 0).
+    """
+
+    def __init__(self, *args, gusts=(), start_time: float = 0.0, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.gusts = tuple(gusts)
+        self.start_time = float(start_time)
+        first = self.motion(self.points)[0]
+        self.external = generalized_gust(self.robot, self.gusts, self.start_time + self.t, first)
+
+    def _external(self, n_samples: int):
+        if self.external is None:
+            return None
+        return Jet(np.tile(self.external, (1, n_samples // self.external.shape[1], 1)))  # perturbed node copies
+
+    def _quantities(self, motion):
+        """:meth:`MotionProblem._quantities` with the gusts' Q_ext (the same rows, the same order)."""
+        inputs = inverse_dynamics(self.robot, motion, external=self._external(motion.shape[1]))
+        power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)
+        rows, names, _ = constraint_rows(self.robot, motion, inputs, scaled=True, min_thrust=self.min_thrust)
+        self._rows_names = names
+        return np.concatenate([power, inputs.roll_rate], axis=-1), rows
+
+    def objective_terms(self, points) -> np.ndarray:
+        """[J_e, J_phi] of given points on the grid, in the gusts."""
+        motion = self.motion(points)
+        inputs = inverse_dynamics(self.robot, motion, external=self._external(motion.shape[1]))
+        return self.weights @ objective_rates(inputs, POWER_SMOOTHING)
+
+
+def dense_check(robot, part: PiecewisePolynomial, rate: float, start_time: float = 0.0, gusts=()):
+    """Every planning constraint of ``part`` at ``rate`` [Hz] plus its knots, flown in the ``gusts``.
+
+    The check of :func:`planners.report.evaluate_motion` (same rows, natural units, same tolerances), with
+    the gusts' Q_ext, and derivatives 0..4 only (no singularity crossing in a replanned part).
+
+    Args:
+        robot: the robot.
+        part: the motion, its time 0 at ``start_time`` [s] (absolute).
+        rate: sampling rate [Hz].
+        start_time: absolute time of the part's start [s] (when the gusts push).
+        gusts: known gust events.
+
+    Returns:
+        (feasible, the violated constraint names (worst first), the number of samples).
+    """
+    t = np.unique(np.concatenate([part.sample_times(rate), part.knots]))
+    motion = part.evaluate(t, order=4)
+    external = generalized_gust(robot, gusts, start_time + t, motion[0]) if gusts else None
+    inputs = inverse_dynamics(robot, motion, external=None if external is None else Jet(external))
+    rows, names, _ = constraint_rows(robot, motion, inputs, scaled=False)
+    worst = {}
+    for col, name in enumerate(names):
+        unit_tol = FEASIBILITY_TOLERANCE[_unit(name)]
+        margin = float(rows[:, col].min()) / unit_tol
+        worst[name] = min(worst.get(name, np.inf), margin)
+    bad = sorted((m, name) for name, m in worst.items() if m < -1.0)
+    return not bad, [name for _, name in bad], int(t.size)
+
+
+def _unit(name: str) -> str:
+    return CONSTRAINT_KINDS[constraint_kind(name)][0]
+
+
+__all__ = ["DisturbedProblem", "dense_check", "generalized_gust", "task_jacobian"]
