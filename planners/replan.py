@@ -73,7 +73,7 @@ class ReplanOptions:
 
     deadline: float = 0.05
     horizon: int = 1
-    max_iterations: int = 3
+    max_iterations: int = 2
     tolerance: float = 1e-3
     samples_per_segment: int = 7
     windows_per_segment: int = 4

@@ -1,0 +1,127 @@
+"""A known external force in the planning model (planners/disturbance.py), and the replanner's own SQP
+(planners/replan_solver.py)."""
+
+import numpy as np
+import pytest
+
+from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.model.jets import Jet
+from fpr.robots import load
+from planners.disturbance import DisturbedProblem, dense_check, generalized_gust, gust_profile
+from planners.events import GustEvent
+from planners.mission import load_mission
+from planners.optimize import plan
+from planners.polynomial import PiecewisePolynomial
+from planners.replan import Replanner, ReplanOptions
+from planners.replan_solver import qp_step, solve_warm
+from planners.report import evaluate_motion
+
+
+@pytest.fixture(scope="module")
+def moving():
+    mission = load_mission("moving-target")
+    return mission, plan(mission, "two-step")
+
+
+def _at_rest(robot, s):
+    motion = np.zeros((5, 1, len(s)))
+    motion[0, 0] = s
+    return motion
+
+
+@pytest.mark.parametrize("force", [(0.0, -8.0, 0.0), (0.0, 3.0, -12.0)])
+def test_drones_take_the_external_force_at_rest(force):
+    """Newton for the whole FPR at rest: the drones' thrusts change by exactly -F (independent of the model)."""
+    robot = load("fpr")
+    motion = _at_rest(robot, robot.kind.reference_chain)
+    gust = GustEvent(0.0, force, 1.0)
+    external = generalized_gust(robot, [gust], np.array([0.5]), motion[0], rise=0.0)[0]
+    calm = inverse_dynamics(robot, motion).thrust_vector.sum(axis=1)
+    pushed = inverse_dynamics(robot, motion, external=external).thrust_vector.sum(axis=1)
+    np.testing.assert_allclose(pushed - calm, -np.array(force)[None, 1:], atol=1e-10)
+
+
+def test_the_force_s_profile_drives_the_planned_roll_rates():
+    """With the ramp's time derivatives in the jet, roll rate = d roll / dt (finite differences)."""
+    robot = load("fpr")
+    t = np.linspace(0.9, 1.6, 3501)
+    motion = np.zeros((5, t.size, 4))
+    motion[0] = robot.kind.reference_chain
+    motion[0, :, 0] = 0.1 * np.sin(t)
+    motion[1, :, 0], motion[2, :, 0] = 0.1 * np.cos(t), -0.1 * np.sin(t)
+    motion[3, :, 0], motion[4, :, 0] = -0.1 * np.cos(t), 0.1 * np.sin(t)
+    gust = GustEvent(1.0, (0.0, -5.0, -3.0), 0.3)
+    profile = gust_profile(gust, t, 0.2)
+    np.testing.assert_allclose(np.gradient(profile[0], t)[5:-5], profile[1][5:-5], atol=2e-3 * np.abs(profile[1]).max())
+    inputs = inverse_dynamics(robot, motion, external=Jet(generalized_gust(robot, [gust], t, motion[0], rise=0.2)))
+    fd = np.gradient(inputs.roll, t, axis=0)
+    assert np.abs(inputs.roll_rate).max() > 0.5  # the ramp really rolls the drones
+    np.testing.assert_allclose(fd[5:-5], inputs.roll_rate[5:-5], atol=1e-3 * np.abs(inputs.roll_rate).max())
+
+
+def test_disturbed_problem_gradient_matches_finite_differences(moving):
+    """The perturbed copies of the nodes carry the node's force (tiling): exact derivatives, checked by FD."""
+    _, result = moving
+    replanner = Replanner(result, ReplanOptions())
+    replanner.move(0)
+    problem, x0, times, _ = replanner.problem(4.05)
+    gust = GustEvent(4.2, (0.0, -8.0, -4.0), 0.8)
+    disturbed = DisturbedProblem(problem.robot, problem.points, problem.durations, problem.free, problem.alpha,
+                                 problem.normalisation, samples_per_segment=problem.samples_per_segment,
+                                 gusts=[gust], start_time=4.05)
+    ev = disturbed.evaluate(x0, True)
+    assert abs(ev.J - problem.evaluate(x0).J) > 1e-3  # the force changes the objective
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        direction = rng.normal(size=x0.size)
+        h = 1e-6
+        fd = (disturbed.evaluate(x0 + h * direction).J - disturbed.evaluate(x0 - h * direction).J) / (2 * h)
+        assert fd == pytest.approx(ev.gradient @ direction, rel=1e-5, abs=1e-9)
+        cfd = (disturbed.evaluate(x0 + h * direction).constraints
+               - disturbed.evaluate(x0 - h * direction).constraints) / (2 * h)
+        smooth = np.abs(cfd - ev.jacobian @ direction) < 1e-4 * (1 + np.abs(cfd))  # window minima may switch
+        assert smooth.mean() > 0.95
+
+
+def test_dense_check_without_gusts_agrees_with_evaluate_motion(moving):
+    _, result = moving
+    part = result.trajectory
+    feasible, violated, n = dense_check(result.robot, part, 100.0)
+    report = evaluate_motion(result.robot, part, 100.0)
+    assert feasible == report.feasible and violated == [c.name for c in report.violations]
+    assert n == report.t.size
+    # a gust the offline plan was not made for: the check sees the rotors it needs
+    strong = GustEvent(3.0, (0.0, 0.0, -25.0), 3.0)
+    feasible, violated, _ = dense_check(result.robot, part, 100.0, 0.0, [strong])
+    assert not feasible and any(v.startswith("rotor_speed_high") for v in violated)
+
+
+def test_qp_step_without_active_constraints_is_the_newton_step():
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(6, 6))
+    hess = a @ a.T + 6 * np.eye(6)
+    grad = rng.normal(size=6)
+
+    class Ev:
+        gradient, hessian = grad, hess
+        constraints = np.full(4, 100.0)  # far from active: left out of the QP
+        jacobian = rng.normal(size=(4, 6))
+
+    d, predicted, multipliers = qp_step(Ev, radius=1e3, penalty=10.0)
+    newton = -np.linalg.solve(hess, grad)
+    np.testing.assert_allclose(d, newton, rtol=1e-6, atol=1e-9)
+    assert predicted == pytest.approx(-(grad @ newton + 0.5 * newton @ hess @ newton), rel=1e-6)
+    assert not multipliers.any()
+
+
+def test_warm_sqp_improves_within_its_cap_and_stays_feasible(moving):
+    _, result = moving
+    replanner = Replanner(result, ReplanOptions())
+    replanner.move(0)
+    problem, x0, _, _ = replanner.problem(4.05)
+    start = problem.evaluate(x0)
+    out = solve_warm(problem, x0, max_iterations=2)
+    assert out.iterations <= 2 and out.gradient_evaluations <= 2
+    assert out.J < start.J - 1e-3 and out.violation <= 1e-7
+    part = PiecewisePolynomial(problem.points_of(out.x), problem.durations)
+    assert dense_check(result.robot, part, 500.0)[0]
