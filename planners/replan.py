@@ -17,8 +17,12 @@ t_s = t_0 + deadline to the end of the horizon:
   point free, as in the 1-step method (seed 3.2.4);
 * the end of the horizon keeps the plan in force's jet (C4 with the rest of it), or rest at the end;
 * the same objective as the offline plan (alpha, and the offline normalisation J_e0, J_phi0 of the
-  mission's stop motion, 3.26) and the same constraints (margins, rolls, rotor speeds 3.48); the result
-  is checked on the dense grid (:func:`planners.report.evaluate_motion`) like every plan.
+  mission's stop motion, 3.26) and the same constraints (margins, rolls, rotor speeds 3.48), solved from
+  the plan in force by :func:`planners.replan_solver.solve_warm` (an explicit iteration cap); the result is
+  checked on a dense grid (:func:`planners.disturbance.dense_check`, the rows of
+  :func:`planners.report.evaluate_motion`);
+* gusts the replanner was told of (:meth:`Replanner.learn`) are in the inverse dynamics of the NLP and of
+  the check (:class:`planners.disturbance.DisturbedProblem`).
 
 **Deadline.** The solve must end before t_s in simulated time. Its wall time is measured on the
 machine and reported, but by default (``timing = "work"``) the used / not-used decision compares the
@@ -47,10 +51,10 @@ from planners.solving import Grid
 
 #: Cost of the solver's work for the deterministic latency [s]: (per derivative evaluation per grid node,
 #: per value evaluation per grid node, per second of re-optimised motion: the dense check and the set-up).
-#: Fitted by ``python -m fpr.bench --section replan`` to the wall times measured on this machine, scaled to
-#: the speed at which it plans the square (two-step) in 0.4 s (see the bench's module docstring).
-#: The most favourable of three fits under a load of 7-9 on 2 cores; the others were 3-4 times higher.
-WORK_COST = (2.2e-4, 0.0, 2.2e-3)
+#: Fitted (non-negative least squares) by ``python -m fpr.bench --section replan --quick`` to the wall times
+#: measured on this machine as they are (2 cores shared by three jobs, load average 4, one BLAS thread); the
+#: bench prints the ratio of this model to the measured latency (README "Replanning in flight").
+WORK_COST = (3.3e-3, 0.0, 4.2e-3)
 TIMINGS = ("work", "wall")
 
 
@@ -61,11 +65,12 @@ class ReplanOptions:
     Attributes:
         deadline: simulated time between the trigger and the splice, within which the solve must end [s].
         horizon: travels re-optimised past the last way point that changed (or past the next one).
-        max_iterations: SQP iteration cap of one replan (explicit, independent of the offline defaults).
+        max_iterations: SQP iteration cap of one replan (:func:`planners.replan_solver.solve_warm`).
         tolerance: the SQP stops when an iteration improves J by less than this.
-        samples_per_segment, windows_per_segment: the optimisation grid: 9 nodes per segment (the offline
-            planner uses 17) halves the solve; the dense check at ``dense_rate`` decides feasibility.
-        dense_rate: rate of the dense check of the new part [Hz].
+        samples_per_segment, windows_per_segment: the optimisation grid: 7 nodes per segment (the offline
+            planner uses 17); the dense check at ``dense_rate`` decides feasibility.
+        dense_rate: rate of the dense check of the new part [Hz] (plus its knots; README: why 100 Hz).
+        radius: the SQP's initial trust region (x's scaled units).
         timing: ``"work"`` (deterministic latency from the solver's work, :data:`WORK_COST`) or ``"wall"``
             (the measured wall time) for the used / not-used decision.
         work_cost: the costs of the ``"work"`` latency model [s] (:data:`WORK_COST`).

@@ -19,8 +19,12 @@ def moving():
     return mission, plan(mission, "two-step")
 
 
+#: A deadline the replans of this machine meet (the default 50 ms is shorter than they take here: README)
+DEADLINE = 0.3
+
+
 def _replanned(result, **options):
-    replanner = Replanner(result, ReplanOptions(samples_per_segment=9, **options))
+    replanner = Replanner(result, ReplanOptions(**{"samples_per_segment": 9, "deadline": DEADLINE, **options}))
     replanner.move(0)
     return replanner, replanner.replan(4.0, "event")
 
@@ -30,7 +34,7 @@ def test_splice_keeps_the_plan_before_and_is_c4_at_the_splice(moving):
     replanner, record = _replanned(result)
     assert record.used and record.feasible, record.why
     new, old, t_s = replanner.trajectory, result.trajectory, record.splice_time
-    assert t_s == pytest.approx(4.05)
+    assert t_s == pytest.approx(4.0 + DEADLINE)
     before = np.linspace(0.0, t_s, 400)
     np.testing.assert_allclose(new.evaluate(before, 4), old.evaluate(before, 4), rtol=0, atol=1e-9)
     # C4: value and derivatives 0..4 agree on both sides of the splice (each segment evaluated at its own end)

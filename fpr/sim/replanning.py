@@ -17,7 +17,10 @@ Triggers (with a :class:`planners.replan.Replanner`, ``--replan``):
   (C4). A start from the robot's own state was tried (bumpless for the controller: measured s, s', the
   commanded acceleration) and left out: the plan in force would jump at the splice, which a C4 piecewise
   polynomial cannot hold, and on the gust mission it did not remove the saturation (README);
-* **rate** (optional, ``rate`` Hz): from the plan in force's state, like an event.
+* **rate** (optional, ``rate`` Hz): from the plan in force's state, like an event;
+* **a known gust** (``known_gusts``, off by default): at a gust's start the replanner is *told* its force (a
+  forecast, a wind sensor: it is not estimated) and replans at once with it in the NLP's inverse dynamics
+  (:mod:`planners.disturbance`). It does not remove the gust mission's saturation (README).
 
 Without a replanner the gusts still push and the ``move`` events are ignored: the robot flies the offline
 plan, so both runs can be compared.
