@@ -125,3 +125,33 @@ def test_warm_sqp_improves_within_its_cap_and_stays_feasible(moving):
     assert out.J < start.J - 1e-3 and out.violation <= 1e-7
     part = PiecewisePolynomial(problem.points_of(out.x), problem.durations)
     assert dense_check(result.robot, part, 500.0)[0]
+
+
+def test_a_known_gust_is_learnt_at_its_start_and_planned_against():
+    """known_gusts: at the gust's start the replanner is told its force and replans with it in the NLP."""
+    from fpr.sim.closed_loop import SimulationSettings
+    from fpr.sim.replanning import InFlight, TriggerSettings
+
+    mission = load_mission("gust")
+    result = plan(mission, "two-step")
+    robot = result.robot
+    chain = [robot.index[c] for c in robot.layout.chain]
+    replanner = Replanner(result, ReplanOptions(deadline=0.25, work_cost=(0.0, 0.0, 0.0)))
+    hooks = InFlight(mission, replanner, TriggerSettings(tracking_bound=None, known_gusts=True),
+                     SimulationSettings().controller, chain, robot)
+    q = robot.configuration(**dict(zip(robot.layout.chain, result.trajectory.evaluate(np.array([3.9]), 0)[0, 0],
+                                       strict=True)))
+    reference = result.trajectory.evaluate(np.array([3.9]), 4)[:, 0]
+    assert hooks.after_tick(3.9, q, np.zeros(robot.nq), reference) is None and not replanner.replans
+    new = hooks.after_tick(4.0, q, np.zeros(robot.nq), reference)
+    [record] = replanner.replans
+    assert "force known" in record.trigger and replanner.gusts == [mission.events[0]]
+    problem = replanner.problem(record.splice_time)[0]
+    assert isinstance(problem, DisturbedProblem) and np.abs(problem.external).max() > 1.0
+    # planned against the force, the climb's rotors may not fit the limits in a short horizon: either way the
+    # record says so, and the plan in force changes only when the new part is used
+    assert record.used == (new is not None) and (record.used or "infeasible" in record.why)
+    # blind (the default): the same tick does not replan
+    blind = InFlight(mission, Replanner(result), TriggerSettings(tracking_bound=None), SimulationSettings().controller,
+                     chain, robot)
+    assert blind.after_tick(4.0, q, np.zeros(robot.nq), reference) is None and not blind.replans
