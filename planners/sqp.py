@@ -61,6 +61,7 @@ import numpy as np
 
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
+from planners.active_set import solve_step_qp
 from planners.problem import POWER_SMOOTHING
 
 # the portable build: its results do not depend on memory alignment (fpr.model.qp): plans repeat bit for bit
@@ -218,6 +219,13 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     c_k, a_k = c[keep] / norms, a[keep] / norms[:, None]
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
+    if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.active_set)
+        exact = solve_step_qp(hess + (1e-9 * max(np.trace(hess) / n, 1e-12)) * np.eye(n), ev.gradient, a_k, -c_k,
+                              radius)
+        if exact is not None:
+            d, lam = exact[0], np.zeros(c.size)
+            lam[keep] = exact[1] / norms
+            return d, -(ev.gradient @ d + 0.5 * d @ hess @ d), _violation(c + a @ d), lam
     scale = 1.0 / max(1.0, np.abs(hess).max())
     h = np.zeros((n + p, n + p))
     h[:n, :n] = (hess + (1e-9 * max(np.trace(hess) / n, 1e-12)) * np.eye(n)) * scale
