@@ -58,7 +58,7 @@ class PlanOptions:
     progress: Progress | None = field(default=None, compare=False)
     stop: str = "progress"
     kkt_tolerance: float = 1e-5
-    curvature: str = "gauss-newton"
+    curvature: str = "smoothed"
     polish: bool = True
 
     @property
@@ -77,7 +77,8 @@ class PlanOptions:
         """The :class:`~planners.sqp.SqpOptions` of these options."""
         return SqpOptions(max_iterations=self.max_iterations, tolerance=self.tolerance, stop=self.stop,
                           kkt_tolerance=self.kkt_tolerance, curvature=self.curvature,
-                          second_order=self.stop == "kkt" or self.curvature == "composite")
+                          second_order=self.stop == "kkt" or self.curvature == "composite",
+                          extrapolate=self.curvature == "smoothed")
 
 
 class PlanningMethod(Protocol):

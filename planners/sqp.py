@@ -62,14 +62,17 @@ import numpy as np
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
 from planners.active_set import solve_step_qp
+from planners.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
 from planners.problem import POWER_SMOOTHING
 
 # the portable build: its results do not depend on memory alignment (fpr.model.qp): plans repeat bit for bit
 proxsuite = proxsuite_module()
+import os
+_DEBUG = bool(os.environ.get('SQPDEBUG'))
 
 
 #: The curvature models of :class:`SqpOptions` (see the module docstring).
-CURVATURES = ("gauss-newton", "composite")
+CURVATURES = ("gauss-newton", "composite", "smoothed")
 #: The stopping rules of :class:`SqpOptions` (see the module docstring).
 STOPS = ("kkt", "progress")
 
@@ -96,11 +99,18 @@ class SqpOptions:
             KKT residual is at most ``kkt_tolerance``); :data:`STOPS`.
         kkt_tolerance: the KKT residual at which ``stop="kkt"`` converges (module docstring: J and x
             scaled to O(1), constraint rows to unit gradient).
-        curvature: ``"gauss-newton"`` or ``"composite"`` (:data:`CURVATURES`; the composite model
-            needs the problem's ``power`` fields, else it is Gauss-Newton with the BFGS correction).
+        curvature: ``"gauss-newton"``, ``"composite"`` or ``"smoothed"`` (:data:`CURVATURES`; the
+            composite model needs the problem's ``power`` fields, else it is Gauss-Newton with the BFGS
+            correction; ``"smoothed"`` (:mod:`planners.curvature`) too, else it is Gauss-Newton).
         second_order: after a rejected step that raised the constraint violation, try it once more with
             a second-order correction (the least-norm step back to the linearised working set): along
             curved constraints the l1 merit rejects good steps (the Maratos effect).
+        extrapolate: after an accepted step d whose actual merit decrease exceeds 1.25 times the
+            model's prediction, try 2 d and then 4 d and keep the best (one evaluation without
+            derivatives each): where the model overestimates the curvature (J_e is close to linear
+            along the step), this saves iterations.
+        power_width, majoriser_share: mu [W] and the majoriser's share of the ``"smoothed"`` curvature
+            (:func:`planners.curvature.power_curvature`).
     """
 
     max_iterations: int = 100
@@ -114,6 +124,9 @@ class SqpOptions:
     kkt_tolerance: float = 1e-5
     curvature: str = "gauss-newton"
     second_order: bool = False
+    extrapolate: bool = False
+    power_width: float = POWER_WIDTH
+    majoriser_share: float = MAJORISER_SHARE
 
     def __post_init__(self):
         if self.stop not in STOPS:
@@ -377,7 +390,8 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     """
     opt = options or SqpOptions()
     start = time.perf_counter()
-    if opt.curvature == "composite" and hasattr(problem, "power_model") and not problem.power_model:
+    if opt.curvature in ("composite", "smoothed") and hasattr(problem, "power_model") \
+            and not problem.power_model:
         problem.power_model = True  # the powers and their derivatives with every gradient
         problem._cache = None  # an evaluation cached without them
     x = np.asarray(x0, dtype=float).copy()
@@ -404,6 +418,8 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                 change = _model_gradient(ev, xi, composite) - ev.jacobian.T @ lam - before
                 model = damped_bfgs(model, step, change)
             correction, hessian = model - base, model
+        elif opt.curvature == "smoothed":
+            hessian = smoothed_hessian(ev, opt.power_width, opt.majoriser_share)
 
         def solve_qp(rho, ev=ev, hessian=hessian, composite=composite, radius=radius):
             if composite:
@@ -447,6 +463,18 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                     actual = merit - (trial.J + penalty * _violation(trial.constraints))
                     ratio = actual / predicted
         accepted = ratio > 0.1
+        if _DEBUG:
+            print(f"  it {it} ratio {ratio:.3f} radius {radius:.3g} |d| {np.abs(d).max():.3g} pred {predicted:.3g} J {ev.J:.5f} nact {int((multipliers > 0).sum())}")
+        if accepted and opt.extrapolate and ratio > 1.25:
+            # the model was pessimistic along d (J_e is close to linear there): try 2 d, then 4 d
+            for _ in range(2):
+                longer = problem.evaluate(x + 2.0 * d)
+                evaluations += 1
+                if longer.J + penalty * _violation(longer.constraints) >= \
+                        trial.J + penalty * _violation(trial.constraints):
+                    break
+                d, trial = 2.0 * d, longer
+            actual = merit - (trial.J + penalty * _violation(trial.constraints))
         if accepted:
             pending = (d, objective_gradient - ev.jacobian.T @ multipliers, multipliers, xi)
             x = x + d
