@@ -67,8 +67,6 @@ from planners.problem import POWER_SMOOTHING
 
 # the portable build: its results do not depend on memory alignment (fpr.model.qp): plans repeat bit for bit
 proxsuite = proxsuite_module()
-import os
-_DEBUG = bool(os.environ.get('SQPDEBUG'))
 
 
 #: The curvature models of :class:`SqpOptions` (see the module docstring).
@@ -463,8 +461,6 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                     actual = merit - (trial.J + penalty * _violation(trial.constraints))
                     ratio = actual / predicted
         accepted = ratio > 0.1
-        if _DEBUG:
-            print(f"  it {it} ratio {ratio:.3f} radius {radius:.3g} |d| {np.abs(d).max():.3g} pred {predicted:.3g} J {ev.J:.5f} nact {int((multipliers > 0).sum())}")
         if accepted and opt.extrapolate and ratio > 1.25:
             # the model was pessimistic along d (J_e is close to linear there): try 2 d, then 4 d
             for _ in range(2):
