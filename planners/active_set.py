@@ -1,4 +1,4 @@
-"""An exact solver of the SQP's step QP when few constraints are active: a primal-dual active-set guess.
+r"""An exact solver of the SQP's step QP when few constraints are active: a primal-dual active-set guess.
 
 The step QP of :mod:`planners.sqp` at a feasible point is
 
@@ -33,7 +33,9 @@ MAX_CHANGES = 60
 
 
 def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
-    """min 1/2 d^T H d + g^T d s.t. rows d >= lower, |d|_inf <= radius, or None (module docstring).
+    """The minimiser of 1/2 d^T H d + g^T d s.t. rows d >= lower, |d|_inf <= radius, or None.
+
+    See the module docstring.
 
     Args:
         hess: H (n, n), symmetric positive definite.
@@ -41,7 +43,8 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
         rows: A (m, n), best scaled to unit infinity norm.
         lower: b (m,); b <= 0 (d = 0 is feasible).
         radius: the trust-region radius Delta > 0.
-        working: indices into the m rows to start the working set with (e.g. the last QP's active rows), or None.
+        working: indices into the m rows to start the working set with (e.g. the last QP's active
+            rows), or None.
 
     Returns:
         (d (n,), multipliers (m,) >= 0 of the rows, the final working set of rows), or None.
@@ -93,7 +96,7 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
         worst = float(slack.min())
         if worst >= -ROW_TOLERANCE * max(1.0, float(np.abs(d).max())):
             multipliers = np.zeros(m)
-            for k, value in zip(work, lam):
+            for k, value in zip(work, lam, strict=True):
                 if k < m:
                     multipliers[k] = value
             return d, multipliers, [k for k in work if k < m]

@@ -50,7 +50,8 @@ class PlanOptions:
             damped BFGS correction: converges to the optimum in far fewer iterations, each far slower),
             see :mod:`planners.sqp`.
         polish: ``"two-step"`` only: after both steps (when they hold the grid's constraints and the
-            1-step NLP is neither step's), solve the 1-step NLP from the 2-step motion and keep it when its grid J is lower
+            1-step NLP is neither step's), solve the 1-step NLP from the 2-step motion and keep it when its
+            grid J is lower
             (:mod:`planners.methods.two_step`); False gives the thesis' 2-step method alone.
         one_step_start: ``"one-step"`` only: ``"way-points"`` (default: start from the motion whose
             way-point derivatives were optimised first, :func:`planners.methods.one_step.way_point_start`)

@@ -362,8 +362,8 @@ class MotionProblem:
         return np.concatenate([power, inputs.roll_rate], axis=-1), rows
 
     def _between_nodes(self, motion, rows):
-        """The workspace rows (the first columns of ``rows``) at each node or half a node spacing after it,
-        whichever is lower.
+        """The workspace rows (the first columns of ``rows``), the lower of a node's and half a spacing after it.
+
 
         The workspace margins depend on s alone, which is cheap to evaluate: s half a spacing h after a
         node is its Taylor polynomial there, sum_k s^(k) (h/2)^k / k! (the motion is C4 across knots).
@@ -459,7 +459,7 @@ class MotionProblem:
         return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess)
 
     def _assemble(self, curvature, local, free) -> np.ndarray:
-        """sum_i sum_q c_iq grad q_i grad q_i^T over the nodes i, in x's scaling, as a matrix of the free entries.
+        """Sum over nodes i and quantities q of c_iq grad q_i grad q_i^T, for the free entries in x's scaling.
 
         ``curvature`` c (N, Q) >= 0 and ``local`` (N, Q, 10 n): the derivatives of node i's quantities
         with respect to the entries of the two points of its segment. A segment's nodes share those

@@ -1,6 +1,9 @@
-"""A small trust-region SQP for the planning NLP: elastic QPs by ProxQP, the KKT residual.
+"""A small trust-region SQP for the planning NLP: elastic QPs, the KKT residual.
 
-Gauss-Newton curvature, or a composite model of J_e's absolute values with a damped BFGS correction.
+Gauss-Newton curvature, the "smoothed" model of J_e's absolute values (:mod:`planners.curvature`, the
+planner's default), or a composite model of them with a damped BFGS correction. At a feasible point the
+step QP is solved exactly by a short active-set sequence (:mod:`planners.active_set`); ProxQP takes the
+rest (infeasible points, ill-conditioned models).
 
 The planning objective is a weighted sum of integrals of squares (J_phi) and of absolute values
 (J_e) of per-sample quantities whose exact Jacobians :class:`planners.problem.MotionProblem`
@@ -17,7 +20,11 @@ with slacks s only on the constraints violated at x (always feasible), and accep
 J + rho * sum(max(0, -c)). Constraints that cannot become active inside the trust region
 (c_i > |A_i|_1 Delta) are left out of the QP, which keeps it small.
 
-**Curvature** (``SqpOptions.curvature``). ``"gauss-newton"`` (default): H is the problem's
+**Curvature** (``SqpOptions.curvature``). ``"smoothed"`` (:mod:`planners.curvature`; the default of
+:class:`planners.options.PlanOptions`, with ``extrapolate``): J_phi's Gauss-Newton matrix plus, for
+each |P_k|, the curvature of a wider smoothing sqrt(P^2 + mu^2) (mu = 0.1 W) and a tenth of the
+majoriser below; it reaches within 0.1 % of the best known J of the square, the tour and the study in
+20-26 iterations. ``"gauss-newton"`` (this class's default, the earlier rule): H is the problem's
 Gauss-Newton matrix, where J_e's |P| (drone powers P, seed 3.24) gets the reweighted majoriser
 a_e w |nabla P|^2 / |P|. It overestimates the curvature along the steps (accepted steps decrease the
 merit by twice the prediction) and converges linearly: the square one-step stops 1 % above the best
@@ -231,8 +238,8 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
     if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.active_set)
-        exact = solve_step_qp(hess + (1e-9 * max(np.trace(hess) / n, 1e-12)) * np.eye(n), ev.gradient, a_k, -c_k,
-                              radius)
+        regularised = hess + (1e-9 * max(np.trace(hess) / n, 1e-12)) * np.eye(n)
+        exact = solve_step_qp(regularised, ev.gradient, a_k, -c_k, radius)
         if exact is not None:
             d, lam = exact[0], np.zeros(c.size)
             lam[keep] = exact[1] / norms

@@ -59,7 +59,8 @@ def test_active_set_qp_matches_an_independent_solver_and_its_kkt_conditions(seed
 
 def test_active_set_qp_declines_a_singular_model():
     # no curvature at all: its range-space steps would lose everything to cancellation; ProxQP takes it
-    assert solve_step_qp(1e-21 * np.eye(2), np.ones(2), np.array([[-1.0, 0.0]]), np.array([-1.0]), 1.0) is None
+    rows, lower = np.array([[-1.0, 0.0]]), np.array([-1.0])
+    assert solve_step_qp(1e-21 * np.eye(2), np.ones(2), rows, lower, 1.0) is None
 
 
 def test_power_curvature_is_the_second_derivative_of_the_wider_smoothing_plus_a_share_of_the_majoriser():
@@ -68,7 +69,8 @@ def test_power_curvature_is_the_second_derivative_of_the_wider_smoothing_plus_a_
     f = lambda v: np.sqrt(v * v + width**2)  # noqa: E731
     second = (f(p + h) - 2 * f(p) + f(p - h)) / h**2
     majoriser = 1.0 / np.maximum(np.sqrt(p * p + POWER_SMOOTHING**2), POWER_CURVATURE_FLOOR)
-    np.testing.assert_allclose(power_curvature(p, width, share), second + share * majoriser, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(power_curvature(p, width, share), second + share * majoriser,
+                               rtol=1e-5, atol=1e-6)
 
 
 @pytest.fixture(scope="module")
