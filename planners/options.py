@@ -45,7 +45,7 @@ class PlanOptions:
             residual is reported either way (``StageReport.kkt``).
         kkt_tolerance: the KKT residual at which the SQP converges with ``stop="kkt"``.
         curvature: the SQP's Hessian model: ``"smoothed"`` (default, :mod:`planners.curvature`: J_e's |P|
-            with a wider smoothing, step extrapolation), ``"gauss-newton"`` (the earlier default: stops
+            with a wider smoothing), ``"gauss-newton"`` (the earlier default: stops
             about 1 % above the optimum) or ``"composite"`` (J_e's |P| piecewise linear in the QP, a
             damped BFGS correction: converges to the optimum in far fewer iterations, each far slower),
             see :mod:`planners.sqp`.
@@ -94,8 +94,7 @@ class PlanOptions:
         """The :class:`~planners.sqp.SqpOptions` of these options."""
         return SqpOptions(max_iterations=self.max_iterations, tolerance=self.tolerance, stop=self.stop,
                           kkt_tolerance=self.kkt_tolerance, curvature=self.curvature,
-                          second_order=self.stop == "kkt" or self.curvature == "composite",
-                          extrapolate=self.curvature == "smoothed")
+                          second_order=self.stop == "kkt" or self.curvature == "composite")
 
 
 class PlanningMethod(Protocol):

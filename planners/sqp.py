@@ -21,7 +21,7 @@ J + rho * sum(max(0, -c)). Constraints that cannot become active inside the trus
 (c_i > |A_i|_1 Delta) are left out of the QP, which keeps it small.
 
 **Curvature** (``SqpOptions.curvature``). ``"smoothed"`` (:mod:`planners.curvature`; the default of
-:class:`planners.options.PlanOptions`, with ``extrapolate``): J_phi's Gauss-Newton matrix plus, for
+:class:`planners.options.PlanOptions`): J_phi's Gauss-Newton matrix plus, for
 each |P_k|, the curvature of a wider smoothing sqrt(P^2 + mu^2) (mu = 0.1 W) and 5 % of the
 majoriser below; with the planner's defaults it ends within 0.2 % of the best known J of the square,
 the tour and the study (19-52 iterations). ``"gauss-newton"`` (this class's default, the earlier rule): H is the problem's
