@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
+from fpr.model.errors import PlannerArgumentError
 from planners.active_set import solve_step_qp
 from planners.curvature import power_curvature, smoothed_hessian
 from planners.methods import METHODS
@@ -123,3 +124,17 @@ def test_default_plans_of_the_square_end_within_0_3_percent_of_the_best_j_known(
     # the thesis' methods stop far from it: the earlier Gauss-Newton default ended 1 % above
     earlier = METHODS[method](mission, robot, PlanOptions(curvature="gauss-newton", one_step_start="stop"))
     assert result.J < earlier.J
+
+
+def test_one_step_start_option(square):
+    mission, robot, _ = square
+    with pytest.raises(PlannerArgumentError) as caught:
+        PlanOptions(one_step_start="random")
+    assert caught.value.value == "random" and "way-points" in str(caught.value)
+    short = {"max_iterations": 2, "max_refinements": 0}
+    default = METHODS["one-step"](mission, robot, PlanOptions(**short))
+    thesis = METHODS["one-step"](mission, robot, PlanOptions(one_step_start="stop", **short))
+    assert [s.name for s in default.stages] == ["start (way points)", "one-step"]
+    assert [s.name for s in thesis.stages] == ["one-step"]
+    # the 1-step solve starts from the way-point stage's result, below the stop motion's J
+    assert default.stages[1].J_start < thesis.stages[0].J_start
