@@ -1,6 +1,8 @@
-"""The pieces behind the planner's default at the optimum (issue 17, second round): the active-set step QP
-(planners.active_set), the "smoothed" curvature (planners.curvature), the workspace rows between grid
-nodes (planners.problem), and the default plans of the square against the best J known.
+"""The pieces behind the planner's default at the optimum (issue 17, second round).
+
+The active-set step QP (planners.active_set), the "smoothed" curvature (planners.curvature), the
+workspace rows between grid nodes (planners.problem), the one-step method's start, and the default plans
+of the square against the best J known.
 """
 
 from __future__ import annotations
