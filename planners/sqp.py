@@ -24,9 +24,9 @@ J + rho * sum(max(0, -c)). Constraints that cannot become active inside the trus
 :class:`planners.options.PlanOptions`): J_phi's Gauss-Newton matrix plus, for
 each |P_k|, the curvature of a wider smoothing sqrt(P^2 + mu^2) (mu = 0.1 W) and 5 % of the
 majoriser below; with the planner's defaults it ends within 0.2 % of the best known J of the square,
-the tour and the study (19-52 iterations). ``"gauss-newton"`` (this class's default, the earlier rule): H is the problem's
-Gauss-Newton matrix, where J_e's |P| (drone powers P, seed 3.24) gets the reweighted majoriser
-a_e w |nabla P|^2 / |P|. It overestimates the curvature along the steps (accepted steps decrease the
+the tour and the study (19-52 iterations). ``"gauss-newton"`` (this class's default, the earlier
+rule, which the replanner and the singularity crossing keep): H is the problem's Gauss-Newton
+matrix, where J_e's |P| (drone powers P, seed 3.24) gets the reweighted majoriser a_e w |nabla P|^2 / |P|. It overestimates the curvature along the steps (accepted steps decrease the
 merit by twice the prediction) and converges linearly: the square one-step stops 1 % above the best
 known J, and reaches 0.5036 only after 305 iterations (issue 17). ``"composite"``:
 J = a_phi J_phi + sum_k pw_k |P_k| is modelled as what it is, a smooth part plus a weighted l1 sum:
@@ -113,7 +113,7 @@ class SqpOptions:
         extrapolate: after an accepted step d whose actual merit decrease exceeds 1.25 times the
             model's prediction, try 2 d and then 4 d and keep the best (one evaluation without
             derivatives each): where the model overestimates the curvature (J_e is close to linear
-            along the step), this saves iterations.
+            along the step), it can save iterations (with the ``"smoothed"`` defaults it did not pay).
         power_width, majoriser_share: mu [W] and the majoriser's share of the ``"smoothed"`` curvature
             (:func:`planners.curvature.power_curvature`).
     """
