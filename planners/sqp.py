@@ -26,7 +26,8 @@ each |P_k|, the curvature of a wider smoothing sqrt(P^2 + mu^2) (mu = 0.1 W) and
 majoriser below; with the planner's defaults it ends within 0.2 % of the best known J of the square,
 the tour and the study (19-52 iterations). ``"gauss-newton"`` (this class's default, the earlier
 rule, which the replanner and the singularity crossing keep): H is the problem's Gauss-Newton
-matrix, where J_e's |P| (drone powers P, seed 3.24) gets the reweighted majoriser a_e w |nabla P|^2 / |P|. It overestimates the curvature along the steps (accepted steps decrease the
+matrix, where J_e's |P| (drone powers P, seed 3.24) gets the reweighted majoriser
+a_e w |nabla P|^2 / |P|. It overestimates the curvature along the steps (accepted steps decrease the
 merit by twice the prediction) and converges linearly: the square one-step stops 1 % above the best
 known J, and reaches 0.5036 only after 305 iterations (issue 17). ``"composite"``:
 J = a_phi J_phi + sum_k pw_k |P_k| is modelled as what it is, a smooth part plus a weighted l1 sum:
