@@ -32,7 +32,8 @@ from planners.solving import StageReport
 def plan(mission, method: str = "two-step", *, robot=None, progress=None, samples_per_segment: int = 17,
          windows_per_segment: int = 4, max_iterations: int = 100, tolerance: float = 1e-4,
          dense_rate: float = 500.0, solver: str = "sqp", max_refinements: int = 2, stop: str = "progress",
-         kkt_tolerance: float = 1e-5, curvature: str = "gauss-newton", polish: bool = True) -> PlanResult:
+         kkt_tolerance: float = 1e-5, curvature: str = "smoothed", polish: bool = True,
+         one_step_start: str = "way-points") -> PlanResult:
     """Plan ``mission`` with ``method`` (see the module docstring).
 
     Args:
@@ -43,9 +44,11 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
             (:func:`planners.methods.method_for`).
         robot: the robot (default ``mission.load_robot()``).
         progress, samples_per_segment, windows_per_segment, max_iterations, tolerance, dense_rate, solver,
-            max_refinements, stop, kkt_tolerance, curvature, polish: the :class:`~planners.options.PlanOptions`
+            max_refinements, stop, kkt_tolerance, curvature, polish, one_step_start: the
+            :class:`~planners.options.PlanOptions`
             given to the method (``curvature="composite", stop="kkt"``: closer to the optimum, slower;
-            ``polish=False``: the thesis' two-step method without the final one-step solve).
+            ``polish=False``: the thesis' two-step method without the final one-step solve;
+            ``one_step_start="stop"``: the thesis' one-step method, from the stop motion).
 
     Returns:
         the :class:`PlanResult`, its ``wall_time`` the whole call's (check ``feasible``; nothing is
@@ -61,7 +64,8 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
     options = PlanOptions(samples_per_segment=samples_per_segment, windows_per_segment=windows_per_segment,
                           max_iterations=max_iterations, tolerance=tolerance, dense_rate=dense_rate,
                           solver=solver, max_refinements=max_refinements, progress=progress, stop=stop,
-                          kkt_tolerance=kkt_tolerance, curvature=curvature, polish=polish)
+                          kkt_tolerance=kkt_tolerance, curvature=curvature, polish=polish,
+                          one_step_start=one_step_start)
     result = function(mission, robot, options)
     result.wall_time = time.perf_counter() - start
     return result

@@ -11,9 +11,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
+from fpr.model.errors import PlannerArgumentError
 from planners.result import PlanResult
 from planners.solving import Grid
 from planners.sqp import SqpOptions
+
+#: The starts of the one-step method (``PlanOptions.one_step_start``).
+ONE_STEP_STARTS = ("way-points", "stop")
 
 #: progress(stage_name, iteration, J, violation), called after every solver iteration.
 Progress = Callable[[str, int, float, float], None]
@@ -40,12 +44,18 @@ class PlanOptions:
             ``"kkt"`` (the KKT residual at most ``kkt_tolerance``), see :mod:`planners.sqp`; the KKT
             residual is reported either way (``StageReport.kkt``).
         kkt_tolerance: the KKT residual at which the SQP converges with ``stop="kkt"``.
-        curvature: the SQP's Hessian model, ``"gauss-newton"`` or ``"composite"`` (J_e's |P| piecewise
-            linear in the QP, a damped BFGS correction: converges to the optimum in far fewer
-            iterations, each far slower), see :mod:`planners.sqp`.
+        curvature: the SQP's Hessian model: ``"smoothed"`` (default, :mod:`planners.curvature`: J_e's |P|
+            with a wider smoothing), ``"gauss-newton"`` (the earlier default: stops
+            about 1 % above the optimum) or ``"composite"`` (J_e's |P| piecewise linear in the QP, a
+            damped BFGS correction: converges to the optimum in far fewer iterations, each far slower),
+            see :mod:`planners.sqp`.
         polish: ``"two-step"`` only: after both steps (when they hold the grid's constraints and the
-            1-step NLP is neither step's), solve the 1-step NLP from the 2-step motion and keep it when its grid J is lower
+            1-step NLP is neither step's), solve the 1-step NLP from the 2-step motion and keep it when its
+            grid J is lower
             (:mod:`planners.methods.two_step`); False gives the thesis' 2-step method alone.
+        one_step_start: ``"one-step"`` only: ``"way-points"`` (default: start from the motion whose
+            way-point derivatives were optimised first, :func:`planners.methods.one_step.way_point_start`)
+            or ``"stop"`` (the thesis: from the stop-at-every-way-point motion); :data:`ONE_STEP_STARTS`.
     """
 
     samples_per_segment: int = 17
@@ -58,8 +68,15 @@ class PlanOptions:
     progress: Progress | None = field(default=None, compare=False)
     stop: str = "progress"
     kkt_tolerance: float = 1e-5
-    curvature: str = "gauss-newton"
+    curvature: str = "smoothed"
     polish: bool = True
+    one_step_start: str = "way-points"
+
+    def __post_init__(self):
+        if self.one_step_start not in ONE_STEP_STARTS:
+            raise PlannerArgumentError("one_step_start", self.one_step_start,
+                                       f"one_step_start={self.one_step_start!r}: use one of "
+                                       f"{', '.join(ONE_STEP_STARTS)}")
 
     @property
     def grid(self) -> Grid:

@@ -356,8 +356,33 @@ class MotionProblem:
             sign = np.tile(self.crossing_sign, motion.shape[1] // self.crossing_sign.size)
         rows, names, _ = constraint_rows(self.robot, motion, inputs, scaled=True, crossing_sign=sign,
                                          min_thrust=self.min_thrust)
+        if sign is None:
+            rows = self._between_nodes(motion, rows)
         self._rows_names = names
         return np.concatenate([power, inputs.roll_rate], axis=-1), rows
+
+    def _between_nodes(self, motion, rows):
+        """The workspace rows (the first columns of ``rows``), the lower of a node's and half a spacing after it.
+
+
+        The workspace margins depend on s alone, which is cheap to evaluate: s half a spacing h after a
+        node is its Taylor polynomial there, sum_k s^(k) (h/2)^k / k! (the motion is C4 across knots).
+        Near the optimum a motion pushes against its workspace bounds, and a degree-9 motion dips
+        between nodes by about h^2 |s''| / 8 (2 mrad on the square's phi bound, more than the back-off):
+        the midpoints catch it on the optimisation grid instead of the dense check (and its grid refinement).
+        """
+        copies = motion.shape[1] // self.t.size
+        step = np.tile(0.5 * self.durations[self.segment] / (self.samples_per_segment - 1), copies)[:, None]
+        mid = sum(motion[k] * step**k / np.prod(np.arange(1, k + 1)) for k in range(N_DERIVS))
+        margins = self.robot.kind.workspace_margins(np.concatenate([motion[0], mid]))
+        if not margins:
+            return rows
+        cols = np.stack(list(margins.values()), axis=-1)
+        n, w = motion.shape[1], cols.shape[1]
+        rows = rows.copy() if rows.dtype == cols.dtype else rows.astype(np.result_type(rows, cols))
+        # complex values (complex-step derivatives) compare by their real parts first
+        rows[:, :w] = np.where(cols[n:].real < cols[:n].real, cols[n:], cols[:n])
+        return rows
 
     def _weights(self):
         return self.alpha / self.normalisation[0], (1.0 - self.alpha) / self.normalisation[1]
@@ -398,12 +423,12 @@ class MotionProblem:
             g_points = np.bincount(index.reshape(-1), g_local.reshape(-1), minlength=size)
             free = np.flatnonzero(self.free.reshape(-1))
             grad = g_points[free] * self.scale
-            hess = self._assemble(np.einsum("iq,iqv,iqw->ivw", curv, local, local), index, free)
+            hess = self._assemble(curv, local, free)
             if self.power_model:
                 # J_phi's part alone (the composite SQP models J_e's |P| piecewise linearly instead)
                 rate_local = local[:, n_d:]
-                rate_hess = self._assemble(
-                    np.einsum("i,iqv,iqw->ivw", 2 * a_phi * self.weights, rate_local, rate_local), index, free)
+                rate_hess = self._assemble((2 * a_phi * self.weights)[:, None] * np.ones(rate_local.shape[1]),
+                                           rate_local, free)
                 # the powers' derivatives with respect to x: (N n_d, n_x)
                 p_full = np.zeros((n_s, n_d, size))
                 rows_i = np.arange(n_s)[:, None, None]
@@ -433,10 +458,22 @@ class MotionProblem:
             return Evaluation(value, terms, constraints, grad, jac, hess)
         return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess)
 
-    def _assemble(self, h_local, index, free) -> np.ndarray:
-        """Sum per-node (N, 10 n, 10 n) blocks into the Hessian of the free entries, in x's scaling."""
+    def _assemble(self, curvature, local, free) -> np.ndarray:
+        """Sum over nodes i and quantities q of c_iq grad q_i grad q_i^T, for the free entries in x's scaling.
+
+        ``curvature`` c (N, Q) >= 0 and ``local`` (N, Q, 10 n): the derivatives of node i's quantities
+        with respect to the entries of the two points of its segment. A segment's nodes share those
+        entries: each segment's block is one product (its nodes' rows weighted by sqrt(c)), added at
+        its two points.
+        """
+        m = self.durations.size
+        width = local.shape[-1]
+        rows = (np.sqrt(curvature)[..., None] * local).reshape(m, -1, width)
+        blocks = np.matmul(rows.transpose(0, 2, 1), rows)  # (m, 10 n, 10 n)
+        half = width // 2
         h_points = np.zeros((self.points.size, self.points.size))
-        np.add.at(h_points, (index[:, :, None], index[:, None, :]), h_local)
+        for s in range(m):
+            h_points[s * half:s * half + width, s * half:s * half + width] += blocks[s]
         return h_points[np.ix_(free, free)] * np.outer(self.scale, self.scale)
 
     def objective_terms(self, points) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Solving one planning NLP (a *stage*), and solving again on a finer grid when the dense check asks for it.
 
-* :func:`solve_stage` runs the Gauss-Newton SQP of :mod:`planners.sqp` (or scipy's SLSQP with the
+* :func:`solve_stage` runs the trust-region SQP of :mod:`planners.sqp` (or scipy's SLSQP with the
   same exact gradients) on any NLP with the shape of :class:`planners.problem.MotionProblem`
   (``n_x``, ``evaluate(x, derivatives) -> Evaluation``) and reports it as a :class:`StageReport`.
 * :func:`solve_refining` is the grid refinement every optimising method shares: a motion that holds

@@ -115,8 +115,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--solver", default="sqp", choices=["sqp", "slsqp"],
                    help="NLP solver: Gauss-Newton SQP (ProxQP) or scipy SLSQP, both with exact gradients")
     p.add_argument("--optimal", action="store_true",
-                   help="the SQP with the composite curvature and the KKT stopping rule: within about 0.3 %% of "
-                        "the best J on the built-in missions, but 2-20x slower (see README, Optimality)")
+                   help="the SQP with the composite curvature and the KKT stopping rule: a KKT point to 1e-5, "
+                        "2-20x slower (the default ends within 0.3 %% of the best J known on the built-in "
+                        "missions too; see README, Optimality)")
     p.add_argument("--no-polish", action="store_true",
                    help="two-step: the thesis' method as it is, without the final one-step solve from its result")
     p.add_argument("--out", type=Path, default=None, help="output folder (default fpr-out/<mission>)")

@@ -31,7 +31,9 @@ MISSIONS = (("square", "square", {}), ("prototype-tour", "prototype-tour", {}),
 
 #: (name in the table, method, PlanOptions fields, also with --quick).
 PLANNERS = (
-    ("one-step", "one-step", {}, True),
+    ("one-step (default)", "one-step", {}, True),
+    ("one-step, thesis (GN, stop)", "one-step", {"curvature": "gauss-newton", "one_step_start": "stop"},
+     True),
     ("two-step (thesis, no polish)", "two-step", {"polish": False}, True),
     ("two-step (polished, default)", "two-step", {}, True),
     ("one-step, composite, KKT stop", "one-step",

@@ -1,7 +1,7 @@
 """Planning section of the benchmark (``python -m fpr.bench --section planning``), on the built-in
 ``square`` mission (n_vp = 1, alpha = 0.5), side by side in one run:
 
-a. ``plan(mission, "two-step")`` and b. ``plan(mission, "one-step")``: our exact-gradient Gauss-Newton
+a. ``plan(mission, "two-step")`` and b. ``plan(mission, "one-step")``: our exact-gradient trust-region
    SQP (median of 3 runs, 1 with ``--quick``);
 c. ``plan(mission, "one-step", solver="slsqp")``: the same NLP, scipy SLSQP with our exact gradients;
 d. a baseline mimicking the thesis' fmincon runs (:func:`planners.baseline.plan_baseline`): scipy
@@ -141,9 +141,9 @@ def run_planning(quick: bool, progress: bool) -> dict:
     plan(load_mission("study"), "two-step", robot=robot, max_iterations=2)  # warm up (imports, caches)
     items, results = [], {}
     for key, label, kwargs, repeats in (
-            ("two-step", "(a) two-step, SQP (exact gradients, Gauss-Newton)", {"method": "two-step"},
+            ("two-step", "(a) two-step, SQP (exact gradients, smoothed model)", {"method": "two-step"},
              settings["repeats"]),
-            ("one-step", "(b) one-step, SQP (exact gradients, Gauss-Newton)", {"method": "one-step"},
+            ("one-step", "(b) one-step, SQP (exact gradients, smoothed model)", {"method": "one-step"},
              settings["repeats"]),
             ("slsqp", "(c) one-step, scipy SLSQP (exact gradients)",
              {"method": "one-step", "solver": "slsqp"}, 1)):
@@ -157,10 +157,10 @@ def run_planning(quick: bool, progress: bool) -> dict:
         say(f"bench planning {label}: {fmt(items[-1]['wall_time_s'])}, J {items[-1]['J']:.4f}")
     # our results' J on the 1-step grid (same points layout: the via times are the same)
     problem = one_step_problem(WayPointTask.of(mission, robot), Grid())
-    x0 = problem.x_of(problem.points)
     grid_J = {k: float(problem.evaluate(problem.x_of(r.trajectory.points)).J) for k, r in results.items()}
-    start_J = results["one-step"].stages[0].J_start
-    consistent = bool(np.isclose(problem.evaluate(x0).J, start_J, rtol=1e-12, atol=0.0))
+    # the bench's NLP is the plan's: the same J at the plan's end (its last stage is the 1-step solve)
+    consistent = bool(np.isclose(grid_J["one-step"], results["one-step"].stages[-1].J_end, rtol=1e-12,
+                                 atol=0.0))
     cap = settings["baseline_cap_s"]
     say(f"bench planning (d) baseline: trust-constr with finite differences, capped at {cap:g} s")
     base = _baseline(mission, robot, cap, grid_J, progress)
