@@ -127,31 +127,48 @@ def test_warm_sqp_improves_within_its_cap_and_stays_feasible(moving):
     assert dense_check(result.robot, part, 500.0)[0]
 
 
-def test_a_known_gust_is_learnt_at_its_start_and_planned_against():
-    """known_gusts: at the gust's start the replanner is told its force and replans with it in the NLP."""
+def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_within_limits():
+    """The built-in gust (8 N along -y, rising over 1 s from 2 s, then steady): the replanner told of it replans
+    at its start and at each way point passed, not on the tracking error it causes, and the executed plan
+    flown in the wind holds every constraint (rotor speeds 3.48 included), where the offline plan in the same
+    wind needs rotor speeds below 0. Blind, it replans only on the tracking error."""
     from fpr.sim.closed_loop import SimulationSettings
     from fpr.sim.replanning import InFlight, TriggerSettings
+    from planners.disturbance import evaluate_in_gusts
 
     mission = load_mission("gust")
+    [gust] = mission.events
+    assert gust.rise > 0 and gust.at + gust.duration > sum(mission.times)  # sustained to the end
     result = plan(mission, "two-step")
     robot = result.robot
     chain = [robot.index[c] for c in robot.layout.chain]
-    replanner = Replanner(result, ReplanOptions(deadline=0.25, work_cost=(0.0, 0.0, 0.0)))
-    hooks = InFlight(mission, replanner, TriggerSettings(tracking_bound=None, known_gusts=True),
-                     SimulationSettings().controller, chain, robot)
-    q = robot.configuration(**dict(zip(robot.layout.chain, result.trajectory.evaluate(np.array([3.9]), 0)[0, 0],
-                                       strict=True)))
-    reference = result.trajectory.evaluate(np.array([3.9]), 4)[:, 0]
-    assert hooks.after_tick(3.9, q, np.zeros(robot.nq), reference) is None and not replanner.replans
-    new = hooks.after_tick(4.0, q, np.zeros(robot.nq), reference)
-    [record] = replanner.replans
-    assert "force known" in record.trigger and replanner.gusts == [mission.events[0]]
-    problem = replanner.problem(record.splice_time)[0]
-    assert isinstance(problem, DisturbedProblem) and np.abs(problem.external).max() > 1.0
-    # planned against the force, the climb's rotors may not fit the limits in a short horizon: either way the
-    # record says so, and the plan in force changes only when the new part is used
-    assert record.used == (new is not None) and (record.used or "infeasible" in record.why)
-    # blind (the default): the same tick does not replan
-    blind = InFlight(mission, Replanner(result), TriggerSettings(tracking_bound=None), SimulationSettings().controller,
-                     chain, robot)
-    assert blind.after_tick(4.0, q, np.zeros(robot.nq), reference) is None and not blind.replans
+
+    def fly(triggers):
+        replanner = Replanner(result, ReplanOptions(deadline=0.3, work_cost=(0.0, 0.0, 0.0)))
+        hooks = InFlight(mission, replanner, triggers, SimulationSettings().controller, chain, robot)
+        for t in (1.99, 2.0, 2.5, 3.0, 4.0, 6.0, 7.0, 9.0):
+            reference = replanner.trajectory.evaluate(np.array([t]), 4)[:, 0]
+            off = reference[0] + (0.0 if t < 2.0 else np.array([0.3, 0.0, 0.0, 0.0]))  # blown 30 cm off
+            q = robot.configuration(**dict(zip(robot.layout.chain, off, strict=True)))
+            hooks.after_tick(t, q, np.zeros(robot.nq), reference)
+        return replanner
+
+    known = fly(TriggerSettings())  # known_gusts is the default
+    assert [(r.time, r.trigger.split(":")[0]) for r in known.replans] == [
+        (2.0, "event"),
+        (3.0, "way point 1 passed in a known gust"),
+        (6.0, "way point 2 passed in a known gust"),
+        (9.0, "way point 3 passed in a known gust"),
+    ]
+    assert all(r.used for r in known.replans) and known.gusts == [gust]
+    offline = evaluate_in_gusts(robot, result.trajectory, [gust])
+    assert min(offline.constraints[f"rotor_speed_low_{i}"].margin for i in (1, 2)) < -50.0  # w < 0 needed
+    flown = evaluate_in_gusts(robot, known.trajectory, [gust])
+    assert flown.feasible, [c.name for c in flown.violations]
+    # without the wind the check is evaluate_motion's own
+    assert evaluate_in_gusts(robot, result.trajectory, []).constraints.keys() == evaluate_motion(
+        robot, result.trajectory
+    ).constraints.keys()
+    blind = fly(TriggerSettings(known_gusts=False))
+    assert blind.replans and all(r.trigger.startswith("tracking error") for r in blind.replans)
+    assert not blind.gusts

@@ -14,13 +14,19 @@ Triggers (with a :class:`planners.replan.Replanner`, ``--replan``):
   from the plan in force's own state at the splice (C4 with it: the planned rotor speeds do not jump);
 * **tracking error**: |measured - planned| of a chain coordinate past ``tracking_bound`` (at most once every
   ``min_interval``), and **the end of a gust**: re-optimised from the plan in force's state at the splice too
-  (C4). A start from the robot's own state was tried (bumpless for the controller: measured s, s', the
-  commanded acceleration) and left out: the plan in force would jump at the splice, which a C4 piecewise
-  polynomial cannot hold, and on the gust mission it did not remove the saturation (README);
+  (C4); not while a known gust blows (the error is then the wind's push, which the plan in force already
+  flies against: replanning every 0.25 s from the plan's state gave short, violent travels that
+  saturated the rotors). A start from the robot's own state was tried (bumpless for the controller:
+  measured s, s', the commanded acceleration) and left out: the plan in force would jump at the splice,
+  which a C4 piecewise polynomial cannot hold, and on a step gust it did not remove the saturation (README);
 * **rate** (optional, ``rate`` Hz): from the plan in force's state, like an event;
-* **a known gust** (``known_gusts``, off by default): at a gust's start the replanner is *told* its force (a
-  forecast, a wind sensor: it is not estimated) and replans at once with it in the NLP's inverse dynamics
-  (:mod:`planners.disturbance`). It does not remove the gust mission's saturation (README).
+* **a known gust** (``known_gusts``, on by default): at a gust's start the replanner is *told* its force and
+  profile (a forecast, a wind sensor: it is not estimated) and replans at once with it in the NLP's inverse
+  dynamics (:mod:`planners.disturbance`); then, while a known gust blows, it replans again each time the
+  robot passes a way point (the next travel enters the horizon and must be re-optimised against the wind
+  too). Against a sustained wind (a gust with a ``rise``, the built-in ``gust`` mission) this keeps the
+  rotors within their limits; against a short step blast it cannot help: the saturation there is the
+  controller's transient (README "Replanning in flight").
 
 Without a replanner the gusts still push and the ``move`` events are ignored: the robot flies the offline
 plan, so both runs can be compared.
@@ -113,15 +119,15 @@ class TriggerSettings:
         rate: fixed replanning rate [Hz], or None.
         after_gust: replan (from the plan in force's state) when a gust event ends.
         known_gusts: the replanner is told a gust's force when it starts (a forecast, a wind sensor) and
-            replans at once against it (:mod:`planners.disturbance`); off by default (README: it does
-            not remove the gust mission's saturation).
+            replans at once against it (:mod:`planners.disturbance`), and again at each way point passed
+            while it blows; False: blind (the gust is seen only through the tracking error).
     """
 
     tracking_bound: float | None = 0.05
     min_interval: float = 0.25
     rate: float | None = None
     after_gust: bool = True
-    known_gusts: bool = False
+    known_gusts: bool = True
 
 
 class InFlight:
@@ -157,6 +163,8 @@ class InFlight:
         self._known = set()
         self._last_tracking = -math.inf
         self._next_rate = None if not triggers.rate else 1.0 / triggers.rate
+        self._way_times = np.cumsum(mission.times)[:-1]  # the interior way points' times [s]
+        self._passed = 0  # interior way points passed so far
 
     @property
     def replans(self) -> list:
@@ -182,19 +190,28 @@ class InFlight:
         for i, event in enumerate(self.events):
             if i in self._done:
                 continue
-            if event.kind == "move" and event.at <= t + 1e-9:
+            starts = event.at <= t + 1e-9
+            if event.kind == "move" and starts:
                 self._done.add(i)
                 rp.move(i)
                 rp.replan(t, f"event: way point {event.way_point} moved to {list(event.to)}")
-            elif event.kind == "gust" and self.triggers.known_gusts and i not in self._known and event.at <= t + 1e-9:
+            elif event.kind == "gust" and self.triggers.known_gusts and i not in self._known and starts:
                 self._known.add(i)  # the gust's force is known from its start (forecast, wind sensor)
                 rp.learn(i)
                 rp.replan(t, f"event: a gust of {list(event.force)} N on {event.body} starts (force known)")
             elif event.kind == "gust" and self.triggers.after_gust and event.at + event.duration <= t + 1e-9:
                 self._done.add(i)
                 rp.replan(t, "event: the gust is over")
+        windy = any(g.active(t) for g in rp.gusts)
+        passed = int(np.searchsorted(self._way_times, t + 1e-9, side="right"))
+        if passed > self._passed:
+            self._passed = passed
+            if windy:  # the next travel enters the horizon: fly it in the wind
+                rp.replan(t, f"way point {passed} passed in a known gust")
         bound = self.triggers.tracking_bound
-        if bound is not None and t - self._last_tracking >= self.triggers.min_interval:
+        # in a known gust the tracking error is the wind's push, which the plan in force already flies
+        # against and a replan from the plan's state cannot remove: no tracking-error replans then
+        if bound is not None and not windy and t - self._last_tracking >= self.triggers.min_interval:
             error = np.abs(q[self.chain] - reference[0])
             if error.max() > bound:
                 self._last_tracking = t
