@@ -131,7 +131,8 @@ def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_
     """The built-in gust (8 N along -y, rising over 1 s from 2 s, then steady): the replanner told of it replans
     at its start and at each way point passed, not on the tracking error it causes, and the executed plan
     flown in the wind holds every constraint (rotor speeds 3.48 included), where the offline plan in the same
-    wind needs rotor speeds below 0. Blind, it replans only on the tracking error."""
+    wind needs rotor speeds below 0. Blind (neither told nor estimating), it replans only on the tracking
+    error."""
     from fpr.sim.closed_loop import SimulationSettings
     from fpr.sim.replanning import InFlight, TriggerSettings
     from planners.disturbance import evaluate_in_gusts
@@ -153,7 +154,7 @@ def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_
             hooks.after_tick(t, q, np.zeros(robot.nq), reference)
         return replanner
 
-    known = fly(TriggerSettings())  # known_gusts is the default
+    known = fly(TriggerSettings(known_gusts=True))
     assert [(r.time, r.trigger.split(":")[0]) for r in known.replans] == [
         (2.0, "event"),
         (3.0, "way point 1 passed in a known gust"),
@@ -169,6 +170,30 @@ def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_
     assert evaluate_in_gusts(robot, result.trajectory, []).constraints.keys() == evaluate_motion(
         robot, result.trajectory
     ).constraints.keys()
-    blind = fly(TriggerSettings(known_gusts=False))
+    blind = fly(TriggerSettings(estimate_wind=False))
     assert blind.replans and all(r.trigger.startswith("tracking error") for r in blind.replans)
     assert not blind.gusts
+
+
+def test_the_wind_estimate_reads_a_steady_held_error_as_the_force_on_the_end_effector():
+    """In a steady state the controller's feedback holds M_s^-1 Q_ext (fpr/sim/wind_estimate.py): an error
+    held at K_p e = M_s^-1 J_p^T F (no integral term, at rest) is read back as F, through the low-pass."""
+    import dataclasses
+
+    from controllers.ctc import ControllerSettings
+    from fpr.sim.wind_estimate import WindEstimator
+    from planners.disturbance import task_jacobian
+
+    robot = load("fpr")
+    settings = dataclasses.replace(ControllerSettings(), chain_integral=0.0)
+    s_d = np.array([0.3, 0.2, 4.0, 1.2])
+    force = np.array([0.0, -8.0, 2.5])
+    mass = np.asarray(robot.planar("point").mass_matrix(s_d[None]))[0]
+    push = np.linalg.solve(mass, task_jacobian(robot, s_d[None])[0].T @ force[1:])  # M_s^-1 Q_ext
+    error = push / settings.chain_frequency**2
+    estimator = WindEstimator(robot, settings, time_constant=0.5)
+    reference = np.stack([s_d - error, np.zeros(4)])  # the plan the robot is held off (s = s_d here)
+    history = [estimator.update(k * 0.002, s_d, np.zeros(4), reference)[1:].copy() for k in range(2001)]
+    # after one time constant about 1 - 1/e of it, then all of it (the mass matrix is taken at s)
+    np.testing.assert_allclose(history[250], (1 - np.exp(-1.0)) * force[1:], rtol=0.01)
+    np.testing.assert_allclose(history[-1], force[1:], rtol=1e-3)

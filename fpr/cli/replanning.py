@@ -2,9 +2,10 @@
 
 * options: ``--replan``, ``--replan-deadline`` (default 0.05 s of simulated time), ``--replan-bound``
   (tracking error that triggers a replan from the robot's state, default 0.05 m or rad), ``--replan-rate``
-  (an optional fixed rate [Hz]), ``--replan-wind`` (``known``, default: the replanner is told each gust's
-  force as it starts; ``blind``), ``--replan-timing`` (``work``: the deterministic latency, default;
-  ``wall``: the measured solve time, not reproducible bit for bit);
+  (an optional fixed rate [Hz]), ``--replan-wind`` (``estimated``, default: the replanner estimates a
+  steady wind from the tracking error; ``known``: it is told each gust's force as it starts; ``blind``),
+  ``--replan-timing`` (``work``: the deterministic latency, default; ``wall``: the measured solve time,
+  not reproducible bit for bit);
 * the simulation gets a :class:`fpr.sim.replanning.InFlight` when the mission has events or ``--replan``
   is given (gusts always push; ``move`` events need ``--replan``);
 * files: ``replans.json`` (each replan: time, trigger, splice time, latency against the deadline, J,
@@ -51,10 +52,11 @@ def add_arguments(group) -> None:
     group.add_argument("--replan-rate", type=float, default=None, help="also replan at this fixed rate [Hz]")
     group.add_argument(
         "--replan-wind",
-        choices=["known", "blind"],
-        default="known",
-        help="known: the replanner is told each gust's force as it starts (a forecast, a wind sensor) and "
-        "plans against it; blind: it sees a gust only through the tracking error",
+        choices=["known", "estimated", "blind"],
+        default="estimated",
+        help="estimated (default): the replanner estimates a steady force on the end-effector from the "
+        "tracking error and plans against it once it has held 1 s; known: it is told each gust's force as "
+        "it starts (a forecast, a wind sensor); blind: it sees a gust only through the tracking error",
     )
     group.add_argument(
         "--replan-timing",
@@ -107,6 +109,7 @@ def in_flight(args, final, settings):
         tracking_bound=args.replan_bound,
         rate=args.replan_rate,
         known_gusts=getattr(args, "replan_wind", "known") == "known",
+        estimate_wind=getattr(args, "replan_wind", "known") == "estimated",
     )
     return InFlight(
         mission, replanner, triggers, settings.controller, [robot.index[c] for c in robot.layout.chain], robot

@@ -42,7 +42,8 @@ import pinocchio as pin
 
 from fpr.model.errors import ModelArgumentError
 from fpr.sim.plant import Plant
-from planners.events import gust_force, moved_positions
+from fpr.sim.wind_estimate import WindEstimator
+from planners.events import END_EFFECTOR, GustEvent, gust_force, moved_positions
 from planners.replan import Replanner, jet
 
 
@@ -120,14 +121,23 @@ class TriggerSettings:
         after_gust: replan (from the plan in force's state) when a gust event ends.
         known_gusts: the replanner is told a gust's force when it starts (a forecast, a wind sensor) and
             replans at once against it (:mod:`planners.disturbance`), and again at each way point passed
-            while it blows; False: blind (the gust is seen only through the tracking error).
+            while it blows (off by default).
+        estimate_wind: (the default; ignored with ``known_gusts``) the replanner is not told the gusts but
+            estimates a steady force on the task point from the tracking error
+            (:class:`fpr.sim.wind_estimate.WindEstimator`); once the estimate has stayed above
+            ``estimate_threshold`` [N] for ``estimate_delay`` [s] it plans against it as a known gust
+            (replanning then, and at each way point passed with the estimate of that moment). Both off:
+            blind (a gust is seen only through the tracking error).
     """
 
     tracking_bound: float | None = 0.05
     min_interval: float = 0.25
     rate: float | None = None
     after_gust: bool = True
-    known_gusts: bool = True
+    known_gusts: bool = False
+    estimate_wind: bool = True
+    estimate_threshold: float = 1.0
+    estimate_delay: float = 1.0
 
 
 class InFlight:
@@ -164,6 +174,9 @@ class InFlight:
         self._last_tracking = -math.inf
         self._next_rate = None if not triggers.rate else 1.0 / triggers.rate
         self._way_times = np.cumsum(mission.times)[:-1]  # the interior way points' times [s]
+        estimate = triggers.estimate_wind and not triggers.known_gusts and replanner is not None
+        self.estimator = WindEstimator(self.robot, controller) if estimate else None
+        self._above_since = None  # when the estimate last rose above the threshold [s]
         self._passed = 0  # interior way points passed so far
 
     @property
@@ -202,11 +215,15 @@ class InFlight:
             elif event.kind == "gust" and self.triggers.after_gust and event.at + event.duration <= t + 1e-9:
                 self._done.add(i)
                 rp.replan(t, "event: the gust is over")
-        windy = any(g.active(t) for g in rp.gusts)
+        estimated = self._estimate(t, q, v, reference)
+        # a known gust blows, or the estimate has risen (the wind builds up): the error is the wind's
+        windy = any(g.active(t) for g in rp.gusts) or self._above_since is not None
         passed = int(np.searchsorted(self._way_times, t + 1e-9, side="right"))
         if passed > self._passed:
             self._passed = passed
-            if windy:  # the next travel enters the horizon: fly it in the wind
+            if any(g.active(t) for g in rp.gusts):  # the next travel enters the horizon: fly it in the wind
+                if rp._assumed is not None:
+                    rp.assume(self._estimated_gust(t, estimated))
                 rp.replan(t, f"way point {passed} passed in a known gust")
         bound = self.triggers.tracking_bound
         # in a known gust the tracking error is the wind's push, which the plan in force already flies
@@ -221,6 +238,29 @@ class InFlight:
             self._next_rate += 1.0 / self.triggers.rate
             rp.replan(t, "rate")
         return None if rp.trajectory is before else rp.trajectory
+
+    def _estimate(self, t: float, q, v, reference):
+        """Update the wind estimate and plan against it once it has held long enough; the estimate or None."""
+        if self.estimator is None:
+            return None
+        force = self.estimator.update(t, q[self.chain], v[self.chain], reference)
+        if np.linalg.norm(force) < self.triggers.estimate_threshold:
+            self._above_since = None
+            return force
+        if self._above_since is None:
+            self._above_since = t
+        if self.replanner._assumed is None and t - self._above_since >= self.triggers.estimate_delay - 1e-9:
+            gust = self._estimated_gust(t, force)
+            self.replanner.assume(gust)
+            said = [round(f, 2) for f in gust.force]
+            self.replanner.replan(t, f"wind estimated: {said} N on the end-effector")
+        return force
+
+    def _estimated_gust(self, t: float, force) -> GustEvent:
+        """The estimate as a gust blowing fully from t to past the end of the motion."""
+        end = float(np.sum(self.mission.times)) + 1e3
+        rise = 0.5  # planned fully on from t: the ramp ends at t
+        return GustEvent(t - rise, tuple(float(f) for f in force), end - (t - rise), END_EFFECTOR, rise)
 
 
 __all__ = ["ForcedPlant", "InFlight", "TriggerSettings", "jet"]
