@@ -20,13 +20,15 @@ Triggers (with a :class:`planners.replan.Replanner`, ``--replan``):
   measured s, s', the commanded acceleration) and left out: the plan in force would jump at the splice,
   which a C4 piecewise polynomial cannot hold, and on a step gust it did not remove the saturation (README);
 * **rate** (optional, ``rate`` Hz): from the plan in force's state, like an event;
-* **a known gust** (``known_gusts``, on by default): at a gust's start the replanner is *told* its force and
-  profile (a forecast, a wind sensor: it is not estimated) and replans at once with it in the NLP's inverse
-  dynamics (:mod:`planners.disturbance`); then, while a known gust blows, it replans again each time the
-  robot passes a way point (the next travel enters the horizon and must be re-optimised against the wind
-  too). Against a sustained wind (a gust with a ``rise``, the built-in ``gust`` mission) this keeps the
-  rotors within their limits; against a short step blast it cannot help: the saturation there is the
-  controller's transient (README "Replanning in flight").
+* **wind**: by default (``estimate_wind``) a steady force on the task point is estimated from the tracking
+  error (:class:`fpr.sim.wind_estimate.WindEstimator`) and, once it has held ``estimate_delay``, the
+  replanner plans against it; with ``known_gusts`` it is instead *told* each gust's force and profile at
+  the gust's start (a forecast, a wind sensor). Either way it replans then with the force in the NLP's
+  inverse dynamics (:mod:`planners.disturbance`), and again each time the robot passes a way point while
+  the wind blows (the next travel enters the horizon and must be re-optimised against the wind too).
+  Against a sustained wind (a gust with a ``rise``, the built-in ``gust`` mission) every closed-loop margin
+  then holds; against a short step blast it cannot help: the saturation there is the controller's
+  transient (README "Replanning in flight").
 
 Without a replanner the gusts still push and the ``move`` events are ignored: the robot flies the offline
 plan, so both runs can be compared.
