@@ -170,7 +170,7 @@ def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_
     assert evaluate_in_gusts(robot, result.trajectory, []).constraints.keys() == evaluate_motion(
         robot, result.trajectory
     ).constraints.keys()
-    blind = fly(TriggerSettings(estimate_wind=False))
+    blind = fly(TriggerSettings(known_gusts=False))  # estimate_wind is off by default
     assert blind.replans and all(r.trigger.startswith("tracking error") for r in blind.replans)
     assert not blind.gusts
 

@@ -20,12 +20,13 @@ Triggers (with a :class:`planners.replan.Replanner`, ``--replan``):
   measured s, s', the commanded acceleration) and left out: the plan in force would jump at the splice,
   which a C4 piecewise polynomial cannot hold, and on a step gust it did not remove the saturation (README);
 * **rate** (optional, ``rate`` Hz): from the plan in force's state, like an event;
-* **wind**: by default (``estimate_wind``) a steady force on the task point is estimated from the tracking
-  error (:class:`fpr.sim.wind_estimate.WindEstimator`) and, once it has held ``estimate_delay``, the
-  replanner plans against it; with ``known_gusts`` it is instead *told* each gust's force and profile at
-  the gust's start (a forecast, a wind sensor). Either way it replans then with the force in the NLP's
-  inverse dynamics (:mod:`planners.disturbance`), and again each time the robot passes a way point while
-  the wind blows (the next travel enters the horizon and must be re-optimised against the wind too).
+* **wind**: by default (``known_gusts``) the replanner is *told* each gust event's force and profile at
+  the gust's start (a forecast, a wind sensor); with ``estimate_wind`` instead (opt-in) a steady force on
+  the task point is estimated from the tracking error (:class:`fpr.sim.wind_estimate.WindEstimator`)
+  and, once it has held ``estimate_delay``, the replanner plans against it. Either way it replans then
+  with the force in the NLP's inverse dynamics (:mod:`planners.disturbance`), and again each time the
+  robot passes a way point while the wind blows (the next travel enters the horizon and must be
+  re-optimised against the wind too).
   Against a sustained wind (a gust with a ``rise``, the built-in ``gust`` mission) every closed-loop margin
   then holds; against a short step blast it cannot help: the saturation there is the controller's
   transient (README "Replanning in flight").
@@ -123,8 +124,8 @@ class TriggerSettings:
         after_gust: replan (from the plan in force's state) when a gust event ends.
         known_gusts: the replanner is told a gust's force when it starts (a forecast, a wind sensor) and
             replans at once against it (:mod:`planners.disturbance`), and again at each way point passed
-            while it blows (off by default).
-        estimate_wind: (the default; ignored with ``known_gusts``) the replanner is not told the gusts but
+            while it blows (the default).
+        estimate_wind: (opt-in; ignored with ``known_gusts``) the replanner is not told the gusts but
             estimates a steady force on the task point from the tracking error
             (:class:`fpr.sim.wind_estimate.WindEstimator`); once the estimate has stayed above
             ``estimate_threshold`` [N] for ``estimate_delay`` [s] it plans against it as a known gust
@@ -136,8 +137,8 @@ class TriggerSettings:
     min_interval: float = 0.25
     rate: float | None = None
     after_gust: bool = True
-    known_gusts: bool = False
-    estimate_wind: bool = True
+    known_gusts: bool = True
+    estimate_wind: bool = False
     estimate_threshold: float = 1.0
     estimate_delay: float = 1.0
 
