@@ -124,7 +124,9 @@ class TriggerSettings:
         after_gust: replan (from the plan in force's state) when a gust event ends.
         known_gusts: the replanner is told a gust's force when it starts (a forecast, a wind sensor) and
             replans at once against it (:mod:`planners.disturbance`), and again at each way point passed
-            while it blows (the default).
+            while it blows (the default). Only gusts with a ``rise``: a step blast is not planned against
+            (the plan cannot follow a step; on the previous 0.4 s step gust it made the saturation worse,
+            382 ticks instead of 2).
         estimate_wind: (opt-in; ignored with ``known_gusts``) the replanner is not told the gusts but
             estimates a steady force on the task point from the tracking error
             (:class:`fpr.sim.wind_estimate.WindEstimator`); once the estimate has stayed above
@@ -211,7 +213,7 @@ class InFlight:
                 self._done.add(i)
                 rp.move(i)
                 rp.replan(t, f"event: way point {event.way_point} moved to {list(event.to)}")
-            elif event.kind == "gust" and self.triggers.known_gusts and i not in self._known and starts:
+            elif event.kind == "gust" and self._plans_against(event) and i not in self._known and starts:
                 self._known.add(i)  # the gust's force is known from its start (forecast, wind sensor)
                 rp.learn(i)
                 rp.replan(t, f"event: a gust of {list(event.force)} N on {event.body} starts (force known)")
@@ -241,6 +243,10 @@ class InFlight:
             self._next_rate += 1.0 / self.triggers.rate
             rp.replan(t, "rate")
         return None if rp.trajectory is before else rp.trajectory
+
+    def _plans_against(self, gust) -> bool:
+        """The replanner is told of ``gust`` (``known_gusts``, and the gust has a rise: not a step)."""
+        return self.triggers.known_gusts and gust.rise > 0.0
 
     def _estimate(self, t: float, q, v, reference):
         """Update the wind estimate and plan against it once it has held long enough; the estimate or None."""
