@@ -233,6 +233,11 @@ class Replanner:
         self.gusts = [g for g in self.gusts if g is not self._assumed] + [gust]
         self._assumed = gust
 
+    @property
+    def assumed(self):
+        """The gust given by :meth:`assume` (e.g. the wind estimated in flight), or None."""
+        return self._assumed
+
     def _gusts_within(self, begin: float, end: float) -> tuple:
         return tuple(g for g in self.gusts if g.at < end and g.at + g.duration + RISE > begin)
 

@@ -197,3 +197,34 @@ def test_the_wind_estimate_reads_a_steady_held_error_as_the_force_on_the_end_eff
     # after one time constant about 1 - 1/e of it, then all of it (the mass matrix is taken at s)
     np.testing.assert_allclose(history[250], (1 - np.exp(-1.0)) * force[1:], rtol=0.01)
     np.testing.assert_allclose(history[-1], force[1:], rtol=1e-3)
+
+
+def test_an_estimated_wind_is_planned_against_once_it_has_held_and_silences_the_tracking_trigger():
+    """estimate_wind: a robot held 30 cm off the plan in y from 2 s reads as a steady force; the replanner
+    assumes it after ``estimate_delay`` (one replan, "wind estimated"), not before, and no tracking-error
+    replan fires while the estimate is up (the error is the wind's)."""
+    from fpr.sim.closed_loop import SimulationSettings
+    from fpr.sim.replanning import InFlight, TriggerSettings
+
+    mission = load_mission("gust")
+    result = plan(mission, "two-step")
+    robot = result.robot
+    chain = [robot.index[c] for c in robot.layout.chain]
+    replanner = Replanner(result, ReplanOptions(deadline=0.3, work_cost=(0.0, 0.0, 0.0)))
+    triggers = TriggerSettings(known_gusts=False, estimate_wind=True, tracking_bound=0.25)
+    hooks = InFlight(mission, replanner, triggers, SimulationSettings().controller, chain, robot)
+    offset = np.array([-0.3, 0.0, 0.0, 0.0])
+    for t in np.arange(1.5, 4.0, 0.002):
+        reference = replanner.trajectory.evaluate(np.array([t]), 4)[:, 0]
+        s = reference[0] + (offset if t >= 2.0 else 0.0)
+        q = robot.configuration(**dict(zip(robot.layout.chain, s, strict=True)))
+        v = np.zeros(robot.nq)
+        v[chain] = reference[1]
+        hooks.after_tick(float(t), q, v, reference)
+    records = [(r.time, r.trigger) for r in replanner.replans]
+    estimated = [t for t, why in records if why.startswith("wind estimated")]
+    assert len(estimated) == 1 and 3.0 <= estimated[0] <= 3.5, records  # 1 N reached within 0.5 s, held 1 s
+    assert replanner.assumed is not None and replanner.assumed.force[1] < -1.0  # pushed towards -y
+    # the first tracking replan comes before the estimate rises (30 cm > 0.25 from 2 s); none after it
+    tracking = [t for t, why in records if why.startswith("tracking")]
+    assert tracking and max(tracking) < estimated[0] - triggers.estimate_delay + 0.01

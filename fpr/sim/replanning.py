@@ -227,7 +227,7 @@ class InFlight:
         if passed > self._passed:
             self._passed = passed
             if any(g.active(t) for g in rp.gusts):  # the next travel enters the horizon: fly it in the wind
-                if rp._assumed is not None:
+                if rp.assumed is not None:
                     rp.assume(self._estimated_gust(t, estimated))
                 rp.replan(t, f"way point {passed} passed in a known gust")
         bound = self.triggers.tracking_bound
@@ -258,7 +258,7 @@ class InFlight:
             return force
         if self._above_since is None:
             self._above_since = t
-        if self.replanner._assumed is None and t - self._above_since >= self.triggers.estimate_delay - 1e-9:
+        if self.replanner.assumed is None and t - self._above_since >= self.triggers.estimate_delay - 1e-9:
             gust = self._estimated_gust(t, force)
             self.replanner.assume(gust)
             said = [round(f, 2) for f in gust.force]
