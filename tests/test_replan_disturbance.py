@@ -128,11 +128,13 @@ def test_warm_sqp_improves_within_its_cap_and_stays_feasible(moving):
 
 
 def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_within_limits():
-    """The built-in gust (8 N along -y, rising over 1 s from 2 s, then steady): the replanner told of it replans
-    at its start and at each way point passed, not on the tracking error it causes, and the executed plan
-    flown in the wind holds every constraint (rotor speeds 3.48 included), where the offline plan in the same
-    wind needs rotor speeds below 0. Blind (neither told nor estimating), it replans only on the tracking
-    error."""
+    """The built-in gust (8 N along -y, rising over 1 s from 2 s, then steady), told to the replanner.
+
+    It replans at the gust's start and at each way point passed, not on the tracking error the wind causes,
+    and the executed plan flown in the wind holds every constraint (rotor speeds 3.48 included), where the
+    offline plan in the same wind needs rotor speeds below 0. Blind (neither told nor estimating), it
+    replans only on the tracking error.
+    """
     from fpr.sim.closed_loop import SimulationSettings
     from fpr.sim.replanning import InFlight, TriggerSettings
     from planners.disturbance import evaluate_in_gusts
