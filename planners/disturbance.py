@@ -32,7 +32,7 @@ from planners.problem import (
     constraint_rows,
     objective_rates,
 )
-from planners.report import FEASIBILITY_TOLERANCE
+from planners.report import FEASIBILITY_TOLERANCE, ConstraintReport, MotionReport, evaluate_motion
 
 _STEP = 1e-30
 
@@ -65,10 +65,14 @@ def _ramp(u, rise: float):
 
 
 def gust_profile(gust, t, rise: float = RISE) -> np.ndarray:
-    """The planned share (0..1) of ``gust``'s force at times t [s] and its two time derivatives, (3, N):
-    a box from ``at`` to ``at + duration`` smoothed by a C2 ramp of ``rise`` [s] at both ends, lagging the
-    true force (``rise`` 0: the box itself)."""
+    """The planned share (0..1) of ``gust``'s force at times t [s] and its two time derivatives, (3, N).
+
+    A gust with its own onset (``gust.rise`` > 0) is planned as it blows (:meth:`GustEvent.strength`);
+    a step gust as a box from ``at`` to ``at + duration`` smoothed by a C2 ramp of ``rise`` [s] at both
+    ends, lagging the true force (``rise`` 0: the box itself)."""
     t = np.asarray(t, dtype=float)
+    if getattr(gust, "rise", 0.0) > 0.0:
+        return gust.strength(t)
     if rise <= 0:
         box = ((gust.at <= t) & (t < gust.at + gust.duration)).astype(float)
         return np.stack([box, 0.0 * box, 0.0 * box])
@@ -170,8 +174,41 @@ def dense_check(robot, part: PiecewisePolynomial, rate: float, start_time: float
     return not bad, [name for _, name in bad], int(t.size)
 
 
+def evaluate_in_gusts(robot, trajectory: PiecewisePolynomial, gusts, rate: float = 500.0):
+    """:func:`planners.report.evaluate_motion` of a motion flown in known ``gusts`` (absolute times [s]).
+
+    The same rows, sampling and report, with the gusts' Q_ext in the inverse dynamics (the rotor speeds
+    3.48 of the motion in the wind). No gusts: :func:`~planners.report.evaluate_motion` itself.
+    """
+    if not gusts:
+        return evaluate_motion(robot, trajectory, rate)
+    t = np.unique(np.concatenate([trajectory.sample_times(rate), trajectory.knots]))
+    motion = trajectory.evaluate(t, order=4)
+    external = generalized_gust(robot, gusts, t, motion[0])
+    inputs = inverse_dynamics(robot, motion, external=None if external is None else Jet(external))
+    rates = objective_rates(inputs)
+    rows, names, details = constraint_rows(robot, motion, inputs, scaled=False)
+    reports = {}
+    for name in dict.fromkeys(names):
+        cols = [c for c, n in enumerate(names) if n == name]
+        sub = rows[:, cols]
+        i, c = np.unravel_index(np.argmin(sub), sub.shape)
+        kind = constraint_kind(name)
+        reports[name] = ConstraintReport(
+            name, kind, float(sub[i, c]), float(t[i]), CONSTRAINT_KINDS[kind][0], details[cols[c]]
+        )
+    return MotionReport(
+        t,
+        motion[:5],
+        inputs,
+        float(np.trapezoid(rates[:, 0], t)),
+        float(np.trapezoid(rates[:, 1], t)),
+        reports,
+    )
+
+
 def _unit(name: str) -> str:
     return CONSTRAINT_KINDS[constraint_kind(name)][0]
 
 
-__all__ = ["DisturbedProblem", "dense_check", "generalized_gust", "task_jacobian"]
+__all__ = ["DisturbedProblem", "dense_check", "evaluate_in_gusts", "generalized_gust", "task_jacobian"]

@@ -15,7 +15,13 @@ A mission file may list ``[[events]]`` tables (TOML array of tables), each with 
 ``kind = "gust"``: an external force for a while.
     ``force`` (array of 3 numbers, required): [x, y, z] in world axes [N], finite.
     ``duration`` (number, required): how long it pushes [s], finite and > 0; the force is constant
-    from ``at`` to ``at + duration``.
+    from ``at`` to ``at + duration`` (a step on and off) unless ``rise`` is given.
+    ``rise`` (number, optional, default 0): onset and decay time [s], finite, >= 0 and at most half the
+    duration: the force grows from 0 to ``force`` over ``rise`` from ``at`` with the C2 ramp
+    10u^3 - 15u^4 + 6u^5 (u = (t - at) / rise; within 4.4 % of the force of the aviation standard 1 - cosine
+    discrete gust, and its rate and slope start and end at 0), holds, and falls back the same way over
+    the last ``rise`` of ``duration``. 0: today's step (a blast the controller can only fight); > 0: a
+    wind that builds up, which the controller's integral term and a replanner can follow.
     ``body`` (string, optional): where it pushes: ``"end_effector"`` (default; the robot kind's task
     point: the FPR's end-effector, the prototype's drone joint) or ``"drone_<i>"`` (the centre of mass
     of drone i, 1-based).
@@ -44,7 +50,7 @@ import numpy as np
 from fpr.model.errors import MissionError
 
 #: The kinds of event and the keys each takes (besides ``at`` and ``kind``), required first.
-EVENT_KEYS = {"move": (("way_point", "to"), ()), "gust": (("force", "duration"), ("body",))}
+EVENT_KEYS = {"move": (("way_point", "to"), ()), "gust": (("force", "duration"), ("body", "rise"))}
 END_EFFECTOR = "end_effector"
 
 
@@ -65,32 +71,68 @@ class MoveEvent:
 
 @dataclass(frozen=True)
 class GustEvent:
-    """A constant force ``force`` [N] (world x, y, z) on ``body`` from ``at`` for ``duration`` [s]."""
+    """A force ``force`` [N] (world x, y, z) on ``body`` from ``at`` for ``duration`` [s].
+
+    It is ramped on and off over ``rise`` [s] (0: a step; module docstring).
+    """
 
     at: float
     force: tuple
     duration: float
     body: str = END_EFFECTOR
+    rise: float = 0.0
 
     kind = "gust"
 
     def to_dict(self) -> dict:
         """Plain types, the keys of the file format."""
-        return {
+        out = {
             "at": self.at,
             "kind": self.kind,
             "force": list(self.force),
             "duration": self.duration,
             "body": self.body,
         }
+        if self.rise > 0.0:  # a step (the default) is written as before
+            out["rise"] = self.rise
+        return out
 
     def active(self, t: float) -> bool:
         """The gust pushes at time t [s] (at <= t < at + duration)."""
         return self.at <= t < self.at + self.duration
 
+    def strength(self, t) -> np.ndarray:
+        """The share (0..1) of ``force`` that pushes at times t [s], and its two time derivatives.
+
+        Returns:
+            [share, d/dt [1/s], d2/dt2 [1/s^2]], shape (3,) + shape of t: the ramp of ``rise`` at both
+            ends (a box for rise 0).
+        """
+        t = np.asarray(t, dtype=float)
+        if self.rise <= 0.0:
+            box = ((self.at <= t) & (t < self.at + self.duration)).astype(float)
+            return np.stack([box, 0.0 * box, 0.0 * box])
+        end = self.at + self.duration
+        return smooth_ramp((t - self.at) / self.rise, self.rise) - smooth_ramp(
+            (t - end) / self.rise + 1.0, self.rise
+        )
+
     def drone_index(self) -> int | None:
         """0-based drone index of ``body``, or None for the end-effector."""
         return None if self.body == END_EFFECTOR else int(self.body.split("_")[1]) - 1
+
+
+def smooth_ramp(u, rise: float) -> np.ndarray:
+    """The C2 ramp 10u^3 - 15u^4 + 6u^5 of u = (t - t_0) / rise, u clipped to [0, 1].
+
+    Returns:
+        [value, d/dt [1/s], d2/dt2 [1/s^2]], shape (3,) + shape of u.
+    """
+    u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
+    value = u**3 * (10.0 + u * (-15.0 + 6.0 * u))
+    rate = 30.0 * u**2 * (1.0 - u) ** 2 / rise
+    curvature = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / rise**2
+    return np.stack([value, rate, curvature])
 
 
 def _number(x) -> bool:
@@ -188,7 +230,13 @@ def parse_events(value, mission) -> tuple:
             body = item.get("body", END_EFFECTOR)
             if not isinstance(body, str) or not (body == END_EFFECTOR or _drone_name(body)):
                 raise error(f"{where}.body", f'{body!r}: use "end_effector" or "drone_<i>" (i = 1, 2...)')
-            events.append(GustEvent(at, force, float(duration), body))
+            rise = item.get("rise", 0.0)
+            if not _number(rise) or not (np.isfinite(rise) and 0.0 <= 2.0 * rise <= duration):
+                raise error(
+                    f"{where}.rise",
+                    f"{rise!r}: give an onset time [s] >= 0 and at most half the duration ({duration:g} s)",
+                )
+            events.append(GustEvent(at, force, float(duration), body, float(rise)))
     return tuple(sorted(events, key=lambda e: e.at))
 
 
@@ -243,12 +291,13 @@ def gust_force(events, t: float, n_drones: int) -> tuple[np.ndarray | None, np.n
     for event in events:
         if event.kind != "gust" or not event.active(t):
             continue
+        force = float(event.strength(t)[0]) * np.array(event.force)
         index = event.drone_index()
         if index is None:
-            tip = (np.zeros(3) if tip is None else tip) + np.array(event.force)
+            tip = (np.zeros(3) if tip is None else tip) + force
         elif index < n_drones:
             drones = np.zeros((n_drones, 3)) if drones is None else drones
-            drones[index] += np.array(event.force)
+            drones[index] += force
     return tip, drones
 
 
@@ -261,4 +310,5 @@ __all__ = [
     "gust_force",
     "moved_positions",
     "parse_events",
+    "smooth_ramp",
 ]

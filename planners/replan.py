@@ -209,6 +209,7 @@ class Replanner:
         self.moves = moved_positions(self.mission, self.robot)
         self.changed: int | None = None
         self.gusts: list = []
+        self._assumed = None
         self.replans: list[Replan] = []
         self.revisions: list[tuple[float, PiecewisePolynomial]] = []
 
@@ -223,6 +224,19 @@ class Replanner:
         event = self.mission.events[event_index]
         if event not in self.gusts:
             self.gusts.append(event)
+
+    def assume(self, gust) -> None:
+        """Plan against ``gust`` (a :class:`planners.events.GustEvent`, e.g. estimated in flight) from now on.
+
+        It replaces the gust assumed before; the gusts learnt from the mission stay.
+        """
+        self.gusts = [g for g in self.gusts if g is not self._assumed] + [gust]
+        self._assumed = gust
+
+    @property
+    def assumed(self):
+        """The gust given by :meth:`assume` (e.g. the wind estimated in flight), or None."""
+        return self._assumed
 
     def _gusts_within(self, begin: float, end: float) -> tuple:
         return tuple(g for g in self.gusts if g.at < end and g.at + g.duration + RISE > begin)

@@ -81,6 +81,23 @@ def test_toml_round_trip_keeps_events_and_sorts_them_by_time():
             "drone_<i>",
         ),
         ("gust", "events[0]", "table"),
+        (
+            {"at": 1.0, "kind": "gust", "force": [0, 1, 0], "duration": 1.0, "rise": -0.1},
+            "events[0].rise",
+            ">= 0",
+        ),
+        (
+            {"at": 1.0, "kind": "gust", "force": [0, 1, 0], "duration": 1.0, "rise": 0.6},
+            "events[0].rise",
+            "half the duration",
+        ),
+        (
+            {"at": 1.0, "kind": "gust", "force": [0, 1, 0], "duration": 1.0, "rise": float("nan")},
+            "events[0].rise",
+            "onset",
+        ),
+        ({"at": 1.0, "kind": "gust", "force": [0, 1, 0], "duration": 1.0, "rise": True}, "events[0].rise", "onset"),
+        ({"at": 1.0, "kind": "move", "way_point": 1, "to": S0, "rise": 0.5}, "events[0].rise", "unknown key"),
     ],
 )
 def test_every_field_is_validated_and_named(event, field, words):
@@ -117,3 +134,27 @@ def test_gust_force_is_on_only_during_its_window_and_adds_up():
     np.testing.assert_array_equal(tip, [0.0, 3.0, 0.0])
     np.testing.assert_array_equal(drones, [[0, 0, 0], [1.0, 0, 0]])
     assert gust_force(events, 1.5, 2) == (None, None)  # [at, at + duration)
+
+
+def test_a_gust_with_a_rise_builds_up_smoothly_and_its_rates_are_those_of_its_value():
+    """rise > 0: 0 at the start, the full force after ``rise``, back to 0 at the end; C2 (rates checked by
+    finite differences of the value), close to the 1 - cosine discrete gust; rise 0 keeps the step."""
+    gust = GustEvent(1.0, (0.0, -8.0, 0.0), 3.0, rise=0.8)
+    t = np.linspace(0.5, 4.5, 40001)
+    value, rate, curvature = gust.strength(t)
+    assert value[t < 1.0].max() == 0.0 and value[t >= 4.0].max() == 0.0
+    np.testing.assert_array_equal(value[(t >= 1.8) & (t <= 3.2)], 1.0)
+    h = t[1] - t[0]
+    np.testing.assert_allclose(np.gradient(value, h), rate, atol=1e-3)
+    np.testing.assert_allclose(np.gradient(rate, h), curvature, atol=2e-2)
+    onset = (t >= 1.0) & (t <= 1.8)
+    cosine = 0.5 * (1.0 - np.cos(np.pi * (t[onset] - 1.0) / 0.8))
+    assert np.abs(value[onset] - cosine).max() < 0.045  # 0.044: the ramp is steeper mid-way
+    tip, _ = gust_force((gust,), 1.4, 2)  # halfway up: half the force
+    np.testing.assert_allclose(tip, [0.0, -4.0, 0.0], atol=1e-12)
+    step = GustEvent(1.0, (0.0, -8.0, 0.0), 3.0)
+    np.testing.assert_array_equal(step.strength(np.array([0.99, 1.0, 3.99, 4.0]))[0], [0, 1, 1, 0])
+    # round trip: the rise is written when it is not 0, and a step gust is written as before
+    mission = _square([gust.to_dict(), step.to_dict()])
+    assert mission_from_toml(mission.to_toml()).events == mission.events
+    assert "rise" not in step.to_dict() and gust.to_dict()["rise"] == 0.8

@@ -53,3 +53,38 @@ def test_the_end_effector_gust_acts_at_the_task_point():
     plant = ForcedPlant.with_events((), robot, q)
     pin.forwardKinematics(plant.closed.model, plant.closed.data, plant.qc)
     np.testing.assert_allclose(plant.closed.data.oMi[plant.tip_joint].translation[1:], [0.3, 0.2], atol=1e-9)
+
+
+def test_the_gust_mission_keeps_every_margin_with_replanning_and_eats_one_without():
+    """The built-in gust (a sustained 8 N wind) in the closed loop: without replanning link 1 comes inside its
+    design margin (phi_low); with the replanner told the wind, every closed-loop margin holds (rotor speeds
+    under the planning limit, the ground, phi_low) and no rotor saturates; the executed plan holds every
+    constraint flown in the wind."""
+    from fpr.cli.replanning import executed
+    from fpr.sim.closed_loop import SimulationSettings, simulate
+    from fpr.sim.margins import broken, closed_loop_margins, eaten
+    from fpr.sim.replanning import InFlight, TriggerSettings
+    from planners.mission import load_mission
+    from planners.optimize import plan
+    from planners.replan import Replanner, ReplanOptions
+
+    mission = load_mission("gust")
+    result = plan(mission, "two-step")
+    robot = result.robot
+    settings = SimulationSettings()
+    chain = [robot.index[c] for c in robot.layout.chain]
+
+    without = InFlight(mission, None, TriggerSettings(), settings.controller, chain, robot)  # gusts push only
+    blind_log = simulate(result, settings, in_flight=without)
+    blind = closed_loop_margins(result, blind_log)
+    assert "phi_low" in [m.name for m in eaten(blind)] and not broken(blind)
+
+    replanner = Replanner(result, ReplanOptions(deadline=0.3))
+    hooks = InFlight(mission, replanner, TriggerSettings(), settings.controller, chain, robot)
+    log = simulate(result, settings, in_flight=hooks)
+    done = executed(result, hooks)
+    assert [r.used for r in replanner.replans] == [True] * 4 and done.report.feasible  # in the wind
+    margins = closed_loop_margins(done, log)
+    assert not eaten(margins) and not broken(margins), [m.name for m in eaten(margins)]
+    assert log.summary()["saturated_ticks"] == 0 and log.speed.max() <= log.speed_limit
+    assert log.failure is None and log.drone_height.min() > 0.3

@@ -2,8 +2,10 @@
 
 * options: ``--replan``, ``--replan-deadline`` (default 0.05 s of simulated time), ``--replan-bound``
   (tracking error that triggers a replan from the robot's state, default 0.05 m or rad), ``--replan-rate``
-  (an optional fixed rate [Hz]), ``--replan-timing`` (``work``: the deterministic latency, default;
-  ``wall``: the measured solve time, not reproducible bit for bit);
+  (an optional fixed rate [Hz]), ``--replan-wind`` (``known``, default: the replanner is told each gust's
+  force as it starts; ``estimated``: it estimates a steady wind from the tracking error; ``blind``),
+  ``--replan-timing`` (``work``: the deterministic latency, default; ``wall``: the measured solve time,
+  not reproducible bit for bit);
 * the simulation gets a :class:`fpr.sim.replanning.InFlight` when the mission has events or ``--replan``
   is given (gusts always push; ``move`` events need ``--replan``);
 * files: ``replans.json`` (each replan: time, trigger, splice time, latency against the deadline, J,
@@ -22,9 +24,9 @@ import numpy as np
 from fpr.cli.checks import CommandLineError
 from fpr.sim.replanning import InFlight, TriggerSettings
 from fpr.views.figures.replanning import write_replanning_figure
+from planners.disturbance import evaluate_in_gusts
 from planners.events import moved_positions
 from planners.replan import TIMINGS, Replanner, ReplanOptions
-from planners.report import evaluate_motion
 
 
 def add_arguments(group) -> None:
@@ -48,6 +50,14 @@ def add_arguments(group) -> None:
         help="tracking error of a chain coordinate that triggers a replan [m or rad]",
     )
     group.add_argument("--replan-rate", type=float, default=None, help="also replan at this fixed rate [Hz]")
+    group.add_argument(
+        "--replan-wind",
+        choices=["known", "estimated", "blind"],
+        default="known",
+        help="known (default): the replanner is told each gust's force as it starts (a forecast, a wind "
+        "sensor); estimated: it estimates a steady force on the end-effector from the tracking error and "
+        "plans against it once it has held 1 s; blind: it sees a gust only through the tracking error",
+    )
     group.add_argument(
         "--replan-timing",
         choices=list(TIMINGS),
@@ -95,7 +105,12 @@ def in_flight(args, final, settings):
     replanner = None
     if replan:
         replanner = Replanner(final, ReplanOptions(deadline=args.replan_deadline, timing=args.replan_timing))
-    triggers = TriggerSettings(tracking_bound=args.replan_bound, rate=args.replan_rate)
+    triggers = TriggerSettings(
+        tracking_bound=args.replan_bound,
+        rate=args.replan_rate,
+        known_gusts=getattr(args, "replan_wind", "known") == "known",
+        estimate_wind=getattr(args, "replan_wind", "known") == "estimated",
+    )
     return InFlight(
         mission, replanner, triggers, settings.controller, [robot.index[c] for c in robot.layout.chain], robot
     )
@@ -104,14 +119,16 @@ def in_flight(args, final, settings):
 def executed(final, hooks):
     """The executed plan as a :class:`planners.result.PlanResult`, or None when nothing was replanned.
 
-    The executed plan is the plan in force at each instant, checked on the dense grid.
+    The executed plan is the plan in force at each instant, checked on the dense grid (in the gusts the
+    replanner was told of: :func:`planners.disturbance.evaluate_in_gusts`).
     """
     if hooks is None or hooks.replanner is None or hooks.replanner.trajectory is final.trajectory:
         return None
     trajectory = hooks.replanner.trajectory
     ways = np.concatenate([[0.0], np.cumsum(final.mission.times)])
     is_way = np.array([bool(np.isclose(ways, k, atol=1e-9).any()) for k in trajectory.knots])
-    report = evaluate_motion(final.robot, trajectory, 500.0)
+    gusts = tuple(hooks.replanner.gusts)  # the known gusts: the plan is checked in the wind it was made for
+    report = evaluate_in_gusts(final.robot, trajectory, gusts, 500.0)
     return dataclasses.replace(final, trajectory=trajectory, is_way=is_way, report=report, stages=[])
 
 
