@@ -58,7 +58,8 @@ class PlanarPoint:
     def _rotated(self, q):
         """Components (y, z) of each Rot(a_k.q + b_k) v_k, each of shape (..., K)."""
         th = jets.inexact(q) @ self.rows.T + self.offsets
-        return _rotate(np.cos(th), np.sin(th), self.vectors)
+        sin, cos = jets.sin_cos_value(th)
+        return _rotate(cos, sin, self.vectors)
 
     def position(self, q) -> np.ndarray:
         """p(q), shape (..., 2) [m]."""
@@ -67,14 +68,24 @@ class PlanarPoint:
 
     def jacobian(self, q) -> np.ndarray:
         """dp/dq, shape (..., 2, n)."""
-        y, z = self._rotated(q)  # d/dtheta Rot(theta) v = Rot(theta + pi/2) v = (-z, y)
+        return self._jacobian_of(*self._rotated(q))
+
+    def _jacobian_of(self, y, z):
+        # d/dtheta Rot(theta) v = Rot(theta + pi/2) v = (-z, y)
         return np.stack([-z @ self.rows, y @ self.rows], axis=-2) + self.selector
 
     def bias(self, q, v) -> np.ndarray:
         """dJ/dt qdot = -sum_k Rot(theta_k) v_k (a_k . qdot)^2, shape (..., 2) [m/s^2]."""
-        y, z = self._rotated(q)
+        return self._bias_of(v, *self._rotated(q))
+
+    def _bias_of(self, v, y, z):
         w2 = (jets.inexact(v) @ self.rows.T) ** 2
         return -np.stack([(y * w2).sum(-1), (z * w2).sum(-1)], axis=-1)
+
+    def jacobian_and_bias(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`jacobian` and :meth:`bias` from one evaluation of the rotations."""
+        y, z = self._rotated(q)
+        return self._jacobian_of(y, z), self._bias_of(v, y, z)
 
     def _rotated_jet(self, q: Jet):
         d = q.d @ self.rows.T
@@ -255,8 +266,12 @@ class PlanarModel:
 
     def mass_matrix_and_bias(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """M(q) and c(q, qdot) together, the body Jacobians computed once."""
-        jacobians = self._com_jacobians(q)
-        return self._mass_matrix(jacobians), self._bias(q, v, jacobians)
+        both = [b.com.jacobian_and_bias(q, v) for b in self.bodies]
+        jacobians = [jac for jac, _ in both]
+        c = np.zeros(jacobians[0].shape[:-2] + (self.n,), np.result_type(jacobians[0], jets.inexact(v)))
+        for b, (jac, bias) in zip(self.bodies, both):
+            c += b.mass * np.einsum("...in,...i->...n", jac, bias - self._g)
+        return self._mass_matrix(jacobians), c
 
     def inverse_dynamics(self, q, v, a) -> np.ndarray:
         """Generalised force M a + c, shape (..., n)."""
