@@ -151,11 +151,24 @@ class Jet:
         return Jet(self.d[(slice(None),) + (key if isinstance(key, tuple) else (key,))])
 
     def truncate(self, order):
-        """Keep derivatives ``0..order`` only."""
+        """Keep derivatives ``0..order`` only (the result shares :meth:`shared_cache`)."""
         if not 0 <= order <= self.order:
             raise ModelArgumentError("order", order, f"cannot truncate a Jet of order {self.order} to order {order}: "
                                                      f"give 0 <= order <= {self.order}")
-        return Jet(self.d[:order + 1])
+        out = Jet(self.d[:order + 1])
+        out._shared = self.shared_cache()
+        return out
+
+    def shared_cache(self) -> dict:
+        """A dict shared by this Jet and its truncations, for results computed from it that several
+        callers need (e.g. the sines and cosines of a chain's angles, :mod:`fpr.model.planar`). A cached
+        Jet result may be of a higher order than the caller's: derivatives 0..k of a jet function depend
+        on derivatives 0..k of its argument only, so the caller truncates it. Do not modify ``d`` in place
+        once the cache is used."""
+        cache = getattr(self, "_shared", None)
+        if cache is None:
+            cache = self._shared = {}
+        return cache
 
     def derivative(self):
         """The Jet of ``x'`` (order K-1): derivatives shifted down by one."""

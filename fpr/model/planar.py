@@ -88,9 +88,16 @@ class PlanarPoint:
         return self._jacobian_of(y, z), self._bias_of(v, y, z)
 
     def _rotated_jet(self, q: Jet):
-        d = q.d @ self.rows.T
-        d[0] = d[0] + self.offsets
-        s, c = jets.sincos(Jet(d))
+        # several points share their angles (a body's centre and the hinge on it): sin and cos once per motion
+        cache, key = q.shared_cache(), ("sincos", self.rows.tobytes(), self.rows.shape, self.offsets.tobytes())
+        hit = cache.get(key)
+        if hit is None or hit[0].order < q.order:
+            d = q.d @ self.rows.T
+            d[0] = d[0] + self.offsets
+            hit = cache[key] = jets.sincos(Jet(d))
+        s, c = hit
+        if s.order > q.order:
+            s, c = s.truncate(q.order), c.truncate(q.order)
         return _rotate(c, s, self.vectors)
 
     def _position_from(self, q: Jet, y: Jet, z: Jet) -> Jet:
@@ -306,7 +313,8 @@ class PlanarModel:
             position, jac = b.com.position_and_jacobian_jet(q, k)
             acc = position.derivative().derivative() - self._g
             term = jets.matmul(jac.mT, acc[..., None])[..., 0] * b.mass
-            term = term + Jet(np.multiply.outer(qdd.d @ b.angle_row, b.angle_row)) * b.inertia
+            if b.inertia != 0:  # point masses (the planning model's drones) have none
+                term = term + Jet(np.multiply.outer(qdd.d @ b.angle_row, b.angle_row)) * b.inertia
             out = term if out is None else out + term
         return out
 
