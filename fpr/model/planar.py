@@ -25,6 +25,7 @@ massless drones); prototype ``[q1 q2 phi1]`` or ``[q1 q2]``.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -273,12 +274,27 @@ class PlanarModel:
 
     def mass_matrix_and_bias(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """M(q) and c(q, qdot) together, the body Jacobians computed once."""
+        return self.mass_matrix_bias_and_centre_jacobians(q, v)[:2]
+
+    def mass_matrix_bias_and_centre_jacobians(self, q, v) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        """M(q), c(q, qdot) and the Jacobians (..., 2, n) of the :attr:`drone_centres`, each point's
+        rotations evaluated once (a drone's centre is usually also a body's centre of mass)."""
         both = [b.com.jacobian_and_bias(q, v) for b in self.bodies]
         jacobians = [jac for jac, _ in both]
         c = np.zeros(jacobians[0].shape[:-2] + (self.n,), np.result_type(jacobians[0], jets.inexact(v)))
         for b, (jac, bias) in zip(self.bodies, both):
             c += b.mass * np.einsum("...in,...i->...n", jac, bias - self._g)
-        return self._mass_matrix(jacobians), c
+        centres = [centre.jacobian(q) if k is None else jacobians[k] for centre, k in zip(self.drone_centres,
+                                                                                           self._centre_bodies)]
+        return self._mass_matrix(jacobians), c, centres
+
+    @functools.cached_property
+    def _centre_bodies(self) -> list[int | None]:
+        """For each drone centre, the index of a body whose centre of mass is the same point (or None)."""
+        def same(a, b):
+            return all(np.array_equal(getattr(a, f), getattr(b, f)) for f in ("selector", "rows", "offsets", "vectors"))
+        return [next((k for k, b in enumerate(self.bodies) if same(centre, b.com)), None)
+                for centre in self.drone_centres]
 
     def inverse_dynamics(self, q, v, a) -> np.ndarray:
         """Generalised force M a + c, shape (..., n)."""
