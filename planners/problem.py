@@ -379,7 +379,8 @@ class MotionProblem:
             return rows
         cols = np.stack(list(margins.values()), axis=-1)
         n, w = motion.shape[1], cols.shape[1]
-        rows = rows.copy() if rows.dtype == cols.dtype else rows.astype(np.result_type(rows, cols))
+        # rows is this evaluation's own array (constraint_rows stacks it): updated in place
+        rows = rows if rows.dtype == cols.dtype else rows.astype(np.result_type(rows, cols))
         # complex values (complex-step derivatives) compare by their real parts first
         rows[:, :w] = np.where(cols[n:].real < cols[:n].real, cols[n:], cols[:n])
         return rows

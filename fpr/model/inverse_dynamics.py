@@ -162,16 +162,16 @@ def roll_torques(robot, q, v, thrust, roll_acceleration, external=None) -> np.nd
         tau_x of each drone, shape (N, n_d) [N m].
     """
     rigid = robot.planar("rigid")
-    m, c = rigid.mass_matrix_and_bias(q, v)
+    m, c, centre_jacobians = rigid.mass_matrix_bias_and_centre_jacobians(q, v)
     sel = np.array(rigid.drone_angles)  # (n_d, n)
     gen = -c
     if external is not None:
         ext = external.value if isinstance(external, Jet) else np.asarray(external)
         gen = gen + np.concatenate([ext, np.zeros(ext.shape[:-1] + (gen.shape[-1] - ext.shape[-1],))], axis=-1)
-    for i, centre in enumerate(rigid.drone_centres):
-        angle = q @ sel[i]
-        body_z = np.stack([-np.sin(angle), np.cos(angle)], axis=-1)
-        gen = gen + np.einsum("...in,...i->...n", centre.jacobian(q), body_z) * thrust[..., i : i + 1]
+    for i, centre_jacobian in enumerate(centre_jacobians):
+        sin, cos = jets.sin_cos_value(q @ sel[i])
+        body_z = np.stack([-sin, cos], axis=-1)
+        gen = gen + np.einsum("...in,...i->...n", centre_jacobian, body_z) * thrust[..., i : i + 1]
     rhs = np.concatenate([gen[..., None], np.broadcast_to(sel.T, m.shape[:-2] + sel.T.shape)], axis=-1)
     sol = np.linalg.solve(m, rhs)  # M^-1 [B_f f - c, S^T]
     drift = sol[..., 0] @ sel.T

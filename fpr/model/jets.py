@@ -70,6 +70,21 @@ def _atan2_value(y, x):
     return np.arctan2(yr, xr) + 1j * (xr * np.imag(y) - yr * np.imag(x)) / (xr * xr + yr * yr)
 
 
+def sin_cos_value(a):
+    """``(np.sin(a), np.cos(a))`` of an array; for complex-step arguments ``a = x + i h b`` (h tiny) from the
+    real sine and cosine: sin(x) + i cos(x) h b and cos(x) - i sin(x) h b, which is what numpy's complex sine
+    and cosine give there bit for bit (cosh(h b) = 1, sinh(h b) = h b in floating point), at a fraction of
+    their cost (no complex transcendental functions)."""
+    if not np.iscomplexobj(a):
+        return np.sin(a), np.cos(a)
+    x, b = a.real, a.imag
+    s, c = np.sin(x), np.cos(x)
+    sin, cos = np.empty(a.shape, a.dtype), np.empty(a.shape, a.dtype)
+    sin.real, sin.imag = s, c * b
+    cos.real, cos.imag = c, -(s * b)
+    return sin, cos
+
+
 def _leibniz(da, db, K, op=np.multiply):
     """Derivatives of ``op(a, b)`` for a bilinear ``op``: sum_k C(n,k) op(a^(k), b^(n-k))."""
     return np.stack([_wsum(_B[n, :n + 1], op(da[:n + 1], db[n::-1])) for n in range(K + 1)])
@@ -136,11 +151,24 @@ class Jet:
         return Jet(self.d[(slice(None),) + (key if isinstance(key, tuple) else (key,))])
 
     def truncate(self, order):
-        """Keep derivatives ``0..order`` only."""
+        """Keep derivatives ``0..order`` only (the result shares :meth:`shared_cache`)."""
         if not 0 <= order <= self.order:
             raise ModelArgumentError("order", order, f"cannot truncate a Jet of order {self.order} to order {order}: "
                                                      f"give 0 <= order <= {self.order}")
-        return Jet(self.d[:order + 1])
+        out = Jet(self.d[:order + 1])
+        out._shared = self.shared_cache()
+        return out
+
+    def shared_cache(self) -> dict:
+        """A dict shared by this Jet and its truncations, for results computed from it that several
+        callers need (e.g. the sines and cosines of a chain's angles, :mod:`fpr.model.planar`). A cached
+        Jet result may be of a higher order than the caller's: derivatives 0..k of a jet function depend
+        on derivatives 0..k of its argument only, so the caller truncates it. Do not modify ``d`` in place
+        once the cache is used."""
+        cache = getattr(self, "_shared", None)
+        if cache is None:
+            cache = self._shared = {}
+        return cache
 
     def derivative(self):
         """The Jet of ``x'`` (order K-1): derivatives shifted down by one."""
@@ -234,9 +262,9 @@ def sincos(a):
     """Return ``(sin(a), cos(a))`` by the coupled recurrence
     s^(n) = sum_{k<n} C(n-1,k) c^(k) a^(n-k),  c^(n) = -sum_{k<n} C(n-1,k) s^(k) a^(n-k)."""
     if not isinstance(a, Jet):
-        return np.sin(a), np.cos(a)
+        return sin_cos_value(np.asarray(a)) if np.iscomplexobj(a) else (np.sin(a), np.cos(a))
     d, s, c = a.d, np.empty_like(a.d), np.empty_like(a.d)
-    s[0], c[0] = np.sin(d[0]), np.cos(d[0])
+    s[0], c[0] = sin_cos_value(d[0])
     for n in range(1, a.order + 1):
         w, dn = _B[n - 1, :n], d[n:0:-1]
         s[n], c[n] = _wsum(w, c[:n] * dn), -_wsum(w, s[:n] * dn)

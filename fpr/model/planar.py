@@ -25,6 +25,7 @@ massless drones); prototype ``[q1 q2 phi1]`` or ``[q1 q2]``.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,7 +59,8 @@ class PlanarPoint:
     def _rotated(self, q):
         """Components (y, z) of each Rot(a_k.q + b_k) v_k, each of shape (..., K)."""
         th = jets.inexact(q) @ self.rows.T + self.offsets
-        return _rotate(np.cos(th), np.sin(th), self.vectors)
+        sin, cos = jets.sin_cos_value(th)
+        return _rotate(cos, sin, self.vectors)
 
     def position(self, q) -> np.ndarray:
         """p(q), shape (..., 2) [m]."""
@@ -67,19 +69,36 @@ class PlanarPoint:
 
     def jacobian(self, q) -> np.ndarray:
         """dp/dq, shape (..., 2, n)."""
-        y, z = self._rotated(q)  # d/dtheta Rot(theta) v = Rot(theta + pi/2) v = (-z, y)
+        return self._jacobian_of(*self._rotated(q))
+
+    def _jacobian_of(self, y, z):
+        # d/dtheta Rot(theta) v = Rot(theta + pi/2) v = (-z, y)
         return np.stack([-z @ self.rows, y @ self.rows], axis=-2) + self.selector
 
     def bias(self, q, v) -> np.ndarray:
         """dJ/dt qdot = -sum_k Rot(theta_k) v_k (a_k . qdot)^2, shape (..., 2) [m/s^2]."""
-        y, z = self._rotated(q)
+        return self._bias_of(v, *self._rotated(q))
+
+    def _bias_of(self, v, y, z):
         w2 = (jets.inexact(v) @ self.rows.T) ** 2
         return -np.stack([(y * w2).sum(-1), (z * w2).sum(-1)], axis=-1)
 
+    def jacobian_and_bias(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`jacobian` and :meth:`bias` from one evaluation of the rotations."""
+        y, z = self._rotated(q)
+        return self._jacobian_of(y, z), self._bias_of(v, y, z)
+
     def _rotated_jet(self, q: Jet):
-        d = q.d @ self.rows.T
-        d[0] = d[0] + self.offsets
-        s, c = jets.sincos(Jet(d))
+        # several points share their angles (a body's centre and the hinge on it): sin and cos once per motion
+        cache, key = q.shared_cache(), ("sincos", self.rows.tobytes(), self.rows.shape, self.offsets.tobytes())
+        hit = cache.get(key)
+        if hit is None or hit[0].order < q.order:
+            d = q.d @ self.rows.T
+            d[0] = d[0] + self.offsets
+            hit = cache[key] = jets.sincos(Jet(d))
+        s, c = hit
+        if s.order > q.order:
+            s, c = s.truncate(q.order), c.truncate(q.order)
         return _rotate(c, s, self.vectors)
 
     def _position_from(self, q: Jet, y: Jet, z: Jet) -> Jet:
@@ -255,8 +274,27 @@ class PlanarModel:
 
     def mass_matrix_and_bias(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """M(q) and c(q, qdot) together, the body Jacobians computed once."""
-        jacobians = self._com_jacobians(q)
-        return self._mass_matrix(jacobians), self._bias(q, v, jacobians)
+        return self.mass_matrix_bias_and_centre_jacobians(q, v)[:2]
+
+    def mass_matrix_bias_and_centre_jacobians(self, q, v) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        """M(q), c(q, qdot) and the Jacobians (..., 2, n) of the :attr:`drone_centres`, each point's
+        rotations evaluated once (a drone's centre is usually also a body's centre of mass)."""
+        both = [b.com.jacobian_and_bias(q, v) for b in self.bodies]
+        jacobians = [jac for jac, _ in both]
+        c = np.zeros(jacobians[0].shape[:-2] + (self.n,), np.result_type(jacobians[0], jets.inexact(v)))
+        for b, (jac, bias) in zip(self.bodies, both):
+            c += b.mass * np.einsum("...in,...i->...n", jac, bias - self._g)
+        centres = [centre.jacobian(q) if k is None else jacobians[k] for centre, k in zip(self.drone_centres,
+                                                                                           self._centre_bodies)]
+        return self._mass_matrix(jacobians), c, centres
+
+    @functools.cached_property
+    def _centre_bodies(self) -> list[int | None]:
+        """For each drone centre, the index of a body whose centre of mass is the same point (or None)."""
+        def same(a, b):
+            return all(np.array_equal(getattr(a, f), getattr(b, f)) for f in ("selector", "rows", "offsets", "vectors"))
+        return [next((k for k, b in enumerate(self.bodies) if same(centre, b.com)), None)
+                for centre in self.drone_centres]
 
     def inverse_dynamics(self, q, v, a) -> np.ndarray:
         """Generalised force M a + c, shape (..., n)."""
@@ -291,7 +329,8 @@ class PlanarModel:
             position, jac = b.com.position_and_jacobian_jet(q, k)
             acc = position.derivative().derivative() - self._g
             term = jets.matmul(jac.mT, acc[..., None])[..., 0] * b.mass
-            term = term + Jet(np.multiply.outer(qdd.d @ b.angle_row, b.angle_row)) * b.inertia
+            if b.inertia != 0:  # point masses (the planning model's drones) have none
+                term = term + Jet(np.multiply.outer(qdd.d @ b.angle_row, b.angle_row)) * b.inertia
             out = term if out is None else out + term
         return out
 
