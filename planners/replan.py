@@ -35,6 +35,7 @@ the :class:`Replan` record says why.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -96,6 +97,15 @@ class ReplanOptions:
             raise PlannerArgumentError(
                 "horizon", self.horizon, f"horizon = {self.horizon!r}: give an integer >= 1"
             )
+        if not (isinstance(self.max_iterations, int) and self.max_iterations >= 1):
+            raise PlannerArgumentError(
+                "max_iterations", self.max_iterations,
+                f"max_iterations = {self.max_iterations!r}: give an integer >= 1",
+            )
+        for name in ("radius", "dense_rate", "tolerance"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
+                raise PlannerArgumentError(name, value, f"{name} = {value!r}: give a finite number > 0")
         if self.timing not in TIMINGS:
             raise PlannerArgumentError(
                 "timing", self.timing, f"timing = {self.timing!r}: use one of {TIMINGS}"
@@ -118,6 +128,7 @@ class Replan:
         used: it was spliced into the plan; why: one line saying why (not) used.
         violated: the constraints it breaks (dense grid).
         start: "plan" (the plan in force's jet) or "robot" (a start from the robot's state).
+        solver: why the SQP stopped (:func:`planners.replan_solver.solve_warm`'s message).
         work: what the deterministic latency counts: grid ``nodes``, ``derivative_evaluations``,
             ``value_evaluations``, ``horizon_s`` (the re-optimised duration [s]).
     """
@@ -136,6 +147,7 @@ class Replan:
     why: str = ""
     violated: list = field(default_factory=list)
     start: str = "plan"
+    solver: str = ""
     work: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
@@ -209,6 +221,7 @@ class Replanner:
         self.moves = moved_positions(self.mission, self.robot)
         self.changed: int | None = None
         self.gusts: list = []
+        self._learnt: set[int] = set()
         self._assumed = None
         self.replans: list[Replan] = []
         self.revisions: list[tuple[float, PiecewisePolynomial]] = []
@@ -221,17 +234,33 @@ class Replanner:
 
     def learn(self, event_index: int) -> None:
         """The gust event ``mission.events[event_index]`` is known from now on: plans fly against it."""
-        event = self.mission.events[event_index]
-        if event not in self.gusts:
-            self.gusts.append(event)
+        if event_index not in self._learnt:  # by index: a mission may list the same gust twice
+            self._learnt.add(event_index)
+            self.gusts.append(self.mission.events[event_index])
 
     def assume(self, gust) -> None:
         """Plan against ``gust`` (a :class:`planners.events.GustEvent`, e.g. estimated in flight) from now on.
 
-        It replaces the gust assumed before; the gusts learnt from the mission stay.
+        It replaces the gust assumed before, which is kept in :attr:`gusts` but ends where ``gust`` is fully on
+        (``gust.at + gust.rise``; the two blend over the ramp): the record of the wind each part of the plan
+        was made for, against which the executed plan is checked. The gusts learnt from the mission stay.
         """
-        self.gusts = [g for g in self.gusts if g is not self._assumed] + [gust]
+        if self._assumed is not None:
+            self._end_assumed(gust.at + gust.rise)
+        self.gusts.append(gust)
         self._assumed = gust
+
+    def forget(self, t: float) -> None:
+        """Stop planning against the assumed gust: it ramps down from t [s] (fully off at t + its rise)."""
+        if self._assumed is not None:
+            self._end_assumed(t + self._assumed.rise)
+            self._assumed = None
+
+    def _end_assumed(self, end: float) -> None:
+        old = self._assumed
+        if end < old.at + old.duration:
+            shorter = dataclasses.replace(old, duration=max(end - old.at, 0.0))
+            self.gusts = [shorter if g is old else g for g in self.gusts]
 
     @property
     def assumed(self):
@@ -350,9 +379,12 @@ class Replanner:
         modelled = self.latency(record.work)
         record.latency_s = modelled if opt.timing == "work" else record.solve_wall_s
         record.iterations, record.n_variables, record.J = out.iterations, problem.n_x, out.J
+        record.solver = out.message
         record.feasible = bool(feasible)
         record.violated = list(violated)
-        if not record.feasible:
+        if out.message.startswith("QP failed"):
+            record.why = f"not used: the solver failed ({out.message}); the plan in force stays"
+        elif not record.feasible:
             record.why = f"not used: infeasible ({', '.join(record.violated)}); the plan in force stays"
         elif start is not None and not np.allclose(start, jet(self.trajectory, t_s), rtol=0.0, atol=1e-12):
             record.why = (

@@ -36,12 +36,18 @@ class WarmOutcome:
     message: str
 
 
+class QpFailure(RuntimeError):
+    """quadprog could not solve a step QP (inconsistent or degenerate rows, a Hessian not positive definite)."""
+
+
 def _l1(c) -> float:
     return float(np.maximum(0.0, -np.asarray(c)).sum())
 
 
 def qp_step(ev, radius: float, penalty: float):
     """The elastic trust-region QP at ``ev`` (module docstring); returns (d, predicted decrease, multipliers).
+
+    Raises :class:`QpFailure` when quadprog cannot solve it.
 
     min 1/2 d^T H d + g^T d + rho 1^T s  s.t.  c_k + A_k d + s_k >= 0 (s only on rows violated at x),
     s >= 0, |d|_inf <= radius; the multipliers (>= 0, one per constraint, in the units of c) bound rho.
@@ -64,7 +70,10 @@ def qp_step(ev, radius: float, penalty: float):
     eye = np.eye(size)
     rows = np.vstack([np.hstack([a_k, slack]), eye[:n], -eye[:n], eye[n:]])  # C^T z >= b
     bound = np.concatenate([-c_k, np.full(n, -radius), np.full(n, -radius), np.zeros(p)])
-    z, _, _, _, lagrange, _ = quadprog.solve_qp(h, -lin, rows.T, bound, 0)
+    try:
+        z, _, _, _, lagrange, _ = quadprog.solve_qp(h, -lin, rows.T, bound, 0)
+    except ValueError as error:  # quadprog: "constraints are inconsistent" (degenerate rows), or H not > 0
+        raise QpFailure(str(error)) from None
     d = np.clip(z[:n], -radius, radius)
     model = g @ d + 0.5 * d @ hess @ d
     predicted = penalty * (_l1(c) - _l1(c + a @ d)) - model
@@ -95,11 +104,15 @@ def solve_warm(problem, x0, max_iterations: int = 4, tolerance: float = 1e-3, ra
         ev = problem.evaluate(x, True)
         grads += 1
         current = ev
-        d, predicted, lam = qp_step(ev, radius, penalty)
-        top = float(lam.max()) if lam.size else 0.0
-        if 2.0 * top > penalty and penalty < 1e6:
-            penalty = min(2.0 * top, 1e6)
+        try:
             d, predicted, lam = qp_step(ev, radius, penalty)
+            top = float(lam.max()) if lam.size else 0.0
+            if 2.0 * top > penalty and penalty < 1e6:
+                penalty = min(2.0 * top, 1e6)
+                d, predicted, lam = qp_step(ev, radius, penalty)
+        except QpFailure as error:  # keep the last accepted point; the caller's dense check judges it
+            message = f"QP failed: {error}"
+            break
         merit = ev.J + penalty * _l1(ev.constraints)
         if predicted <= 1e-12 * max(1.0, abs(ev.J)):
             message = "converged: no decrease predicted"
@@ -123,4 +136,4 @@ def solve_warm(problem, x0, max_iterations: int = 4, tolerance: float = 1e-3, ra
     return WarmOutcome(x, float(current.J), float(current.violation), it, grads, values, message)
 
 
-__all__ = ["WarmOutcome", "qp_step", "solve_warm"]
+__all__ = ["QpFailure", "WarmOutcome", "qp_step", "solve_warm"]

@@ -9,7 +9,7 @@ from fpr.model.jets import Jet
 from fpr.robots import load
 from planners.disturbance import DisturbedProblem, dense_check, generalized_gust, gust_profile
 from planners.events import GustEvent
-from planners.mission import load_mission
+from planners.mission import builtin_mission_text, load_mission
 from planners.optimize import plan
 from planners.polynomial import PiecewisePolynomial
 from planners.replan import Replanner, ReplanOptions
@@ -230,3 +230,90 @@ def test_an_estimated_wind_is_planned_against_once_it_has_held_and_silences_the_
     # the first tracking replan comes before the estimate rises (30 cm > 0.25 from 2 s); none after it
     tracking = [t for t, why in records if why.startswith("tracking")]
     assert tracking and max(tracking) < estimated[0] - triggers.estimate_delay + 0.01
+
+
+def test_an_estimated_wind_that_drops_is_forgotten_and_kept_as_the_record_of_what_was_planned():
+    """An estimate of 5 N towards -y from 2 s to 4 s, then none: the replanner assumes it once it has held for
+    ``estimate_delay``; once it has stayed under its threshold as long, the replanner stops planning against
+    it (``assumed`` None, a replan saying so), and the estimated gust stays in ``gusts``, ending (fully off)
+    one ramp after it was dropped, so the executed plan is checked against the wind it was made for."""
+    from fpr.sim.closed_loop import SimulationSettings
+    from fpr.sim.replanning import InFlight, TriggerSettings
+
+    class Scripted:  # the estimator's output, scripted: this test is about what the replanner does with it
+        def update(self, t, s, ds, reference):
+            return np.array([0.0, -5.0, 0.0]) if 2.0 <= t < 4.0 else np.zeros(3)
+
+    mission = load_mission("gust")
+    result = plan(mission, "two-step")
+    robot = result.robot
+    chain = [robot.index[c] for c in robot.layout.chain]
+    replanner = Replanner(result, ReplanOptions(deadline=0.3, work_cost=(0.0, 0.0, 0.0)))
+    triggers = TriggerSettings(known_gusts=False, estimate_wind=True, tracking_bound=None)
+    hooks = InFlight(mission, replanner, triggers, SimulationSettings().controller, chain, robot)
+    hooks.estimator = Scripted()
+    assumed = []
+    for t in np.arange(1.5, 6.5, 0.002):
+        reference = replanner.trajectory.evaluate(np.array([t]), 4)[:, 0]
+        q = robot.configuration(**dict(zip(robot.layout.chain, reference[0], strict=True)))
+        v = np.zeros(robot.nq)
+        v[chain] = reference[1]
+        hooks.after_tick(float(t), q, v, reference)
+        if replanner.assumed is not None and not assumed:
+            assumed.append(replanner.assumed)
+    records = [(r.time, r.trigger) for r in replanner.replans]
+    estimated = [t for t, why in records if why.startswith("wind estimated")]
+    dropped = [t for t, why in records if why.startswith("wind estimate below")]
+    delay = triggers.estimate_delay
+    assert len(estimated) == 1 and estimated[0] == pytest.approx(2.0 + delay, abs=0.003), records
+    assert len(dropped) == 1 and dropped[0] == pytest.approx(4.0 + delay, abs=0.003), records
+    assert replanner.assumed is None
+    # every estimate planned against is kept: each ends where the next is fully on (a way point passed in
+    # the wind re-estimates it), the last one ramp after it was dropped
+    kept = sorted((g for g in replanner.gusts if g.force == assumed[0].force), key=lambda g: g.at)
+    assert kept[0].at + kept[0].rise == pytest.approx(estimated[0], abs=1e-9), kept  # fully on when estimated
+    for g, after in zip(kept, kept[1:]):
+        assert g.at + g.duration == pytest.approx(after.at + after.rise, abs=1e-9)
+    last = kept[-1]
+    assert last.at + last.duration == pytest.approx(dropped[0] + last.rise, abs=1e-9)
+    assert last.active(dropped[0]) and not last.active(dropped[0] + last.rise + 1e-6)
+
+
+def test_the_replanner_learns_a_gust_listed_twice_twice():
+    """Two identical gust events push twice as hard in the plant; the replanner plans against both."""
+    from planners.mission import mission_from_toml
+
+    text = builtin_mission_text("gust")
+    start = text.index("\n[[events]]")
+    twice = text + "\n" + text[start:]
+    mission = mission_from_toml(twice, "twice")
+    assert len(mission.events) == 2 and mission.events[0] == mission.events[1]
+    replanner = Replanner(plan(mission, "two-step"), ReplanOptions(deadline=0.3))
+    replanner.learn(0)
+    replanner.learn(1)
+    replanner.learn(1)
+    assert len(replanner.gusts) == 2
+
+
+def test_a_step_qp_that_quadprog_cannot_solve_stops_the_replan_without_using_it(monkeypatch, moving):
+    """quadprog's "constraints are inconsistent" ends the SQP with a message; the replan is not used."""
+    import planners.replan_solver as rs
+
+    def fail(*args, **kwargs):
+        raise ValueError("constraints are inconsistent, no solution")
+
+    monkeypatch.setattr(rs.quadprog, "solve_qp", fail)
+    replanner = Replanner(moving[1], ReplanOptions(deadline=0.3, work_cost=(0.0, 0.0, 0.0)))
+    before = replanner.trajectory
+    record = replanner.replan(2.0, "rate")
+    assert record.solver.startswith("QP failed") and not record.used
+    assert "solver failed" in record.why and replanner.trajectory is before
+
+
+@pytest.mark.parametrize("field, value", [("radius", 0.0), ("radius", float("nan")), ("dense_rate", -1.0),
+                                          ("max_iterations", 0), ("tolerance", 0.0)])
+def test_replan_options_refuse_absurd_numbers(field, value):
+    from fpr.model.errors import PlannerArgumentError
+
+    with pytest.raises(PlannerArgumentError, match=field):
+        ReplanOptions(**{field: value})

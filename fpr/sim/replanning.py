@@ -182,6 +182,7 @@ class InFlight:
         estimate = triggers.estimate_wind and not triggers.known_gusts and replanner is not None
         self.estimator = WindEstimator(self.robot, controller) if estimate else None
         self._above_since = None  # when the estimate last rose above the threshold [s]
+        self._below_since = None  # when it last fell below it [s]
         self._passed = 0  # interior way points passed so far
 
     @property
@@ -227,8 +228,8 @@ class InFlight:
         if passed > self._passed:
             self._passed = passed
             if any(g.active(t) for g in rp.gusts):  # the next travel enters the horizon: fly it in the wind
-                if rp.assumed is not None:
-                    rp.assume(self._estimated_gust(t, estimated))
+                if rp.assumed is not None:  # the newest estimate, blending from the last one from t on
+                    rp.assume(self._estimated_gust(t, estimated, ramp_from=t))
                 rp.replan(t, f"way point {passed} passed in a known gust")
         bound = self.triggers.tracking_bound
         # in a known gust the tracking error is the wind's push, which the plan in force already flies
@@ -255,7 +256,13 @@ class InFlight:
         force = self.estimator.update(t, q[self.chain], v[self.chain], reference)
         if np.linalg.norm(force) < self.triggers.estimate_threshold:
             self._above_since = None
+            if self._below_since is None:
+                self._below_since = t
+            if self.replanner.assumed is not None and t - self._below_since >= self.triggers.estimate_delay - 1e-9:
+                self.replanner.forget(t)  # the wind has dropped: plan without it from now on
+                self.replanner.replan(t, "wind estimate below the threshold: planned without wind")
             return force
+        self._below_since = None
         if self._above_since is None:
             self._above_since = t
         if self.replanner.assumed is None and t - self._above_since >= self.triggers.estimate_delay - 1e-9:
@@ -265,11 +272,13 @@ class InFlight:
             self.replanner.replan(t, f"wind estimated: {said} N on the end-effector")
         return force
 
-    def _estimated_gust(self, t: float, force) -> GustEvent:
-        """The estimate as a gust blowing fully from t to past the end of the motion."""
+    def _estimated_gust(self, t: float, force, ramp_from: float | None = None) -> GustEvent:
+        """The estimate as a gust blowing to past the end of the motion: fully on from t (the wind has built
+        up), or ramping on from ``ramp_from`` (a newer estimate blending from the last one)."""
         end = float(np.sum(self.mission.times)) + 1e3
-        rise = 0.5  # planned fully on from t: the ramp ends at t
-        return GustEvent(t - rise, tuple(float(f) for f in force), end - (t - rise), END_EFFECTOR, rise)
+        rise = 0.5
+        at = t - rise if ramp_from is None else ramp_from
+        return GustEvent(at, tuple(float(f) for f in force), end - at, END_EFFECTOR, rise)
 
 
 __all__ = ["ForcedPlant", "InFlight", "TriggerSettings", "jet"]
