@@ -17,7 +17,7 @@ of equality-constrained QPs on a working set W of rows held at their bound:
 A step is returned only when it satisfies the KKT conditions of the QP exactly (to round-off): every
 row holds, every multiplier is >= 0, and the rows not in W have none. The sequence is a heuristic
 (no anti-cycling rule) and is capped; when it does not end, :func:`solve_step_qp` returns None and
-the caller solves the QP another way (ProxQP). The result is the QP's unique minimiser either way.
+the caller solves the QP another way (ProxQP, capped at its iteration limit, whose step can be inexact).
 """
 
 from __future__ import annotations

@@ -33,8 +33,8 @@ class PlanOptions:
         max_iterations: iteration limit per NLP solve.
         tolerance: stop when an iteration improves J (about 1) by less than this.
         dense_rate: rate of the final check [Hz] (:func:`planners.report.evaluate_motion`).
-        solver: ``"sqp"`` (:mod:`planners.sqp`, Gauss-Newton trust-region SQP) or ``"slsqp"`` (scipy's
-            SLSQP with the same exact gradients, quasi-Newton curvature).
+        solver: ``"sqp"`` (:mod:`planners.sqp`, trust-region SQP, curvature as ``curvature`` says) or
+            ``"slsqp"`` (scipy's SLSQP with the same exact gradients, quasi-Newton curvature).
         max_refinements: when a result holds every constraint on the optimisation grid but not on
             the dense grid, solve again on a grid twice as fine, at most this many times
             (:func:`planners.solving.solve_refining`).

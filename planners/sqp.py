@@ -469,6 +469,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                     actual = merit - (trial.J + penalty * _violation(trial.constraints))
                     ratio = actual / predicted
         accepted = ratio > 0.1
+        step_size = float(np.abs(d).max())  # the trust-region step's, before any extrapolation past it
         if accepted and opt.extrapolate and ratio > 1.25:
             # the model was pessimistic along d (J_e is close to linear there): try 2 d, then 4 d
             for _ in range(2):
@@ -482,7 +483,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
         if accepted:
             pending = (d, objective_gradient - ev.jacobian.T @ multipliers, multipliers, xi)
             x = x + d
-            if ratio > 0.75 and np.abs(d).max() > 0.9 * radius:
+            if ratio > 0.75 and step_size > 0.9 * radius:
                 radius *= 2.0
         else:
             radius *= 0.25

@@ -2,8 +2,8 @@
 
 * options: ``--replan``, ``--replan-deadline`` (default 0.05 s of simulated time), ``--replan-bound``
   (tracking error that triggers a replan from the robot's state, default 0.05 m or rad), ``--replan-rate``
-  (an optional fixed rate [Hz]), ``--replan-wind`` (``known``, default: the replanner is told each gust's
-  force as it starts; ``estimated``: it estimates a steady wind from the tracking error; ``blind``),
+  (an optional fixed rate [Hz]), ``--replan-wind`` (``known``, default: the replanner is told the force of
+  each gust with a ``rise`` as it starts, a step gust stays unknown; ``estimated``: it estimates a steady wind from the tracking error; ``blind``),
   ``--replan-timing`` (``work``: the deterministic latency, default; ``wall``: the measured solve time,
   not reproducible bit for bit);
 * the simulation gets a :class:`fpr.sim.replanning.InFlight` when the mission has events or ``--replan``
@@ -54,8 +54,8 @@ def add_arguments(group) -> None:
         "--replan-wind",
         choices=["known", "estimated", "blind"],
         default="known",
-        help="known (default): the replanner is told each gust's force as it starts (a forecast, a wind "
-        "sensor); estimated: it estimates a steady force on the end-effector from the tracking error and "
+        help="known (default): the replanner is told the force of each gust with a rise as it starts (a "
+        "forecast, a wind sensor; a step gust stays unknown); estimated: it estimates a steady force on the end-effector from the tracking error and "
         "plans against it once it has held 1 s; blind: it sees a gust only through the tracking error",
     )
     group.add_argument(
