@@ -138,3 +138,18 @@ def test_a_moved_way_point_out_of_reach_exits_2_before_any_work(tmp_path, capsys
     err = capsys.readouterr().err
     assert code == 2 and "events[0].to" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()
+
+
+def test_late_replans_say_which_deadline_would_let_them_in(tmp_path, capsys):
+    """A deadline no solve meets: the replan is not used, and the summary names a deadline above its latency."""
+    mission = tmp_path / "short.toml"
+    mission.write_text(MISSION, encoding="utf-8")
+    code = main(["--mission", str(mission), "--method", "none", "--simulate", "--hold", "0", "--no-plots",
+                 "--rate", "100", "--out", str(tmp_path / "late"), "--replan", "--replan-deadline", "0.001"])
+    out = capsys.readouterr().out
+    replans = json.loads((tmp_path / "late" / "replans.json").read_text())["replans"]
+    assert replans and not any(r["used"] for r in replans)
+    line = next(x for x in out.splitlines() if "were late" in x)
+    suggested = float(line.split("--replan-deadline ")[1].split()[0])
+    assert suggested >= max(r["latency_s"] for r in replans)
+    assert code in (0, 1)

@@ -218,6 +218,14 @@ def summary(hooks, done, log=None) -> str:
             f"  t = {r.time:.3f} s, {r.trigger}: {r.why} (latency {r.latency_s * 1e3:.1f} ms, "
             f"solve {r.solve_wall_s * 1e3:.0f} ms wall, {r.iterations} iterations)"
         )
+    late = [r for r in hooks.replans if r.why.startswith("not used: late")]
+    if late:
+        need = max(r.latency_s for r in late)
+        lines.append(
+            f"  {len(late)} of {len(hooks.replans)} replans were late: they need up to {need * 1e3:.0f} ms on this "
+            f"machine ({hooks.replanner.options.timing} timing); --replan-deadline {_rounded_up(1.2 * need):g} "
+            "lets them in (README, Replanning in flight: latency)"
+        )
     if done is not None:
         state = (
             "holds every constraint"
@@ -226,6 +234,12 @@ def summary(hooks, done, log=None) -> str:
         )
         lines.append(f"  the executed plan (the plan in force at each instant) {state}")
     return "\n".join(lines + moved)
+
+
+def _rounded_up(seconds: float) -> float:
+    """``seconds`` rounded up to a deadline a person would type: 2 significant digits, at least 0.01 s."""
+    step = 10.0 ** (np.floor(np.log10(max(seconds, 0.01))) - 1)
+    return float(np.ceil(seconds / step - 1e-9) * step)
 
 
 def problems(done) -> list[str]:
