@@ -87,6 +87,19 @@ class AllocationResult:
         return self.thrust - np.asarray(self.thrust_desired, dtype=float)
 
 
+def _result(speeds_squared, thrust, torque, saturated, iterations, attitude, attitude_desired,
+            thrust_desired=None) -> AllocationResult:
+    """An :class:`AllocationResult` without the frozen dataclass' ``__init__`` (one ``object.__setattr__``
+    per field, about twice the cost on the control loop's path); the same object, fields filled directly.
+    ``thrust_desired`` defaults to ``thrust`` (the closed form reaches it)."""
+    result = object.__new__(AllocationResult)
+    result.__dict__.update(speeds_squared=speeds_squared, thrust=thrust, torque=torque, saturated=saturated,
+                           iterations=iterations, attitude=attitude,
+                           thrust_desired=thrust if thrust_desired is None else thrust_desired,
+                           attitude_desired=attitude_desired)
+    return result
+
+
 def selectors(robot) -> tuple[np.ndarray, np.ndarray]:
     """S_f (n_d, 4 n_d) and S_tau (3 n_d, 4 n_d): thrusts and torques from all w^2 (R_f of each drone)."""
     n_d = robot.n_drones
@@ -290,11 +303,9 @@ class Allocator:
         lowest, highest = min(values), max(values)
         if lowest >= 0.0 and highest <= self.scale:  # the law is feasible: it is the QP's minimiser
             self.routes["closed form"] += 1
-            self._active = None
             saturated = (self._unsaturated if lowest > self._tol and highest < self.scale - self._tol
                          else self._saturation(z))
-            return AllocationResult(z.reshape(-1, 4), f_d, tau.reshape(-1, 3), saturated, 0, attitude, f_d,
-                                    u_a)
+            return _result(z.reshape(-1, 4), f_d, tau.reshape(-1, 3), saturated, 0, attitude, u_a)
         return self._bounded(attitude, f_d, u_a, gram, values)
 
     def _saturation(self, z) -> np.ndarray:
@@ -350,8 +361,8 @@ class Allocator:
         z = np.minimum(np.maximum(zeta * self.scale, self.lower), self.upper)  # np.clip, cheaper
         low, high = self._tol, self.scale - self._tol
         saturated = np.array([w <= low or w >= high for w in z.tolist()]).reshape(-1, 4)  # as _saturation
-        return AllocationResult(z.reshape(-1, 4), self.s_f.dot(z), self.s_tau.dot(z).reshape(-1, 3), saturated,
-                                iterations, attitude, f_d, u_a)
+        return _result(z.reshape(-1, 4), self.s_f.dot(z), self.s_tau.dot(z).reshape(-1, 3), saturated, iterations,
+                       attitude, u_a, f_d)
 
     def _proxqp(self, h, g):
         """Route 3: the scaled QP by the warm-started ProxQP workspace; (zeta, iterations)."""
