@@ -354,11 +354,12 @@ class Allocator:
             zeta, lower, upper, iterations = found
             self._active = (lower, upper) if any(lower) or any(upper) else None
             self.routes["active set"] += 1
+            z = zeta * self.scale  # zeta is within [0, 1] (solve_box_qp): z within the bounds
         else:
             zeta, iterations = self._proxqp(0.5 * (h + h.T), g)
             self._active = None
             self.routes["proxqp"] += 1
-        z = np.minimum(np.maximum(zeta * self.scale, self.lower), self.upper)  # np.clip, cheaper
+            z = np.minimum(np.maximum(zeta * self.scale, self.lower), self.upper)  # np.clip, cheaper
         low, high = self._tol, self.scale - self._tol
         saturated = np.array([w <= low or w >= high for w in z.tolist()]).reshape(-1, 4)  # as _saturation
         return _result(z.reshape(-1, 4), self.s_f.dot(z), self.s_tau.dot(z).reshape(-1, 3), saturated, iterations,

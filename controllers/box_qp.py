@@ -20,10 +20,38 @@ It is not guaranteed to converge for every H (it may cycle when H is far from an
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.linalg import lapack
 
 _posv = lapack.dposv
+
+#: free variables up to which the linear solve is done in plain Python (:func:`_small_solve`), cheaper than
+#: LAPACK's call and its list conversions on so few numbers (most bounded ticks of the allocation); posv above
+_SMALL = 2
+
+
+def _small_solve(a: list[list[float]], b: list[float]) -> list[float] | None:
+    """x with A x = b for k <= 2 unknowns, A symmetric positive definite given as k lists of k floats (its upper
+    triangle read, as LAPACK's posv, by the same Cholesky factorisation A = R^T R written out); None when A is
+    not positive definite (as posv's info > 0)."""
+    a00 = a[0][0]
+    if a00 <= 0.0:
+        return None
+    if len(b) == 1:
+        return [b[0] / a00]
+    r00 = math.sqrt(a00)
+    r01 = a[0][1] / r00
+    d = a[1][1] - r01 * r01
+    if d <= 0.0:
+        return None
+    r11 = math.sqrt(d)
+    y0 = b[0] / r00
+    x1 = (b[1] - r01 * y0) / r11 / r11
+    return [(y0 - r01 * x1) / r00, x1]
+
+
 def solve_box_qp(h: np.ndarray, g: np.ndarray, lower: list[bool], upper: list[bool], max_iterations: int = 12,
                  tolerance: float = 1e-12):
     """Minimise 0.5 x^T H x + g^T x over the box [0, 1]^n from a guess of the active bounds.
@@ -44,7 +72,7 @@ def solve_box_qp(h: np.ndarray, g: np.ndarray, lower: list[bool], upper: list[bo
     # plain Python on lists between the solves: each numpy call on so few numbers costs microseconds
     hl, gl = h.tolist(), g.tolist()
     lower, upper = list(lower), list(upper)
-    slack = tolerance * max(1.0, max(abs(v) for v in gl))
+    slack = tolerance * max(1.0, max(gl), -min(gl))  # max(1, |g|_inf)
     for iteration in range(1, max_iterations + 1):
         free = [i for i in range(n) if not (lower[i] or upper[i])]
         high = [j for j in range(n) if upper[j]]
@@ -52,18 +80,28 @@ def solve_box_qp(h: np.ndarray, g: np.ndarray, lower: list[bool], upper: list[bo
         if free:
             rows = [hl[i] for i in free]
             rhs = [-gl[i] - sum(row[j] for j in high) for i, row in zip(free, rows, strict=True)]
-            solution, info = _posv([[row[j] for j in free] for row in rows], rhs)[1:]
-            if info != 0:
-                return None
-            for i, value in zip(free, solution.tolist(), strict=True):
+            matrix = [[row[j] for j in free] for row in rows]
+            if len(free) <= _SMALL:
+                solution = _small_solve(matrix, rhs)
+                if solution is None:
+                    return None
+            else:
+                solution, info = _posv(matrix, rhs)[1:]
+                if info != 0:
+                    return None
+                solution = solution.tolist()
+            for i, value in zip(free, solution, strict=True):
                 x[i] = value
-        grad = (h.dot(np.array(x)) + g).tolist()
+        xa = np.array(x)
+        grad = (h.dot(xa) + g).tolist()
         new_lower = [lower[i] and grad[i] >= -slack or (not lower[i] and not upper[i] and x[i] < -slack)
                      for i in range(n)]
         new_upper = [upper[i] and grad[i] <= slack or (not lower[i] and not upper[i] and x[i] > 1.0 + slack)
                      for i in range(n)]
         if new_lower == lower and new_upper == upper:
-            return np.array([min(max(v, 0.0), 1.0) for v in x]), lower, upper, iteration
+            if min(x) < 0.0 or max(x) > 1.0:  # a free variable within the slack of a bound, outside it
+                xa = np.minimum(np.maximum(xa, 0.0), 1.0)
+            return xa, lower, upper, iteration
         lower, upper = new_lower, new_upper
     return None
 
