@@ -214,11 +214,11 @@ class Allocator:
         n_d = robot.n_drones
         self._weights = (attitude_weight, thrust_weight)
         self._regularisation = float(regularisation)
-        self._constants()
         speed = robot.rotor_constants.max_speed if max_speed is None else float(max_speed)
         self.upper = np.full(self.n, speed**2)
         self.lower = np.zeros(self.n)
         self.scale = speed**2  # the bounded routes solve for zeta = z / w_max^2 in [0, 1]: well scaled
+        self._constants()
         # w^2 of (f, tau) for every drone at once: z = inv_f f + inv_tau tau (the R_f^-1 blocks)
         inverse = np.zeros((self.n, 4 * n_d))
         for i, rotor in enumerate(robot.rotors):
@@ -275,8 +275,12 @@ class Allocator:
         self._w_s_f = self._w_f[:, None] * self.s_f
         self._thrust_gram = self._w_s_f.T @ self._w_s_f
         # the constant part of H, and W_f^2 S_f^T (g's thrust term), for the bounded path (_lean_qp)
-        self._h_constant = self._thrust_gram + self.regularisation * self.s_tau.T @ self.s_tau
-        self._thrust_g = self._w_s_f.T * self._w_f
+        # all scaled to zeta = z / w_max^2 once here: S_f and S_tau times w_max^2 (so are A and B), H's constant
+        # part times w_max^4 and g's thrust term's matrix times -w_max^2
+        scale = self.scale
+        self._h_constant = (self._thrust_gram + self.regularisation * self.s_tau.T @ self.s_tau) * scale**2
+        self._thrust_g = -scale * (self._w_s_f.T * self._w_f)
+        self._scaled_s_f, self._scaled_s_tau = scale * self.s_f, scale * self.s_tau
         self._unit_attitude_weight = bool(np.all(self._w_a == 1.0))
 
     def build(self, attitude, thrust_desired, attitude_desired):
@@ -321,8 +325,8 @@ class Allocator:
         computed once (:meth:`_constants`). Equal to :meth:`build` to round-off (tested); symmetric to round-off
         (the Cholesky solves read its upper triangle; ProxQP gets 0.5 (H + H^T)).
         """
-        b = attitude.a_tau.dot(self.s_tau)
-        a = b + attitude.m_inv_a.dot(attitude.j_f.T).dot(self.s_f)  # d qdd_a / d z
+        b = attitude.a_tau.dot(self._scaled_s_tau)  # B w_max^2 (the constants are scaled: _constants)
+        a = b + attitude.m_inv_a.dot(attitude.j_f.T).dot(self._scaled_s_f)  # d qdd_a / d zeta
         x, info = _posv(gram, b)[1:]
         if info != 0:  # A_tau rank deficient: the general builder (pinv)
             h, g = self.build(attitude, f_d, u_a)
@@ -330,8 +334,8 @@ class Allocator:
         r = u_a + attitude.m_inv_a.dot(attitude.c)
         if not self._unit_attitude_weight:
             a, r = a * self._w_a[:, None], self._w_a * r
-        h = (a.T.dot(a) + self._h_constant - self._regularisation * b.T.dot(x)) * self.scale**2
-        return h, -self.scale * (a.T.dot(r) + self._thrust_g.dot(f_d))
+        h = a.T.dot(a) + self._h_constant - self._regularisation * b.T.dot(x)
+        return h, self._thrust_g.dot(f_d) - a.T.dot(r)
 
     def _bounded(self, attitude, f_d, u_a, gram, law) -> AllocationResult:
         """Routes 2 and 3 (class docstring).
