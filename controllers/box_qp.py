@@ -73,10 +73,11 @@ def solve_box_qp(h: np.ndarray, g: np.ndarray, lower: list[bool], upper: list[bo
     hl, gl = h.tolist(), g.tolist()
     lower, upper = list(lower), list(upper)
     slack = tolerance * max(1.0, max(gl), -min(gl))  # max(1, |g|_inf)
+    above, indices = 1.0 + slack, range(n)
     for iteration in range(1, max_iterations + 1):
-        free = [i for i in range(n) if not (lower[i] or upper[i])]
-        high = [j for j in range(n) if upper[j]]
-        x = [1.0 if upper[i] else 0.0 for i in range(n)]
+        free = [i for i, lo, up in zip(indices, lower, upper) if not (lo or up)]
+        high = [i for i, up in zip(indices, upper) if up]
+        x = [1.0 if up else 0.0 for up in upper]
         if free:
             rows = [hl[i] for i in free]
             rhs = [-gl[i] - sum(row[j] for j in high) for i, row in zip(free, rows, strict=True)]
@@ -94,10 +95,10 @@ def solve_box_qp(h: np.ndarray, g: np.ndarray, lower: list[bool], upper: list[bo
                 x[i] = value
         xa = np.array(x)
         grad = (h.dot(xa) + g).tolist()
-        new_lower = [lower[i] and grad[i] >= -slack or (not lower[i] and not upper[i] and x[i] < -slack)
-                     for i in range(n)]
-        new_upper = [upper[i] and grad[i] <= slack or (not lower[i] and not upper[i] and x[i] > 1.0 + slack)
-                     for i in range(n)]
+        # at 0: stays while its multiplier (the gradient) is >= 0; free: joins the bound it crossed; at 1: stays
+        # while the gradient is <= 0 (lower and upper are disjoint)
+        new_lower = [d >= -slack if lo else not up and v < -slack for lo, up, v, d in zip(lower, upper, x, grad)]
+        new_upper = [d <= slack if up else not lo and v > above for lo, up, v, d in zip(lower, upper, x, grad)]
         if new_lower == lower and new_upper == upper:
             if min(x) < 0.0 or max(x) > 1.0:  # a free variable within the slack of a bound, outside it
                 xa = np.minimum(np.maximum(xa, 0.0), 1.0)
