@@ -27,7 +27,6 @@ from fpr.model.jets import Jet
 from planners.polynomial import PiecewisePolynomial
 from planners.problem import (
     CONSTRAINT_KINDS,
-    POWER_SMOOTHING,
     MotionProblem,
     constraint_kind,
     constraint_rows,

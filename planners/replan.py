@@ -12,7 +12,10 @@ t_s = t_0 + deadline to the end of the horizon:
   not spliced in: the plan in force would jump there, and :class:`~planners.polynomial.PiecewisePolynomial`
   holds C4 motions only);
 * then the way points still ahead, up to ``horizon`` travels past the last one that changed (or the
-  end), with the mission's via points inside each travel (the travel cut by t_s keeps its count);
+  end, or the ``through`` way point), with the mission's via points inside each travel (the travel cut by
+  t_s keeps them in proportion to its rest, rounded, at least one when it is the whole horizon: a short rest
+  split by via points gave degree-9 segments of 0.35 s that the 7-node grid holds at the nodes while the
+  rotor speeds between them broke their limits by 10-60 rad/s);
   their values are fixed (moved way points at their new place), their derivatives 1..4 and every via
   point free, as in the 1-step method (seed 3.2.4);
 * the end of the horizon keeps the plan in force's jet (C4 with the rest of it), or rest at the end;

@@ -184,8 +184,8 @@ def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_
     known = fly(TriggerSettings(known_gusts=True))
     assert [(r.time, r.trigger.split(":")[0]) for r in known.replans] == [
         (2.0, "event"),  # way point 1 is 1 s ahead: through way point 2
-        (5.0, "way point 2 ahead in a known wind"),
-        (8.0, "way point 3 ahead in a known wind"),
+        (5.0, "way point 2 ahead in the wind"),
+        (8.0, "way point 3 ahead in the wind"),
     ]
     assert [r.splice_time + r.work["horizon_s"] for r in known.replans] == pytest.approx([6.0, 9.0, 12.0])
     assert all(r.used for r in known.replans) and known.gusts == [gust]

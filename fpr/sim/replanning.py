@@ -127,9 +127,9 @@ class TriggerSettings:
         after_gust: replan (from the plan in force's state) when a gust event ends.
         known_gusts: the replanner is told a gust's force when it starts (a forecast, a wind sensor) and
             replans at once against it (:mod:`planners.disturbance`), and again ``wind_lead`` before each
-            way point while it blows, through the travel after it (the default). Only gusts with a ``rise``: a step blast is not planned against
-            (the plan cannot follow a step; on the previous 0.4 s step gust it made the saturation worse,
-            382 ticks instead of 2).
+            way point while it blows, through the travel after it (the default). Only gusts with a
+            ``rise``: a step blast is not planned against (the plan cannot follow a step; on the previous
+            0.4 s step gust it made the saturation worse, 382 ticks instead of 2).
         estimate_wind: (opt-in; ignored with ``known_gusts``) the replanner is not told the gusts but
             estimates a steady force on the task point from the tracking error
             (:class:`fpr.sim.wind_estimate.WindEstimator`); once the estimate has stayed above
@@ -238,7 +238,7 @@ class InFlight:
             if any(g.active(t) for g in rp.gusts):  # the next travel enters the horizon: fly it in the wind
                 if rp.assumed is not None:  # the newest estimate, blending from the last one from t on
                     rp.assume(self._estimated_gust(t, estimated, ramp_from=t))
-                rp.replan(t, f"way point {due} ahead in a known wind", through=due + 1)
+                rp.replan(t, f"way point {due} ahead in the wind", through=due + 1)
         bound = self.triggers.tracking_bound
         # in a known gust the tracking error is the wind's push, which the plan in force already flies
         # against and a replan from the plan's state cannot remove: no tracking-error replans then
@@ -286,7 +286,9 @@ class InFlight:
             gust = self._estimated_gust(t, force)
             self.replanner.assume(gust)
             said = [round(f, 2) for f in gust.force]
-            self.replanner.replan(t, f"wind estimated: {said} N on the end-effector", through=self._through(t))
+            self.replanner.replan(
+                t, f"wind estimated: {said} N on the end-effector", through=self._through(t)
+            )
         return force
 
     def _estimated_gust(self, t: float, force, ramp_from: float | None = None) -> GustEvent:
