@@ -1,7 +1,8 @@
 """A known external force in the planning problem: the replanner plans *against* a gust.
 
-A gust (:class:`planners.events.GustEvent`) pushes with a constant world force F [N] on the robot kind's
-task point (the FPR's end-effector) or on a drone. In the planning model (the seed's point-mass drones,
+A gust (:class:`planners.events.GustEvent`) pushes with a world force F [N] (fixed direction, its strength
+ramping in and out: :func:`gust_profile`) on the robot kind's task point (the FPR's end-effector) or on a
+drone. In the planning model (the seed's point-mass drones,
 3.12) it is the generalised force Q_ext = J_p(s)^T F on the chain coordinates, J_p the Jacobian of the point
 it pushes (the task point: :meth:`fpr.robots.base.RobotKind.task_points`, differentiated by complex step;
 a drone: its joint, where the planning model puts its mass), and the drones must then give
@@ -26,7 +27,6 @@ from fpr.model.jets import Jet
 from planners.polynomial import PiecewisePolynomial
 from planners.problem import (
     CONSTRAINT_KINDS,
-    POWER_SMOOTHING,
     MotionProblem,
     constraint_kind,
     constraint_rows,
@@ -129,19 +129,9 @@ class DisturbedProblem(MotionProblem):
             return None
         return Jet(np.tile(self.external, (1, n_samples // self.external.shape[1], 1)))  # perturbed node copies
 
-    def _quantities(self, motion):
-        """:meth:`MotionProblem._quantities` with the gusts' Q_ext (the same rows, the same order)."""
-        inputs = inverse_dynamics(self.robot, motion, external=self._external(motion.shape[1]))
-        power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)
-        rows, names, _ = constraint_rows(self.robot, motion, inputs, scaled=True, min_thrust=self.min_thrust)
-        self._rows_names = names
-        return np.concatenate([power, inputs.roll_rate], axis=-1), rows
-
-    def objective_terms(self, points) -> np.ndarray:
-        """[J_e, J_phi] of given points on the grid, in the gusts."""
-        motion = self.motion(points)
-        inputs = inverse_dynamics(self.robot, motion, external=self._external(motion.shape[1]))
-        return self.weights @ objective_rates(inputs, POWER_SMOOTHING)
+    def _inputs(self, motion):
+        """The inverse-dynamics inputs of ``motion`` flown in the gusts (Q_ext at each node)."""
+        return inverse_dynamics(self.robot, motion, external=self._external(motion.shape[1]))
 
 
 def dense_check(robot, part: PiecewisePolynomial, rate: float, start_time: float = 0.0, gusts=()):

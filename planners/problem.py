@@ -347,9 +347,14 @@ class MotionProblem:
         return [name for _ in self.windows for name in self._rows_names]
 
     # ------------------------------------------------------------------ evaluation
+    def _inputs(self, motion) -> MotionInputs:
+        """The inverse-dynamics inputs of ``motion`` (5, N, n): the hook a problem with external forces
+        overrides (:class:`planners.disturbance.DisturbedProblem`); here the free flight."""
+        return inverse_dynamics(self.robot, motion)
+
     def _quantities(self, motion):
         """Raw per-drone integrand pieces (N, 2 n_d): [F_i . r_i' ..., phi_i' ...], and the rows."""
-        inputs = inverse_dynamics(self.robot, motion)
+        inputs = self._inputs(motion)
         power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)
         sign = None
         if self.crossing_sign is not None:  # motion may hold several perturbed copies of the nodes
@@ -479,6 +484,6 @@ class MotionProblem:
 
     def objective_terms(self, points) -> np.ndarray:
         """[J_e, J_phi] of given points on the grid (smoothed |.|, as the optimiser sees them)."""
-        inputs = inverse_dynamics(self.robot, self.motion(points))
+        inputs = self._inputs(self.motion(points))
         return self.weights @ objective_rates(inputs, POWER_SMOOTHING)
 

@@ -12,7 +12,10 @@ t_s = t_0 + deadline to the end of the horizon:
   not spliced in: the plan in force would jump there, and :class:`~planners.polynomial.PiecewisePolynomial`
   holds C4 motions only);
 * then the way points still ahead, up to ``horizon`` travels past the last one that changed (or the
-  end), with the mission's via points inside each travel (the travel cut by t_s keeps its count);
+  end, or the ``through`` way point), with the mission's via points inside each travel (the travel cut by
+  t_s keeps them in proportion to its rest, rounded, at least one when it is the whole horizon: a short rest
+  split by via points gave degree-9 segments of 0.35 s that the 7-node grid holds at the nodes while the
+  rotor speeds between them broke their limits by 10-60 rad/s);
   their values are fixed (moved way points at their new place), their derivatives 1..4 and every via
   point free, as in the 1-step method (seed 3.2.4);
 * the end of the horizon keeps the plan in force's jet (C4 with the rest of it), or rest at the end;
@@ -276,13 +279,20 @@ class Replanner:
         for j in range(j0, j_end + 1):
             begin = max(self.way_times[j - 1], t_s)
             n = int(self.n_via[j - 1])
+            # the rest of a travel gets via points in proportion (short segments make the degree-9
+            # polynomials wiggle between the grid nodes), at least one when it is all the horizon holds
+            rest = (self.way_times[j] - begin) / (self.way_times[j] - self.way_times[j - 1])
+            n = max(int(round(n * rest)), 1 if j0 == j_end else 0)
             times += list(begin + (self.way_times[j] - begin) * np.arange(1, n + 1) / (n + 1))
             times.append(self.way_times[j])
             is_way += [False] * n + [True]
         return np.array(times), np.array(is_way)
 
-    def problem(self, t_s: float, start: np.ndarray | None = None):
+    def problem(self, t_s: float, start: np.ndarray | None = None, through: int | None = None):
         """The horizon's NLP from t_s (see the module docstring), or None when no way point is ahead.
+
+        ``through``: re-optimise at least up to this way point (index; e.g. the travel after the next way
+        point, re-planned in a known wind while the splice is still before that way point).
 
         Returns:
             (problem, x0, times, j_end) or None.
@@ -296,6 +306,8 @@ class Replanner:
             j_end = min(k - 1, self.changed + self.options.horizon)
         else:  # horizon travels from the robot's
             j_end = min(k - 1, j0 + self.options.horizon - 1)
+        if through is not None:
+            j_end = max(j_end, min(k - 1, int(through)))
         times, is_way = self._layout(t_s, j0, j_end)
         current = self.trajectory
         points = np.moveaxis(current.evaluate_held(times, order=N_DERIVS - 1), 0, 1).copy()  # (m+1, 5, n)
@@ -338,7 +350,9 @@ class Replanner:
             + per_second * work["horizon_s"]
         )
 
-    def replan(self, t_0: float, trigger: str, start: np.ndarray | None = None) -> Replan:
+    def replan(
+        self, t_0: float, trigger: str, start: np.ndarray | None = None, through: int | None = None
+    ) -> Replan:
         """Re-optimise from t_s = t_0 + deadline, and splice the result in when it is feasible and on time.
 
         Args:
@@ -346,6 +360,7 @@ class Replanner:
             trigger: what asked for it (logged).
             start: the start point [s, s', ..., s''''] at t_s (5, n_s), or None for the plan in force's;
                 a start off the plan in force is solved (timed) but never used (the splice must be C4).
+            through: re-optimise at least up to this way point (:meth:`problem`), or None (the horizon).
 
         Returns:
             the :class:`Replan` record (also appended to :attr:`replans`); when ``used``,
@@ -358,7 +373,7 @@ class Replanner:
         )
         self.replans.append(record)
         begin = time.perf_counter()
-        built = self.problem(t_s, start)
+        built = self.problem(t_s, start, through)
         if built is None:
             record.why = "not used: no way point ahead of the splice"
             return record

@@ -83,6 +83,30 @@ def test_disturbed_problem_gradient_matches_finite_differences(moving):
         assert smooth.mean() > 0.95
 
 
+def test_a_zero_force_gust_leaves_the_problem_exactly_the_motion_problem(moving):
+    """DisturbedProblem differs from MotionProblem only by Q_ext in the inverse dynamics (its ``_inputs``):
+    with a gust of no force, J, its terms, every constraint (the between-node workspace rows included) and
+    the exact derivatives are MotionProblem's, bit for bit."""
+    _, result = moving
+    replanner = Replanner(result, ReplanOptions())
+    replanner.move(0)
+    problem, x0, _, _ = replanner.problem(4.05)
+    calm = DisturbedProblem(problem.robot, problem.points, problem.durations, problem.free, problem.alpha,
+                            problem.normalisation, samples_per_segment=problem.samples_per_segment,
+                            windows_per_segment=len(problem.windows) // problem.durations.size,
+                            gusts=[GustEvent(3.0, (0.0, 0.0, 0.0), 5.0, rise=0.5)], start_time=4.05)
+    assert calm.external is not None and not calm.external.any()  # the force is there, and zero
+    x = x0 + 0.01 * np.random.default_rng(2).normal(size=x0.size)  # off the plan: the workspace rows move
+    free, windy = problem.evaluate(x, True), calm.evaluate(x, True)
+    assert windy.J == free.J
+    np.testing.assert_array_equal(windy.terms, free.terms)
+    np.testing.assert_array_equal(windy.constraints, free.constraints)
+    np.testing.assert_array_equal(windy.gradient, free.gradient)
+    np.testing.assert_array_equal(windy.jacobian, free.jacobian)
+    assert calm.constraint_names == problem.constraint_names
+    np.testing.assert_array_equal(calm.objective_terms(calm.points), problem.objective_terms(problem.points))
+
+
 def test_dense_check_without_gusts_agrees_with_evaluate_motion(moving):
     _, result = moving
     part = result.trajectory
@@ -130,7 +154,8 @@ def test_warm_sqp_improves_within_its_cap_and_stays_feasible(moving):
 def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_within_limits():
     """The built-in gust (8 N along -y, rising over 1 s from 2 s, then steady), told to the replanner.
 
-    It replans at the gust's start and at each way point passed, not on the tracking error the wind causes,
+    It replans at the gust's start and ``wind_lead`` (1 s) before each way point, through the travel after
+    it (the splice in the part already planned for the wind), not on the tracking error the wind causes,
     and the executed plan flown in the wind holds every constraint (rotor speeds 3.48 included), where the
     offline plan in the same wind needs rotor speeds below 0. Blind (neither told nor estimating), it
     replans only on the tracking error.
@@ -149,7 +174,7 @@ def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_
     def fly(triggers):
         replanner = Replanner(result, ReplanOptions(deadline=0.3, work_cost=(0.0, 0.0, 0.0)))
         hooks = InFlight(mission, replanner, triggers, SimulationSettings().controller, chain, robot)
-        for t in (1.99, 2.0, 2.5, 3.0, 4.0, 6.0, 7.0, 9.0):
+        for t in (1.99, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 11.0):
             reference = replanner.trajectory.evaluate(np.array([t]), 4)[:, 0]
             off = reference[0] + (0.0 if t < 2.0 else np.array([0.3, 0.0, 0.0, 0.0]))  # blown 30 cm off
             q = robot.configuration(**dict(zip(robot.layout.chain, off, strict=True)))
@@ -158,11 +183,11 @@ def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_
 
     known = fly(TriggerSettings(known_gusts=True))
     assert [(r.time, r.trigger.split(":")[0]) for r in known.replans] == [
-        (2.0, "event"),
-        (3.0, "way point 1 passed in a known gust"),
-        (6.0, "way point 2 passed in a known gust"),
-        (9.0, "way point 3 passed in a known gust"),
+        (2.0, "event"),  # way point 1 is 1 s ahead: through way point 2
+        (5.0, "way point 2 ahead in the wind"),
+        (8.0, "way point 3 ahead in the wind"),
     ]
+    assert [r.splice_time + r.work["horizon_s"] for r in known.replans] == pytest.approx([6.0, 9.0, 12.0])
     assert all(r.used for r in known.replans) and known.gusts == [gust]
     offline = evaluate_in_gusts(robot, result.trajectory, [gust])
     assert min(offline.constraints[f"rotor_speed_low_{i}"].margin for i in (1, 2)) < -50.0  # w < 0 needed

@@ -24,9 +24,12 @@ Triggers (with a :class:`planners.replan.Replanner`, ``--replan``):
   the gust's start (a forecast, a wind sensor); with ``estimate_wind`` instead (opt-in) a steady force on
   the task point is estimated from the tracking error (:class:`fpr.sim.wind_estimate.WindEstimator`)
   and, once it has held ``estimate_delay``, the replanner plans against it. Either way it replans then
-  with the force in the NLP's inverse dynamics (:mod:`planners.disturbance`), and again each time the
-  robot passes a way point while the wind blows (the next travel enters the horizon and must be
-  re-optimised against the wind too).
+  with the force in the NLP's inverse dynamics (:mod:`planners.disturbance`), and again ``wind_lead``
+  before each way point while the wind blows: the rest of the travel and the next one are re-optimised
+  against the wind together, so the splice lies in the part already planned in the wind. (Replanning
+  once the way point was passed spliced into the offline plan's next travel, planned without the wind:
+  from that state the next travel in the wind had no feasible C4 continuation the warm SQP could reach,
+  e.g. at 6.3 s on the built-in ``gust`` mission, README "Replanning in flight".)
   Against a sustained wind (a gust with a ``rise``, the built-in ``gust`` mission) every closed-loop margin
   then holds; against a short step blast it cannot help: the saturation there is the controller's
   transient (README "Replanning in flight").
@@ -123,16 +126,19 @@ class TriggerSettings:
         rate: fixed replanning rate [Hz], or None.
         after_gust: replan (from the plan in force's state) when a gust event ends.
         known_gusts: the replanner is told a gust's force when it starts (a forecast, a wind sensor) and
-            replans at once against it (:mod:`planners.disturbance`), and again at each way point passed
-            while it blows (the default). Only gusts with a ``rise``: a step blast is not planned against
-            (the plan cannot follow a step; on the previous 0.4 s step gust it made the saturation worse,
-            382 ticks instead of 2).
+            replans at once against it (:mod:`planners.disturbance`), and again ``wind_lead`` before each
+            way point while it blows, through the travel after it (the default). Only gusts with a
+            ``rise``: a step blast is not planned against (the plan cannot follow a step; on the previous
+            0.4 s step gust it made the saturation worse, 382 ticks instead of 2).
         estimate_wind: (opt-in; ignored with ``known_gusts``) the replanner is not told the gusts but
             estimates a steady force on the task point from the tracking error
             (:class:`fpr.sim.wind_estimate.WindEstimator`); once the estimate has stayed above
             ``estimate_threshold`` [N] for ``estimate_delay`` [s] it plans against it as a known gust
-            (replanning then, and at each way point passed with the estimate of that moment). Both off:
-            blind (a gust is seen only through the tracking error).
+            (replanning then, and ``wind_lead`` before each way point with the estimate of that moment).
+            Both off: blind (a gust is seen only through the tracking error).
+        wind_lead: in a known or estimated wind, how long before a way point [s] the rest of its travel
+            and the next travel are re-optimised (more than the replanner's deadline, so that the splice
+            comes before the way point, in the part of the plan already made for the wind).
     """
 
     tracking_bound: float | None = 0.05
@@ -143,6 +149,7 @@ class TriggerSettings:
     estimate_wind: bool = False
     estimate_threshold: float = 1.0
     estimate_delay: float = 1.0
+    wind_lead: float = 1.0
 
 
 class InFlight:
@@ -183,7 +190,7 @@ class InFlight:
         self.estimator = WindEstimator(self.robot, controller) if estimate else None
         self._above_since = None  # when the estimate last rose above the threshold [s]
         self._below_since = None  # when it last fell below it [s]
-        self._passed = 0  # interior way points passed so far
+        self._prepared = 0  # interior way points whose next travel is planned for (or passed without wind)
 
     @property
     def replans(self) -> list:
@@ -217,20 +224,21 @@ class InFlight:
             elif event.kind == "gust" and self._plans_against(event) and i not in self._known and starts:
                 self._known.add(i)  # the gust's force is known from its start (forecast, wind sensor)
                 rp.learn(i)
-                rp.replan(t, f"event: a gust of {list(event.force)} N on {event.body} starts (force known)")
+                rp.replan(t, f"event: a gust of {list(event.force)} N on {event.body} starts (force known)",
+                          through=self._through(t))
             elif event.kind == "gust" and self.triggers.after_gust and event.at + event.duration <= t + 1e-9:
                 self._done.add(i)
                 rp.replan(t, "event: the gust is over")
         estimated = self._estimate(t, q, v, reference)
         # a known gust blows, or the estimate has risen (the wind builds up): the error is the wind's
         windy = any(g.active(t) for g in rp.gusts) or self._above_since is not None
-        passed = int(np.searchsorted(self._way_times, t + 1e-9, side="right"))
-        if passed > self._passed:
-            self._passed = passed
+        due = int(np.searchsorted(self._way_times - self.triggers.wind_lead, t + 1e-9, side="right"))
+        if due > self._prepared:
+            self._prepared = due
             if any(g.active(t) for g in rp.gusts):  # the next travel enters the horizon: fly it in the wind
                 if rp.assumed is not None:  # the newest estimate, blending from the last one from t on
                     rp.assume(self._estimated_gust(t, estimated, ramp_from=t))
-                rp.replan(t, f"way point {passed} passed in a known gust")
+                rp.replan(t, f"way point {due} ahead in the wind", through=due + 1)
         bound = self.triggers.tracking_bound
         # in a known gust the tracking error is the wind's push, which the plan in force already flies
         # against and a replan from the plan's state cannot remove: no tracking-error replans then
@@ -244,6 +252,15 @@ class InFlight:
             self._next_rate += 1.0 / self.triggers.rate
             rp.replan(t, "rate")
         return None if rp.trajectory is before else rp.trajectory
+
+    def _through(self, t: float) -> int | None:
+        """``through`` of a replan in the wind at t: the travel after the next way point too when that way
+        point is less than ``wind_lead`` ahead (that travel is then not re-planned by a later trigger)."""
+        ahead = int(np.searchsorted(self._way_times, t + 1e-9, side="right"))  # 0-based: way point ahead + 1
+        if ahead >= self._way_times.size or self._way_times[ahead] - t > self.triggers.wind_lead + 1e-9:
+            return None
+        self._prepared = max(self._prepared, ahead + 1)
+        return ahead + 2
 
     def _plans_against(self, gust) -> bool:
         """The replanner is told of ``gust`` (``known_gusts``, and the gust has a rise: not a step)."""
@@ -269,7 +286,9 @@ class InFlight:
             gust = self._estimated_gust(t, force)
             self.replanner.assume(gust)
             said = [round(f, 2) for f in gust.force]
-            self.replanner.replan(t, f"wind estimated: {said} N on the end-effector")
+            self.replanner.replan(
+                t, f"wind estimated: {said} N on the end-effector", through=self._through(t)
+            )
         return force
 
     def _estimated_gust(self, t: float, force, ramp_from: float | None = None) -> GustEvent:
