@@ -71,3 +71,17 @@ def test_drone_centre_jacobians_are_the_centres(robot):
         assert jac.tobytes() == centre.jacobian(q).tobytes()
     assert m.tobytes() == rigid.mass_matrix(q).tobytes()
     assert c.tobytes() == rigid.bias(q, v).tobytes()
+
+
+def test_signed_rotor_speeds_carry_a_complex_step_derivative_and_keep_their_real_bits():
+    """sign(w^2) sqrt(|w^2|): the same bits as before for real input (both signs and 0), and Im(f(w2 + ih))/h
+    equal to the analytic derivative 1 / (2 sqrt(|w^2|)) (numpy's complex sign/abs would lose it)."""
+    from fpr.model.rotors import signed_speeds
+
+    w2 = np.array([-3.0e5, -1.0, 0.0, 2.5e-3, 4.2e5])
+    assert signed_speeds(w2).tobytes() == (np.sign(w2) * np.sqrt(np.abs(w2))).tobytes()
+    h = 1e-20
+    nonzero = w2[w2 != 0.0]
+    derivative = signed_speeds(nonzero + 1j * h).imag / h
+    np.testing.assert_allclose(derivative, 0.5 / np.sqrt(np.abs(nonzero)), rtol=1e-12)
+    assert np.all(derivative > 0)  # w grows with w^2 on both sides of 0

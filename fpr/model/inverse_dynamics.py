@@ -32,6 +32,7 @@ import numpy as np
 from fpr.model import jets
 from fpr.model.errors import ShapeError
 from fpr.model.jets import Jet
+from fpr.model.rotors import signed_speeds
 
 
 @dataclass(frozen=True)
@@ -226,7 +227,7 @@ def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
         roll_acceleration=roll.d[2],
         torque=torque,
         rotor_speed_squared=w2,
-        rotor_speed=np.sign(w2) * np.sqrt(np.abs(w2)),
+        rotor_speed=signed_speeds(w2),
         joint_position=hinges.value,
         joint_velocity=hinges.d[1],
         joint_acceleration=hinges.d[2],

@@ -22,6 +22,18 @@ from fpr.model.jets import inexact
 from fpr.model.parameters import RotorConstants
 
 
+def signed_speeds(w2) -> np.ndarray:
+    """sign(w^2) sqrt(|w^2|) [rad/s] of squared rotor speeds w^2 [rad^2/s^2], complex-step safe.
+
+    Written sign * sqrt(sign * w^2) with the sign of the real part: the same bits as sign(w^2) sqrt(|w^2|)
+    for real input, and an analytic function of a complex-step perturbed input (numpy's complex ``sign``
+    and ``abs`` are not: sign(z) = z / |z| and |z| drop the perturbation's derivative).
+    """
+    w2 = np.asarray(w2)
+    sign = np.sign(w2.real)
+    return sign * np.sqrt(sign * w2)
+
+
 @dataclass(frozen=True)
 class RotorModel:
     """Mixing of the four rotors of one quadrotor.
@@ -82,8 +94,7 @@ class RotorModel:
         The sign keeps a physically impossible command (w^2 < 0) visible, so the constraint
         ``0 <= w <= w_max - m_gr`` (seed 3.48) can be evaluated and violated continuously.
         """
-        w2 = self.speeds_squared(thrust, torque)
-        return np.sign(w2) * np.sqrt(np.abs(w2))
+        return signed_speeds(self.speeds_squared(thrust, torque))
 
     def rotor_forces(self, thrust, torque) -> np.ndarray:
         """Force of each rotor c_T w^2 (seed 3.31), shape (..., 4) [N]."""
