@@ -30,9 +30,8 @@ from planners.problem import (
     MotionProblem,
     constraint_kind,
     constraint_rows,
-    objective_rates,
 )
-from planners.report import FEASIBILITY_TOLERANCE, ConstraintReport, MotionReport, evaluate_motion
+from planners.report import FEASIBILITY_TOLERANCE, evaluate_motion
 
 _STEP = 1e-30
 
@@ -168,33 +167,14 @@ def evaluate_in_gusts(robot, trajectory: PiecewisePolynomial, gusts, rate: float
     """:func:`planners.report.evaluate_motion` of a motion flown in known ``gusts`` (absolute times [s]).
 
     The same rows, sampling and report, with the gusts' Q_ext in the inverse dynamics (the rotor speeds
-    3.48 of the motion in the wind). No gusts: :func:`~planners.report.evaluate_motion` itself.
+    3.48 of the motion in the wind). No gust pushing: :func:`~planners.report.evaluate_motion` as it is.
     """
-    if not gusts:
-        return evaluate_motion(robot, trajectory, rate)
-    t = np.unique(np.concatenate([trajectory.sample_times(rate), trajectory.knots]))
-    motion = trajectory.evaluate(t, order=4)
-    external = generalized_gust(robot, gusts, t, motion[0])
-    inputs = inverse_dynamics(robot, motion, external=None if external is None else Jet(external))
-    rates = objective_rates(inputs)
-    rows, names, details = constraint_rows(robot, motion, inputs, scaled=False)
-    reports = {}
-    for name in dict.fromkeys(names):
-        cols = [c for c, n in enumerate(names) if n == name]
-        sub = rows[:, cols]
-        i, c = np.unravel_index(np.argmin(sub), sub.shape)
-        kind = constraint_kind(name)
-        reports[name] = ConstraintReport(
-            name, kind, float(sub[i, c]), float(t[i]), CONSTRAINT_KINDS[kind][0], details[cols[c]]
-        )
-    return MotionReport(
-        t,
-        motion[:5],
-        inputs,
-        float(np.trapezoid(rates[:, 0], t)),
-        float(np.trapezoid(rates[:, 1], t)),
-        reports,
-    )
+
+    def external(t, s):
+        force = generalized_gust(robot, gusts, t, s)
+        return None if force is None else Jet(force)
+
+    return evaluate_motion(robot, trajectory, rate, external=external if gusts else None)
 
 
 def _unit(name: str) -> str:

@@ -102,7 +102,8 @@ class MotionReport:
 
 
 def evaluate_motion(robot, trajectory: PiecewisePolynomial, rate: float = 500.0,
-                    crossing_time: float | None = None, min_thrust: float | None = None) -> MotionReport:
+                    crossing_time: float | None = None, min_thrust: float | None = None,
+                    external=None) -> MotionReport:
     """Sample ``trajectory`` at ``rate`` [Hz] (plus every knot) and check every constraint.
 
     Args:
@@ -111,13 +112,17 @@ def evaluate_motion(robot, trajectory: PiecewisePolynomial, rate: float = 500.0,
             (:mod:`planners.crossing`), the time of the crossing [s]: the assembly-mode bounds are
             then checked on each side of it.
         min_thrust: also check thrust >= this [N] (``thrust_low``), or None.
+        external: known external forces the motion is flown against (a gust), or None: a function of the
+            sample times t (N,) [s] and positions s (N, n_s) giving what
+            :func:`fpr.model.inverse_dynamics.inverse_dynamics` takes as ``external`` (or None: no force),
+            e.g. :func:`planners.disturbance.evaluate_in_gusts`'s.
 
     Returns:
         the :class:`MotionReport` (J_e, J_phi by the trapezoidal rule on the samples).
     """
     t = np.unique(np.concatenate([trajectory.sample_times(rate), trajectory.knots]))
     motion = trajectory.evaluate(t, order=MOTION_ORDER)
-    inputs = inverse_dynamics(robot, motion)
+    inputs = inverse_dynamics(robot, motion, external=None if external is None else external(t, motion[0]))
     rates = objective_rates(inputs)
     sign = None if crossing_time is None else np.sign(crossing_time - t) * (np.abs(t - crossing_time) > 1e-12)
     rows, names, details = constraint_rows(robot, motion, inputs, scaled=False, crossing_sign=sign,
