@@ -92,6 +92,11 @@ class ControllerSettings:
     thrust_weight: float = 1.0
     singular_band: float = 0.03
 
+    @property
+    def chain_gains(self) -> tuple[float, float]:
+        """(K_p [1/s^2], K_d [1/s]) of the chain loop: omega^2 and 2 zeta omega of its frequency and damping."""
+        return self.chain_frequency**2, 2 * self.chain_damping * self.chain_frequency
+
 
 @dataclass
 class Reference:
@@ -194,7 +199,7 @@ class CascadedController:
     def outer(self, q, v, reference: Reference) -> np.ndarray:
         """F_i (world y, z) each drone must apply at its joint, shape (n_d, 2) [N] (2.14-2.16)."""
         st = self.settings
-        kp, kd = st.chain_frequency**2, 2 * st.chain_damping * st.chain_frequency
+        kp, kd = st.chain_gains
         s, ds = q[self.chain], v[self.chain]
         sd = reference.motion
         u = sd[2] - kp * (s - sd[0]) - kd * (ds - sd[1]) - st.chain_integral * self._integral

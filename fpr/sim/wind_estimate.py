@@ -41,8 +41,7 @@ class WindEstimator:
     def __init__(self, robot, controller, time_constant: float = 0.5):
         self.robot = robot
         self.planar = robot.planar("point")
-        self.kp = controller.chain_frequency**2
-        self.kd = 2.0 * controller.chain_damping * controller.chain_frequency
+        self.kp, self.kd = controller.chain_gains
         self.ki = controller.chain_integral
         self.limit = controller.integral_limit
         self.outer = 1.0 / controller.outer_rate
