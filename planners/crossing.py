@@ -193,7 +193,7 @@ class CrossingOutcome:
             "J_phi": self.report.J_phi,
             "violated": [c.name for c in self.report.violations],
             "wall_time_s": self.wall_time,
-            "stages": [vars(st) for st in self.stages],
+            "stages": [dict(vars(st)) for st in self.stages],  # copies: the document may be edited (split_timings)
         }
 
 

@@ -117,6 +117,6 @@ class PlanResult:
             "constraints": {n: {"margin": c.margin, "unit": c.unit, "time_s": c.time, "detail": c.detail,
                                 "satisfied": c.satisfied} for n, c in self.report.constraints.items()},
             "violated": [c.name for c in self.report.violations],
-            "stages": [vars(s) for s in self.stages],
+            "stages": [dict(vars(s)) for s in self.stages],  # copies: the document may be edited (split_timings)
             **({"crossing": self.crossing.summary(robot)} if self.crossing is not None else {}),
         }

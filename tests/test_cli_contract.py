@@ -386,3 +386,18 @@ def test_studies_keep_wall_times_out_of_studies_json():
     times = split_timings(doc)
     assert doc == {"via": {"cases": [{"J": 1.0}, {"J": 2.0}]}}
     assert times == {"document": 3.0, "via.cases.0": 0.25, "via.cases.1": 0.5}
+
+
+def test_taking_the_wall_times_out_of_plan_json_leaves_the_result_s_stages_their_times():
+    """split_timings edits the plan document in place; the stages' times the CLI prints afterwards (and the
+    manifest's) must be the solver's, not the stage record's default 0 (the document holds copies)."""
+    from fpr.cli.plan_files import split_timings
+    from planners.mission import load_mission
+    from planners.optimize import plan
+
+    result = plan(load_mission("square"), "two-step")
+    before = [stage.wall_time for stage in result.stages]
+    times = split_timings(result.summary())
+    assert all(stage.wall_time > 0 for stage in result.stages if stage.iterations)
+    assert [stage.wall_time for stage in result.stages] == before
+    assert [times[f"stages.{stage.name}"] for stage in result.stages] == before
