@@ -12,11 +12,21 @@ See README.md for the command line (``python -m fpr.plan``) and the notebooks.
 
 import os as _os
 
+import sys as _sys
+
 # The planner and the simulator work on many small matrices, where multi-threaded BLAS only adds
-# synchronisation: measured 5-10x slower on a shared 2-core machine. This takes effect when fpr is
-# imported before numpy (the command-line tools, the tests); export the variables to override.
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+# synchronisation: measured 5-10x slower on a shared 2-core machine (CPU time doubled). Before numpy
+# is loaded the environment variables do it; when numpy was imported first (a notebook, a script that
+# imports numpy before fpr) its BLAS has already started its threads, so threadpoolctl limits them.
+# Export OPENBLAS_NUM_THREADS (or OMP_/MKL_) yourself to choose another number: fpr then leaves BLAS alone.
+_BLAS_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+_user_chose_blas_threads = any(_var in _os.environ for _var in _BLAS_VARS)
+for _var in _BLAS_VARS:
     _os.environ.setdefault(_var, "1")
+if "numpy" in _sys.modules and not _user_chose_blas_threads:
+    from threadpoolctl import threadpool_limits as _threadpool_limits
+
+    _threadpool_limits(limits=1, user_api="blas")
 
 from fpr.model.errors import FprError, ShapeError, SingularityError, UnknownRobotError, WorkspaceError  # noqa: E402
 
