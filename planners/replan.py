@@ -50,6 +50,7 @@ from planners.events import moved_positions
 from planners.methods.way_points import WayPointTask
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
 from planners.problem import MotionProblem
+from planners.replan_check import evaluate_and_check
 from planners.replan_solver import solve_warm
 from planners.solving import Grid
 
@@ -81,6 +82,11 @@ class ReplanOptions:
         timing: ``"work"`` (deterministic latency from the solver's work, :data:`WORK_COST`) or ``"wall"``
             (the measured wall time) for the used / not-used decision.
         work_cost: the costs of the ``"work"`` latency model [s] (:data:`WORK_COST`).
+        fuse_check: the dense check of the SQP's last trial point shares its inverse-dynamics call
+            (:func:`planners.replan_check.evaluate_and_check`; same verdict), or (False) is a call of its own.
+        within_deadline: an SQP iteration after the first starts only if the deterministic latency
+            (:meth:`Replanner.latency`) with its evaluations stays within the deadline (False: every
+            iteration up to ``max_iterations``, the replanner before the latency work).
     """
 
     deadline: float = 0.05
@@ -93,6 +99,8 @@ class ReplanOptions:
     timing: str = "work"
     work_cost: tuple = WORK_COST
     radius: float = 0.3
+    fuse_check: bool = True
+    within_deadline: bool = True
 
     def __post_init__(self):
         if not (np.isfinite(self.deadline) and self.deadline > 0):
@@ -381,18 +389,30 @@ class Replanner:
             record.why = "not used: no way point ahead of the splice"
             return record
         problem, x0, times, j_end = built
-        out = solve_warm(problem, x0, opt.max_iterations, opt.tolerance, opt.radius)
+        gusts = self._gusts_within(t_s, float(times[-1]))
+        final = None
+        if opt.fuse_check:
+            final = lambda x: evaluate_and_check(problem, x, opt.dense_rate, t_s, gusts)  # noqa: E731
+        horizon_s = float(times[-1] - times[0])
+
+        def afford(gradients: int, values: int) -> bool:  # a refinement must not make the plan late
+            work = {"nodes": problem.t.size, "derivative_evaluations": gradients, "value_evaluations": values,
+                    "horizon_s": horizon_s}
+            return not opt.within_deadline or self.latency(work) <= opt.deadline
+
+        out = solve_warm(problem, x0, opt.max_iterations, opt.tolerance, opt.radius, afford=afford, final=final)
         x = out.x
         part = PiecewisePolynomial(problem.points_of(x), problem.durations)
-        feasible, violated, _ = dense_check(
-            self.robot, part, opt.dense_rate, t_s, self._gusts_within(t_s, float(times[-1]))
-        )
+        if out.check is not None:  # the dense check came with the last evaluation
+            feasible, violated, _ = out.check
+        else:
+            feasible, violated, _ = dense_check(self.robot, part, opt.dense_rate, t_s, gusts)
         record.solve_wall_s = time.perf_counter() - begin
         record.work = {
             "nodes": int(problem.t.size),
             "derivative_evaluations": int(out.gradient_evaluations),
             "value_evaluations": int(out.value_evaluations),
-            "horizon_s": float(times[-1] - times[0]),
+            "horizon_s": horizon_s,
         }
         modelled = self.latency(record.work)
         record.latency_s = modelled if opt.timing == "work" else record.solve_wall_s
