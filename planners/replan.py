@@ -57,8 +57,8 @@ from planners.solving import Grid
 #: Cost of the solver's work for the deterministic latency [s]: (per derivative evaluation per grid node,
 #: per value evaluation per grid node, per second of re-optimised motion: the dense check and the set-up).
 #: Fitted (non-negative least squares) by ``python -m fpr.bench --section replan``. The replanner before the
-#: latency work was fitted on the quiet 2-core machine (load average under 1, one BLAS thread): (1.47e-3, 0, 0)
-#: and (1.29e-3, 0, 5.8e-3) in two runs, used as 1.4 x the first (2.0e-3). Today's replanner (the dense check
+#: latency work was fitted on the quiet 2-core machine (load average under 1, one BLAS thread):
+#: (1.47e-3, 0, 0) and (1.29e-3, 0, 5.8e-3) in two runs, used as 1.4 x the first (2.0e-3). Today's replanner (the dense check
 #: fused with the last evaluation, so a derivative evaluation carries more of the fixed costs) was timed side
 #: by side with that one on the shared machine (load average 4-7): the cost per node and derivative
 #: evaluation fitted alone is 1.095 times the old one's (the minimum CPU time of 3 runs of each of the 40
@@ -413,7 +413,9 @@ class Replanner:
                     "horizon_s": horizon_s}
             return opt.refine_margin * self.latency(work) <= opt.deadline
 
-        out = solve_warm(problem, x0, opt.max_iterations, opt.tolerance, opt.radius, afford=afford, final=final)
+        out = solve_warm(
+            problem, x0, opt.max_iterations, opt.tolerance, opt.radius, afford=afford, final=final
+        )
         x = out.x
         part = PiecewisePolynomial(problem.points_of(x), problem.durations)
         if out.check is not None:  # the dense check came with the last evaluation

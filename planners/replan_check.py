@@ -54,7 +54,7 @@ def verdict(robot, motion, inputs: MotionInputs) -> tuple[bool, list[str]]:
 
 
 def evaluate_and_check(problem, x, rate: float, start_time: float = 0.0, gusts=()):
-    """``problem.evaluate(x)`` (values only) and the dense check of its motion, from one inverse-dynamics call.
+    """``problem.evaluate(x)`` (values only) and the dense check of its motion from one inverse-dynamics call.
 
     Args:
         problem: the replan's NLP (:class:`planners.problem.MotionProblem`, or
@@ -65,7 +65,7 @@ def evaluate_and_check(problem, x, rate: float, start_time: float = 0.0, gusts=(
         gusts: the gust events the dense check flies the motion in.
 
     Returns:
-        (the :class:`planners.problem.Evaluation` at x, (feasible, violated names worst first, dense samples)).
+        (the :class:`planners.problem.Evaluation` at x, (feasible, violated names worst first, samples)).
     """
     x = np.asarray(x, dtype=float)
     points = problem.points_of(x)

@@ -22,7 +22,8 @@ one run, they hold on a loaded machine where the times themselves do not. The co
 ``work`` latency (:data:`planners.replan.WORK_COST`) are fitted (non-negative least squares) to today's wall
 and CPU times and printed beside the costs in use, with the ratio of the modelled latency to the measured
 one (median and range over the replans): how far the default, reproducible used / not-used decision may be
-from the wall clock.
+from the wall clock. Last, the moving-target replan taken apart into its phases
+(:mod:`fpr.cli.bench.replan_phases`).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ import time
 import numpy as np
 from scipy.optimize import nnls
 
+from fpr.cli.bench.replan_phases import phases_table, replan_phases
 from planners.mission import load_mission
 from planners.optimize import plan
 from planners.replan import WORK_COST, Replanner, ReplanOptions, jet
@@ -161,6 +163,7 @@ def run_replan(quick: bool, progress: bool = True) -> dict:
             "max": float(ratio.max()),
         },
         "openblas_threads": os.environ.get("OPENBLAS_NUM_THREADS", "default"),
+        "phases": replan_phases(moving, repeats=5 if quick else 15),
     }
 
 
@@ -208,6 +211,8 @@ def replan_table(doc: dict) -> str:
         f"(planners.replan.WORK_COST in use: {', '.join(f'{v:.3g}' for v in doc['work_cost_in_use'])}); "
         f"modelled / measured latency: median {ratio['median']:.2f}, range {ratio['min']:.2f} .. {ratio['max']:.2f}"
     )
+    if "phases" in doc:
+        lines.append(phases_table(doc["phases"]))
     return "\n".join(lines)
 
 
