@@ -10,7 +10,14 @@ norm, exact l1 merit and ratio test), with two differences chosen for latency:
 * the QP is solved by Goldfarb and Idnani's dual active-set method (``quadprog``), exact and about
   0.5 ms for the replanner's ~60 variables, where ProxQP took ~10 ms whatever the size;
 * an explicit iteration cap (:class:`planners.replan.ReplanOptions`), and it stops as soon as an
-  accepted, feasible step improves the merit by less than ``tolerance`` (relative).
+  accepted, feasible step improves the merit by less than ``tolerance`` (relative);
+* a budget: an iteration after the first starts only when the caller's ``afford`` says its cost fits
+  (the replanner: the deterministic latency with one more derivative and value evaluation within the
+  deadline), so a refinement never makes a plan late;
+* the trial point likely to be the last (the last iteration's, or a step predicting a merit decrease
+  below ``tolerance``) may be evaluated by the caller's ``final``, which fuses the value evaluation
+  with the caller's dense check of it (:func:`planners.replan_check.evaluate_and_check`): one
+  inverse-dynamics call instead of two.
 
 Its counts (derivative and value evaluations) feed the replanner's deterministic latency.
 """
@@ -34,6 +41,7 @@ class WarmOutcome:
     gradient_evaluations: int
     value_evaluations: int
     message: str
+    check: object = None
 
 
 class QpFailure(RuntimeError):
@@ -83,7 +91,7 @@ def qp_step(ev, radius: float, penalty: float):
 
 
 def solve_warm(problem, x0, max_iterations: int = 4, tolerance: float = 1e-3, radius: float = 0.3,
-               penalty: float = 10.0, feasibility: float = 1e-7) -> WarmOutcome:
+               penalty: float = 10.0, feasibility: float = 1e-7, afford=None, final=None) -> WarmOutcome:
     """Minimise ``problem``'s J subject to its constraints >= 0 from the warm start x0 (module docstring).
 
     Args:
@@ -94,13 +102,24 @@ def solve_warm(problem, x0, max_iterations: int = 4, tolerance: float = 1e-3, ra
         radius: initial trust region (infinity norm, in x's scaled units).
         penalty: initial l1 penalty rho (raised above twice the largest multiplier).
         feasibility: largest constraint violation counted as feasible (scaled units).
+        afford: None (every iteration up to the cap), or ``afford(gradient_evaluations, value_evaluations)``,
+            true when a solve of that many evaluations is within the caller's budget: an iteration after the
+            first starts only if the counts after it (one more of each) are affordable.
+        final: None, or ``final(x) -> (evaluation at x (values), check)``: the caller's value evaluation
+            fused with its check of x, used for a trial point likely to be the last (module docstring). The
+            outcome's ``check`` is that check when its point is the result (else None).
     """
     x = np.asarray(x0, dtype=float).copy()
+    checked = check = None
     grads = values = 0
     message = "iteration limit reached"
     it = 0
     current = None
     for it in range(1, max_iterations + 1):
+        if it > 1 and afford is not None and not afford(grads + 1, values + 1):
+            message = "budget reached: another iteration would pass the deadline"
+            it -= 1
+            break
         ev = problem.evaluate(x, True)
         grads += 1
         current = ev
@@ -117,7 +136,16 @@ def solve_warm(problem, x0, max_iterations: int = 4, tolerance: float = 1e-3, ra
         if predicted <= 1e-12 * max(1.0, abs(ev.J)):
             message = "converged: no decrease predicted"
             break
-        trial = problem.evaluate(x + d)
+        last = (
+            it == max_iterations
+            or (afford is not None and not afford(grads + 1, values + 2))
+            or predicted < tolerance * max(1.0, abs(ev.J))
+        )
+        if final is not None and last:
+            trial, check = final(x + d)
+            checked = x + d
+        else:
+            trial = problem.evaluate(x + d)
         values += 1
         actual = merit - (trial.J + penalty * _l1(trial.constraints))
         ratio = actual / predicted
@@ -133,7 +161,8 @@ def solve_warm(problem, x0, max_iterations: int = 4, tolerance: float = 1e-3, ra
     if current is None:  # no iteration asked for
         current = problem.evaluate(x)
         values += 1
-    return WarmOutcome(x, float(current.J), float(current.violation), it, grads, values, message)
+    done = check if checked is not None and np.array_equal(checked, x) else None
+    return WarmOutcome(x, float(current.J), float(current.violation), it, grads, values, message, done)
 
 
 __all__ = ["QpFailure", "WarmOutcome", "qp_step", "solve_warm"]

@@ -1,0 +1,98 @@
+"""The replanner's last evaluation and its dense check in one inverse-dynamics call.
+
+A replan ends with the value of J and the constraints at the final point on the optimisation grid (the SQP's
+last ratio test) and the check of that motion on the dense grid (:func:`planners.disturbance.dense_check`).
+Both are the inverse dynamics (:func:`fpr.model.inverse_dynamics.inverse_dynamics`) of the same motion at
+two sets of samples, and on the replanner's sizes (14-28 grid nodes, 70-500 dense samples) a call costs
+mostly its fixed overhead (about 13 ms for 28 samples against 41 ms for 600 on the shared machine,
+``python -m fpr.bench --section replan`` prints the phases): :func:`evaluate_and_check` makes one call of
+the grid nodes and the dense samples together and splits the result, so that the final evaluation is the
+problem's own (:meth:`planners.problem.MotionProblem.evaluate`, values only) and the check is
+:func:`~planners.disturbance.dense_check`'s (same samples, rows, tolerances and verdict).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from fpr.model.inverse_dynamics import MotionInputs, inverse_dynamics
+from fpr.model.jets import Jet
+from planners.disturbance import generalized_gust
+from planners.polynomial import PiecewisePolynomial
+from planners.problem import CONSTRAINT_KINDS, constraint_kind, constraint_rows
+from planners.report import FEASIBILITY_TOLERANCE
+
+
+def _split(inputs: MotionInputs, n: int) -> tuple[MotionInputs, MotionInputs]:
+    """The first n samples of ``inputs`` and the rest (``motion`` holds the samples on its axis 1)."""
+    head, tail = {}, {}
+    for f in dataclasses.fields(inputs):
+        value = getattr(inputs, f.name)
+        axis = 1 if f.name == "motion" else 0
+        head[f.name], tail[f.name] = np.split(value, [n], axis=axis)
+    return MotionInputs(**head), MotionInputs(**tail)
+
+
+def verdict(robot, motion, inputs: MotionInputs) -> tuple[bool, list[str]]:
+    """Feasibility of dense samples: every planning row (natural units) within its unit's tolerance.
+
+    The verdict of :func:`planners.disturbance.dense_check`: a constraint is violated when its smallest
+    margin is below -``FEASIBILITY_TOLERANCE`` of its unit (1 mm, 1 mrad, 1 rad/s...).
+
+    Returns:
+        (feasible, the violated constraint names, worst first).
+    """
+    rows, names, _ = constraint_rows(robot, motion, inputs, scaled=False)
+    worst: dict[str, float] = {}
+    for col, name in enumerate(names):
+        tolerance = FEASIBILITY_TOLERANCE[CONSTRAINT_KINDS[constraint_kind(name)][0]]
+        worst[name] = min(worst.get(name, np.inf), float(rows[:, col].min()) / tolerance)
+    bad = sorted((m, name) for name, m in worst.items() if m < -1.0)
+    return not bad, [name for _, name in bad]
+
+
+def evaluate_and_check(problem, x, rate: float, start_time: float = 0.0, gusts=()):
+    """``problem.evaluate(x)`` (values only) and the dense check of its motion from one inverse-dynamics call.
+
+    Args:
+        problem: the replan's NLP (:class:`planners.problem.MotionProblem`, or
+            :class:`planners.disturbance.DisturbedProblem` with its Q_ext at the grid nodes).
+        x: the point (n_x,).
+        rate: rate of the dense check [Hz] (plus the part's knots).
+        start_time: absolute time of the problem's first point [s] (when the ``gusts`` push).
+        gusts: the gust events the dense check flies the motion in.
+
+    Returns:
+        (the :class:`planners.problem.Evaluation` at x, (feasible, violated names worst first, samples)).
+    """
+    x = np.asarray(x, dtype=float)
+    points = problem.points_of(x)
+    part = PiecewisePolynomial(points, problem.durations)
+    t = np.unique(np.concatenate([part.sample_times(rate), part.knots]))
+    dense = part.evaluate(t, order=4)
+    grid = problem.motion(points)
+    n = grid.shape[1]
+    on_grid = getattr(problem, "external", None)
+    on_dense = generalized_gust(problem.robot, gusts, start_time + t, dense[0]) if gusts else None
+    external = None
+    if on_grid is not None or on_dense is not None:
+        external = Jet(np.concatenate([
+            on_grid if on_grid is not None else np.zeros((3,) + grid.shape[1:]),
+            on_dense if on_dense is not None else np.zeros((3,) + dense.shape[1:]),
+        ], axis=1))
+    inputs = inverse_dynamics(problem.robot, np.concatenate([grid, dense], axis=1), external=external)
+    grid_inputs, dense_inputs = _split(inputs, n)
+    # the problem's own value path (windows, back-off, objective) on these inputs: its inverse-dynamics
+    # hook answers with them for this one evaluation (the motion it asks for is ``grid``)
+    problem._inputs = lambda motion: grid_inputs
+    try:
+        evaluation = problem.evaluate(x)
+    finally:
+        del problem._inputs
+    feasible, violated = verdict(problem.robot, dense, dense_inputs)
+    return evaluation, (feasible, violated, int(t.size))
+
+
+__all__ = ["evaluate_and_check", "verdict"]
