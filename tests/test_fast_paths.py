@@ -156,7 +156,7 @@ def test_proxqp_fallback_gives_the_active_set_answer(name, monkeypatch):
     import controllers.allocation as allocation
     robot, cases = _allocation_cases(name, 3.0, 5, 6)
     exact = [Allocator(robot).solve(*case).speeds_squared for case in cases]
-    monkeypatch.setattr(allocation, "solve_box_qp", lambda *args, **kwargs: None)
+    monkeypatch.setattr(allocation, "solve_box_qp_state", lambda *args, **kwargs: None)
     allocator = Allocator(robot)
     for case, z in zip(cases, exact, strict=True):
         again = allocator.solve(*case).speeds_squared
