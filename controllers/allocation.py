@@ -183,9 +183,10 @@ class Allocator:
        [0, w_max^2] this is the QP's solution exactly (the objective is 0 there, its least value, and H is
        positive definite), so no QP is built or solved.
     2. **A bound active**: H and g are built (:meth:`_lean_qp`, the constant terms computed once) and the box
-       QP is solved exactly by an active-set method (:func:`controllers.box_qp.solve_box_qp`), warm-started
-       from the previous tick's active bounds (or, after a tick without, from the bounds the law crosses):
-       usually one Cholesky solve. A tick after one with a bound active comes here directly, without trying
+       QP is solved exactly by an active-set method (:func:`controllers.box_qp.solve_box_qp_state`),
+       warm-started from the previous tick's active bounds (or, after a tick without, from the bounds the law
+       crosses): usually one solve, in plain Python for up to two free rotors. Thrusts and torques come from
+       one product, the saturation mask is one read-only array per pattern met. A tick after one with a bound active comes here directly, without trying
        the closed form: the method releases the bounds that no longer bind (its minimiser is then the law's).
     3. Should the active-set method cycle (not seen on the reference missions), ProxQP: one dense workspace,
        initialised at its first use, then updated (H, g only) and solved warm from its previous result.
