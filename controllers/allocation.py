@@ -332,7 +332,7 @@ class Allocator:
         """
         b = attitude.a_tau.dot(self._scaled_s_tau)  # B w_max^2 (the constants are scaled: _constants)
         a = b + attitude.m_inv_a.dot(attitude.j_f.T).dot(self._scaled_s_f)  # d qdd_a / d zeta
-        x, info = _posv(gram, b)[1:]
+        _, x, info = _posv(gram, b)
         if info != 0:  # A_tau rank deficient: the general builder (pinv)
             h, g = self.build(attitude, f_d, u_a)
             return h * self.scale**2, g * self.scale

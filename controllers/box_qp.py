@@ -40,7 +40,8 @@ _SMALL = 2
 def _small_solve(a: list[list[float]], b: list[float]) -> list[float] | None:
     """x with A x = b for k <= 2 unknowns, A symmetric positive definite given as k lists of k floats (its upper
     triangle read, as LAPACK's posv, by the same Cholesky factorisation A = R^T R written out); None when A is
-    not positive definite (as posv's info > 0)."""
+    not positive definite (as posv's info > 0). :func:`solve_box_qp_state` has these lines inline (a call and
+    the lists fewer per tick); tests hold the two equal, and this one equal to posv."""
     a00 = a[0][0]
     if a00 <= 0.0:
         return None
@@ -106,18 +107,30 @@ def solve_box_qp_state(h: np.ndarray, g: np.ndarray, state: tuple[int, ...], max
         x = corner_list
         if k == 0:
             grad = t
-        elif k <= _SMALL:  # plain Python: H's rows of the free variables (rows = columns: H symmetric)
-            rows = [h[i].tolist() for i in free]
-            solution = _small_solve([[row[j] for j in free] for row in rows], [-t[i] for i in free])
-            if solution is None:
-                return None
+        elif k <= _SMALL:  # plain Python (_small_solve written out): H's rows of the free variables (= columns)
             x = list(corner_list)
             if k == 1:
-                (i,), (row,), (value,) = free, rows, solution
+                (i,) = free
+                row = h[i].tolist()
+                if row[i] <= 0.0:
+                    return None
+                value = -t[i] / row[i]
                 x[i] = value
                 grad = [d + c * value for d, c in zip(t, row)]
             else:
-                (i, j), (row_i, row_j), (value_i, value_j) = free, rows, solution
+                i, j = free
+                row_i, row_j = h[i].tolist(), h[j].tolist()
+                if row_i[i] <= 0.0:
+                    return None
+                r00 = math.sqrt(row_i[i])
+                r01 = row_i[j] / r00
+                d11 = row_j[j] - r01 * r01
+                if d11 <= 0.0:
+                    return None
+                r11 = math.sqrt(d11)
+                y0 = -t[i] / r00
+                value_j = (-t[j] - r01 * y0) / r11 / r11
+                value_i = (y0 - r01 * value_j) / r00
                 x[i], x[j] = value_i, value_j
                 grad = [d + ci * value_i + cj * value_j for d, ci, cj in zip(t, row_i, row_j)]
         else:

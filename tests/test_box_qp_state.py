@@ -83,3 +83,27 @@ def test_bounded_result_is_its_definition(name):
         assert not result.saturated.flags.writeable
         seen += int(expected.any())
     assert seen == 30 and allocator.routes["active set"] == 30
+
+
+def test_written_out_small_solves_are_small_solve():
+    """One and two free variables, g made so that the guess is the answer (x_F inside the box, multipliers of the
+    right sign): one iteration, and x_F is _small_solve's, bit for bit."""
+    from controllers.box_qp import _small_solve
+    rng = np.random.default_rng(8)
+    for k in (1, 2):
+        for _ in range(200):
+            a = rng.normal(size=(4, 4))
+            h = a @ a.T + 0.1 * np.eye(4)
+            free = sorted(rng.choice(4, size=k, replace=False).tolist())
+            state = tuple(FREE if i in free else int(rng.integers(1, 3)) for i in range(4))
+            x_star = np.array([rng.uniform(0.2, 0.8) if s == FREE else 1.0 if s == AT_UPPER else 0.0 for s in state])
+            multipliers = np.array([0.0 if s == FREE else rng.uniform(0.1, 1.0) * (1 if s == AT_LOWER else -1)
+                                    for s in state])
+            g = multipliers - h @ x_star
+            x, final, iterations = solve_box_qp_state(h, g, state, max_iterations=1)
+            assert final == state and iterations == 1
+            x0 = np.array([1.0 if s == AT_UPPER else 0.0 for s in state])
+            t = (h.dot(x0) + g).tolist()
+            expected = _small_solve([[h[i, j] for j in free] for i in free], [-t[i] for i in free])
+            assert [x[i] for i in free] == expected
+            np.testing.assert_allclose(x, x_star, rtol=0, atol=1e-12)
