@@ -330,17 +330,21 @@ class Allocator:
         computed once (:meth:`_constants`). Equal to :meth:`build` to round-off (tested); symmetric to round-off
         (the Cholesky solves read its upper triangle; ProxQP gets 0.5 (H + H^T)).
         """
+        m_inv_a = attitude.m_inv_a
         b = attitude.a_tau.dot(self._scaled_s_tau)  # B w_max^2 (the constants are scaled: _constants)
-        a = b + attitude.m_inv_a.dot(attitude.j_f.T).dot(self._scaled_s_f)  # d qdd_a / d zeta
+        a = b + m_inv_a.dot(attitude.j_f.T).dot(self._scaled_s_f)  # d qdd_a / d zeta
         _, x, info = _posv(gram, b)
         if info != 0:  # A_tau rank deficient: the general builder (pinv)
             h, g = self.build(attitude, f_d, u_a)
             return h * self.scale**2, g * self.scale
-        r = u_a + attitude.m_inv_a.dot(attitude.c)
+        r = u_a + m_inv_a.dot(attitude.c)
         if not self._unit_attitude_weight:
             a, r = a * self._w_a[:, None], self._w_a * r
-        h = a.T.dot(a) + self._h_constant - self._regularisation * b.T.dot(x)
-        return h, self._thrust_g.dot(f_d) - a.T.dot(r)
+        a_t = a.T
+        h = a_t.dot(a)
+        h += self._h_constant
+        h -= self._regularisation * b.T.dot(x)
+        return h, self._thrust_g.dot(f_d) - a_t.dot(r)
 
     def _bounded(self, attitude, f_d, u_a, gram, law) -> AllocationResult:
         """Routes 2 and 3 (class docstring).
