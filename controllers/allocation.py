@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import lapack
 
-from controllers.box_qp import solve_box_qp
+from controllers.box_qp import AT_LOWER, AT_UPPER, FREE, solve_box_qp_state
 from fpr.model.qp import proxsuite_module
 
 # the portable build, whose results do not depend on memory alignment (fpr.model.qp)
@@ -183,9 +183,10 @@ class Allocator:
        [0, w_max^2] this is the QP's solution exactly (the objective is 0 there, its least value, and H is
        positive definite), so no QP is built or solved.
     2. **A bound active**: H and g are built (:meth:`_lean_qp`, the constant terms computed once) and the box
-       QP is solved exactly by an active-set method (:func:`controllers.box_qp.solve_box_qp`), warm-started
-       from the previous tick's active bounds (or, after a tick without, from the bounds the law crosses):
-       usually one Cholesky solve. A tick after one with a bound active comes here directly, without trying
+       QP is solved exactly by an active-set method (:func:`controllers.box_qp.solve_box_qp_state`),
+       warm-started from the previous tick's active bounds (or, after a tick without, from the bounds the law
+       crosses): usually one solve, in plain Python for up to two free rotors. Thrusts and torques come from
+       one product, the saturation mask is one read-only array per pattern met. A tick after one with a bound active comes here directly, without trying
        the closed form: the method releases the bounds that no longer bind (its minimiser is then the law's).
     3. Should the active-set method cycle (not seen on the reference missions), ProxQP: one dense workspace,
        initialised at its first use, then updated (H, g only) and solved warm from its previous result.
@@ -228,13 +229,15 @@ class Allocator:
         self._tol = 1e-6 * self.scale  # a rotor within this of a bound is reported saturated
         self._unsaturated = np.zeros((n_d, 4), dtype=bool)
         self._unsaturated.flags.writeable = False
+        self._n_d = n_d
+        self._saturation_arrays = {}  # read-only (n_d, 4) masks of the bounded route, by pattern
         self.qp = proxsuite.proxqp.dense.QP(self.n, 0, 0, True)
         self.qp.settings.eps_abs = 1e-9
         self.qp.settings.eps_rel = 0.0
         self.qp.settings.verbose = False
         self._initialised = False
         self.routes = {"closed form": 0, "active set": 0, "proxqp": 0}
-        self._active = None  # the active bounds (lower, upper) of the previous tick, when it had some
+        self._active = None  # the active bounds of the previous tick (a box_qp state), when it had some
 
     @property
     def regularisation(self) -> float:
@@ -282,6 +285,8 @@ class Allocator:
         self._thrust_g = -scale * (self._w_s_f.T * self._w_f)
         self._scaled_s_f, self._scaled_s_tau = scale * self.s_f, scale * self.s_tau
         self._unit_attitude_weight = bool(np.all(self._w_a == 1.0))
+        # [f; tau] of all drones from zeta in one product (the bounded route's result)
+        self._scaled_wrench = np.vstack([self._scaled_s_f, self._scaled_s_tau])
 
     def build(self, attitude, thrust_desired, attitude_desired):
         """(H, g) at this state (see :func:`allocation_qp`)."""
@@ -325,17 +330,21 @@ class Allocator:
         computed once (:meth:`_constants`). Equal to :meth:`build` to round-off (tested); symmetric to round-off
         (the Cholesky solves read its upper triangle; ProxQP gets 0.5 (H + H^T)).
         """
+        m_inv_a = attitude.m_inv_a
         b = attitude.a_tau.dot(self._scaled_s_tau)  # B w_max^2 (the constants are scaled: _constants)
-        a = b + attitude.m_inv_a.dot(attitude.j_f.T).dot(self._scaled_s_f)  # d qdd_a / d zeta
-        x, info = _posv(gram, b)[1:]
+        a = b + m_inv_a.dot(attitude.j_f.T).dot(self._scaled_s_f)  # d qdd_a / d zeta
+        _, x, info = _posv(gram, b)
         if info != 0:  # A_tau rank deficient: the general builder (pinv)
             h, g = self.build(attitude, f_d, u_a)
             return h * self.scale**2, g * self.scale
-        r = u_a + attitude.m_inv_a.dot(attitude.c)
+        r = u_a + m_inv_a.dot(attitude.c)
         if not self._unit_attitude_weight:
             a, r = a * self._w_a[:, None], self._w_a * r
-        h = a.T.dot(a) + self._h_constant - self._regularisation * b.T.dot(x)
-        return h, self._thrust_g.dot(f_d) - a.T.dot(r)
+        a_t = a.T
+        h = a_t.dot(a)
+        h += self._h_constant
+        h -= self._regularisation * b.T.dot(x)
+        return h, self._thrust_g.dot(f_d) - a_t.dot(r)
 
     def _bounded(self, attitude, f_d, u_a, gram, law) -> AllocationResult:
         """Routes 2 and 3 (class docstring).
@@ -348,26 +357,39 @@ class Allocator:
         else:
             h, g = self._lean_qp(attitude, f_d, u_a, gram)
         if self._active is not None:
-            lower, upper = self._active
+            state = self._active
         elif law is not None:
-            lower, upper = [w < 0.0 for w in law], [w > self.scale for w in law]
+            scale = self.scale
+            state = tuple([AT_LOWER if w < 0.0 else AT_UPPER if w > scale else FREE for w in law])
         else:
-            lower = upper = [False] * self.n
-        found = solve_box_qp(h, g, lower, upper)
+            state = (FREE,) * self.n
+        found = solve_box_qp_state(h, g, state)
         if found is not None:
-            zeta, lower, upper, iterations = found
-            self._active = (lower, upper) if any(lower) or any(upper) else None
+            values, state, iterations = found
+            self._active = state if AT_LOWER in state or AT_UPPER in state else None
             self.routes["active set"] += 1
-            z = zeta * self.scale  # zeta is within [0, 1] (solve_box_qp): z within the bounds
+            zeta = np.array(values)  # within [0, 1] (solve_box_qp_state): z within the bounds
         else:
             zeta, iterations = self._proxqp(0.5 * (h + h.T), g)
             self._active = None
             self.routes["proxqp"] += 1
-            z = np.minimum(np.maximum(zeta * self.scale, self.lower), self.upper)  # np.clip, cheaper
-        low, high = self._tol, self.scale - self._tol
-        saturated = np.array([w <= low or w >= high for w in z.tolist()]).reshape(-1, 4)  # as _saturation
-        return _result(z.reshape(-1, 4), self.s_f.dot(z), self.s_tau.dot(z).reshape(-1, 3), saturated, iterations,
-                       attitude, u_a, f_d)
+            zeta = np.minimum(np.maximum(zeta, 0.0), 1.0)  # np.clip, cheaper
+            values = zeta.tolist()
+        wrench = self._scaled_wrench.dot(zeta)  # [f; tau] of every drone
+        n_d = self._n_d
+        return _result((zeta * self.scale).reshape(-1, 4), wrench[:n_d], wrench[n_d:].reshape(-1, 3),
+                       self._saturated(values), iterations, attitude, u_a, f_d)
+
+    def _saturated(self, zeta) -> np.ndarray:
+        """Rotors within 1e-6 w_max^2 of a bound (as :meth:`_saturation`), from zeta = z / w_max^2 (n floats), shape
+        (n_d, 4): one read-only array per pattern, built at its first use."""
+        low, high = self._tol / self.scale, 1.0 - self._tol / self.scale
+        key = tuple([w <= low or w >= high for w in zeta])
+        mask = self._saturation_arrays.get(key)
+        if mask is None:
+            mask = self._saturation_arrays[key] = np.array(key).reshape(-1, 4)
+            mask.flags.writeable = False
+        return mask
 
     def _proxqp(self, h, g):
         """Route 3: the scaled QP by the warm-started ProxQP workspace; (zeta, iterations)."""

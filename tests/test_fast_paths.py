@@ -10,7 +10,8 @@ Each fast path is held equal to a slower, independent computation of the same qu
 * the allocation's closed form (the thesis' law 2.24, used when no rotor bound is active) against ProxQP
   solving the built QP from scratch, and the bounded route's lean H, g against :func:`allocation_qp`;
 * the attitude model (M^-1 rows from Pinocchio's upper triangle) against the full inverse of ``mass_matrix``,
-  and ``mass_matrix`` (one product on CRBA's triangle) against T^T M_p T with M_p mirrored by ``np.triu``.
+  and ``mass_matrix`` (T^T M_p T on the whole matrix CRBA returns) against T^T M_p T with M_p mirrored from
+  its upper triangle by ``np.triu`` (so the Python binding must return M_p whole, as it does).
 """
 
 from __future__ import annotations
@@ -155,7 +156,7 @@ def test_proxqp_fallback_gives_the_active_set_answer(name, monkeypatch):
     import controllers.allocation as allocation
     robot, cases = _allocation_cases(name, 3.0, 5, 6)
     exact = [Allocator(robot).solve(*case).speeds_squared for case in cases]
-    monkeypatch.setattr(allocation, "solve_box_qp", lambda *args, **kwargs: None)
+    monkeypatch.setattr(allocation, "solve_box_qp_state", lambda *args, **kwargs: None)
     allocator = Allocator(robot)
     for case, z in zip(cases, exact, strict=True):
         again = allocator.solve(*case).speeds_squared

@@ -307,26 +307,17 @@ class Robot:
     # ------------------------------------------------------------------ dynamics
     def mass_matrix(self, q) -> np.ndarray:
         """M(q), generalised inertia matrix, shape (n, n) (seed 2.11)."""
-        # CRBA fills the upper triangle of Pinocchio's M_p (at least). T^T M_p T is linear in that triangle: one
-        # constant (n^2, n(n+1)/2) matrix maps its entries (taken row-major) onto the result, so the call is
-        # CRBA, one take and one product (np.tril_indices at every call cost more than the CRBA itself; the
-        # (n^2, n^2) map over the whole of M_p, zero on the lower triangle, cost twice the product).
-        n = self.nq
-        upper, mass_map = self._mass_map
-        m = pin.crba(self.model, self.data, self.T.dot(check_shape("q", q, (n,))))
-        return mass_map.dot(m.reshape(-1).take(upper)).reshape(n, n)
+        # M = T^T M_p T. Pinocchio's Python crba returns M_p whole (its binding mirrors the upper triangle that
+        # the algorithm fills: tests/test_fast_paths.py holds this), so the call is CRBA and two 9 x 9 products,
+        # one numpy call fewer than a map on the triangle (take, product, reshape) and cheaper on this size.
+        t = self.T
+        m = pin.crba(self.model, self.data, t.dot(check_shape("q", q, (self.nq,))))
+        return self._t_transposed.dot(m).dot(t)
 
     @cached_property
-    def _mass_map(self) -> tuple[np.ndarray, np.ndarray]:
-        """(k, A): the row-major positions k of the upper triangle U of M_p, and A with
-        vec(T^T M_p T) = A vec(M_p)[k], shape (n^2, n (n + 1) / 2)."""
-        n, t = self.nq, self.T
-        a = np.zeros((n * n, n * n))
-        for i in range(n):
-            for j in range(n):  # M_p[i, j] = U[min(i, j), max(i, j)]
-                a[:, min(i, j) * n + max(i, j)] += np.outer(t[i], t[j]).reshape(-1)
-        upper = np.flatnonzero(np.triu(np.ones((n, n), dtype=bool)).reshape(-1))
-        return upper, np.ascontiguousarray(a[:, upper])
+    def _t_transposed(self) -> np.ndarray:
+        """T^T, C-contiguous (the left factor of :meth:`mass_matrix`)."""
+        return np.ascontiguousarray(self.T.T)
 
     def nonlinear_effects(self, q, v) -> np.ndarray:
         """c(q, qdot): Coriolis, centrifugal and gravity terms, shape (n,) (seed 2.11)."""
