@@ -94,7 +94,7 @@ class ReplanOptions:
             evaluations is within the deadline: the work model has been up to 1.7 times below the measured
             latency (1 / 0.58, README "Replanning in flight"), and optional work must not make the plan late.
             0: every iteration up to ``max_iterations`` whatever the deadline (the replanner before the
-            latency work).
+            latency work); values in (0, 1) are refused (a refinement could then make an on-time plan late).
     """
 
     deadline: float = 0.05
@@ -124,11 +124,16 @@ class ReplanOptions:
                 "max_iterations", self.max_iterations,
                 f"max_iterations = {self.max_iterations!r}: give an integer >= 1",
             )
-        if not (isinstance(self.refine_margin, (int, float)) and np.isfinite(self.refine_margin)
-                and self.refine_margin >= 0):
+        if not (isinstance(self.refine_margin, (int, float)) and not isinstance(self.refine_margin, bool)
+                and np.isfinite(self.refine_margin) and (self.refine_margin == 0 or self.refine_margin >= 1)):
             raise PlannerArgumentError(
                 "refine_margin", self.refine_margin,
-                f"refine_margin = {self.refine_margin!r}: give a finite number >= 0 (0: refine to the cap)",
+                f"refine_margin = {self.refine_margin!r}: give 0 (refine up to max_iterations) or a finite "
+                "number >= 1 (below 1 a refinement could make an on-time plan late)",
+            )
+        if not isinstance(self.fuse_check, bool):
+            raise PlannerArgumentError(
+                "fuse_check", self.fuse_check, f"fuse_check = {self.fuse_check!r}: give True or False"
             )
         for name in ("radius", "dense_rate", "tolerance"):
             value = getattr(self, name)

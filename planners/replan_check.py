@@ -86,11 +86,15 @@ def evaluate_and_check(problem, x, rate: float, start_time: float = 0.0, gusts=(
     grid_inputs, dense_inputs = _split(inputs, n)
     # the problem's own value path (windows, back-off, objective) on these inputs: its inverse-dynamics
     # hook answers with them for this one evaluation (the motion it asks for is ``grid``)
+    own = problem.__dict__.get("_inputs")  # a hook the caller set on this instance (an instrument) stays
     problem._inputs = lambda motion: grid_inputs
     try:
         evaluation = problem.evaluate(x)
     finally:
-        del problem._inputs
+        if own is None:
+            del problem._inputs
+        else:
+            problem._inputs = own
     feasible, violated = verdict(problem.robot, dense, dense_inputs)
     return evaluation, (feasible, violated, int(t.size))
 

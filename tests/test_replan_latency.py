@@ -105,11 +105,34 @@ def test_a_refinement_that_would_make_the_plan_late_is_not_started(moving):
     assert ReplanOptions().refine_margin == 1.7
 
 
-@pytest.mark.parametrize("value", [-1.0, float("nan"), float("inf"), "1.7"])
+@pytest.mark.parametrize("value", [-1.0, float("nan"), float("inf"), "1.7", 0.8, True])
 def test_refine_margin_refuses_absurd_values(value):
-    """A negative, non-finite or non-numeric margin is refused with its name."""
+    """A negative, non-finite or non-numeric margin, or one in (0, 1) (a refinement could then make an
+    on-time plan late), is refused with its name."""
     with pytest.raises(Exception, match="refine_margin"):
         ReplanOptions(refine_margin=value)
+
+
+def test_fuse_check_must_be_a_boolean():
+    with pytest.raises(Exception, match="fuse_check"):
+        ReplanOptions(fuse_check="no")
+
+
+def test_the_fused_check_leaves_a_callers_own_hook_in_place(moving):
+    """evaluate_and_check answers the problem's _inputs hook for one evaluation, then restores the one set."""
+    problem, x0, _, _ = _moved_problem(moving, ())
+    original = problem._inputs
+    seen = []
+    problem._inputs = lambda motion: seen.append(1) or original(motion)
+    instrument = problem._inputs
+    evaluate_and_check(problem, x0, 100.0, 4.05)
+    assert problem._inputs is instrument and not seen  # the fused call answered it, then gave it back
+    problem._cache = None
+    problem.evaluate(x0 + 1e-3)
+    assert seen  # the instrument still sees the evaluations after it
+    plain, _, _, _ = _moved_problem(moving, ())
+    evaluate_and_check(plain, x0, 100.0, 4.05)
+    assert "_inputs" not in plain.__dict__  # no hook of its own: the class's method again
 
 
 def test_the_bench_times_the_copies_a_derivative_evaluation_sends(moving, monkeypatch):

@@ -102,6 +102,8 @@ def _work_rows(works) -> np.ndarray:
 def _ratio(values, references, keep) -> dict:
     """Median and largest of values / references over the replans ``keep`` says (both feasible)."""
     keep = np.asarray(keep, dtype=bool)
+    if not keep.any():  # no replan feasible in both versions: nothing to compare
+        return {"median": None, "worst": None}
     r = np.asarray(values, dtype=float)[keep] / np.asarray(references, dtype=float)[keep]
     return {"median": float(np.median(r)), "worst": float(r.max())}
 
@@ -190,6 +192,9 @@ def replan_table(doc: dict) -> str:
         )
     for name, item in doc["items"].items():
         j = item["J_over_before"]
+        if j["median"] is None:
+            lines.append(f"J / J before, {name}: no replan feasible in both versions")
+            continue
         lines.append(f"J / J before (replans both feasible), {name}: median {j['median']:.3f}, "
                      f"worst {j['worst']:.3f}")
     raw = doc["all"]["wall"]["p95_s"]
