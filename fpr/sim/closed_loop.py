@@ -350,8 +350,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
                 planned = inverse_dynamics(robot, motion)
         command = np.minimum(np.maximum(out.speeds, 0.0), robot.rotor_constants.max_speed)  # np.clip, cheaper
         try:
-            for _ in range(steps_per_tick):
-                plant.step(command, dt, wind)
+            plant.advance(command, dt, steps_per_tick, wind)
         except PlantDivergedError as error:  # the plant keeps its last finite state
             last, failure_time = k, error.time + dt
             failure = (f"the state diverged ({error.what}) between t = {error.time:.4f} s "
