@@ -244,6 +244,8 @@ class Plant:
         self._drone_points = tuple((joint, p.tolist()) for joint, p in self._drone_frames)  # as floats
         self._closure_points = tuple((j1, p1.tolist(), j2, p2.tolist())
                                      for j1, p1, j2, p2 in self._closure_terms)
+        self._point_joints = tuple(sorted({j for j, _ in self._drone_points}
+                                         | {j for j1, _, j2, _ in self._closure_points for j in (j1, j2)}))
         # each drone's free flyer (its hinge frame, build_closed_chain): where its q and v sit, and its thrust
         # axis (the centre frame's z) in the free flyer's frame, read by drone_joint_positions / drone_tilts
         self._freeflyers = tuple((model.joints[j].idx_q, model.joints[j].idx_v,
@@ -330,15 +332,20 @@ class Plant:
 
     def _positions_and_closure(self) -> tuple[np.ndarray, float]:
         """:meth:`drone_positions_and_closure_error` from the joint placements in ``closed.data`` (forward
-        kinematics at ``qc`` already done), 3D closures only: x = R p + t for each point, on floats."""
+        kinematics at ``qc`` already done), 3D closures only: x = R p + t for each point, on floats.
+
+        Each joint's placement is read once, as one 4x4 matrix (``SE3.homogeneous``: one conversion instead
+        of the rotation's and the translation's, each costing more than the arithmetic), for all the points
+        on it.
+        """
         omi = self.closed.data.oMi
+        placements = {joint: omi[joint].homogeneous.tolist() for joint in self._point_joints}
 
         def point(joint, p):  # world position of the point p (a list) of a joint's frame
-            m = omi[joint]
-            (r0, r1, r2), (t0, t1, t2) = m.rotation.tolist(), m.translation.tolist()
-            return (r0[0] * p[0] + r0[1] * p[1] + r0[2] * p[2] + t0,
-                    r1[0] * p[0] + r1[1] * p[1] + r1[2] * p[2] + t1,
-                    r2[0] * p[0] + r2[1] * p[1] + r2[2] * p[2] + t2)
+            (r00, r01, r02, t0), (r10, r11, r12, t1), (r20, r21, r22, t2), _ = placements[joint]
+            return (r00 * p[0] + r01 * p[1] + r02 * p[2] + t0,
+                    r10 * p[0] + r11 * p[1] + r12 * p[2] + t1,
+                    r20 * p[0] + r21 * p[1] + r22 * p[2] + t2)
 
         positions = np.array([point(joint, p) for joint, p in self._drone_points])
         error = 0.0
