@@ -576,20 +576,20 @@ class Plant:
             speeds = w_cmd + (w - w_cmd) * decay  # (3, 4 n_d): w at 0, dt/2, dt
             forces = (speeds * speeds).dot(force_map_t)  # (3, nv)
             try:
-                k_v[0] = dynamics(model, data, q, v, forces[0], cms, cds, settings)
-                v_stage, theta = v + half * k_v[0], half * v
-                k_v[1] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
+                k_v[0] = a = dynamics(model, data, q, v, forces[0], cms, cds, settings)
+                v_stage, theta = v + half * a, half * v
+                k_v[1] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
                 x, info = gesv(d_integrate(model, q, theta, arg1), v_stage, overwrite_a=1)[2:]
                 if info != 0:
                     raise np.linalg.LinAlgError("Singular matrix")
                 k_q[1] = x
-                v_stage, theta = v + half * k_v[1], half * x
-                k_v[2] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
+                v_stage, theta = v + half * a, half * x
+                k_v[2] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
                 x, info = gesv(d_integrate(model, q, theta, arg1), v_stage, overwrite_a=1)[2:]
                 if info != 0:
                     raise np.linalg.LinAlgError("Singular matrix")
                 k_q[2] = x
-                v_stage, theta = v + dt * k_v[2], dt * x
+                v_stage, theta = v + dt * a, dt * x
                 k_v[3] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[2], cms, cds, settings)
                 x, info = gesv(d_integrate(model, q, theta, arg1), v_stage, overwrite_a=1)[2:]
                 if info != 0:
