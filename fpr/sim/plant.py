@@ -519,8 +519,10 @@ class Plant:
         steps bit for bit with the command saturated once and the step's set-up done once.
 
         Args:
-            w_command, dt, wind: as :meth:`step`.
+            w_command: commanded rotor speeds, shape (n_d, 4) [rad/s], held over the steps (as :meth:`step`).
+            dt: time step [s], > 0.
             steps: number of steps, >= 1.
+            wind: as :meth:`step`.
 
         Raises:
             ModelArgumentError: dt <= 0.
@@ -550,7 +552,8 @@ class Plant:
             closed = self.closed
             nv = closed.model.nv
             constants = self._step_constants[dt] = (
-                decay[:, None], 0.5 * dt, np.array([dt / 6.0, dt / 3.0, dt / 3.0, dt / 6.0]), self._rotor_map.T,
+                decay[:, None], 0.5 * dt, np.array([dt / 6.0, dt / 3.0, dt / 3.0, dt / 6.0]),
+                self._rotor_map.T,
                 closed.model, closed.data, closed.settings, closed.constraints, closed.constraint_datas,
                 np.empty((4, nv)), np.empty((4, nv)))
         return constants
@@ -567,7 +570,8 @@ class Plant:
         ``dIntegrate(q, theta, ARG1)`` (as :func:`rkmk4_step`). After each step the state is checked finite
         (:class:`PlantDivergedError` with the time of the last finite state otherwise).
         """
-        decay, half, weights, force_map_t, model, data, settings, cms, cds, k_v, k_q = self._lean_constants(dt)
+        constants = self._lean_constants(dt)
+        decay, half, weights, force_map_t, model, data, settings, cms, cds, k_v, k_q = constants
         dynamics, integrate, d_integrate = pin.constraintDynamics, pin.integrate, pin.dIntegrate
         arg1, gesv, isfinite = pin.ArgumentPosition.ARG1, _gesv, math.isfinite
         w_cmd = w_cmd.reshape(-1)
@@ -578,19 +582,22 @@ class Plant:
             try:
                 k_v[0] = a = dynamics(model, data, q, v, forces[0], cms, cds, settings)
                 v_stage, theta = v + half * a, half * v
-                k_v[1] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
+                k_v[1] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds,
+                                      settings)
                 x, info = gesv(d_integrate(model, q, theta, arg1), v_stage, overwrite_a=1)[2:]
                 if info != 0:
                     raise np.linalg.LinAlgError("Singular matrix")
                 k_q[1] = x
                 v_stage, theta = v + half * a, half * x
-                k_v[2] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
+                k_v[2] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds,
+                                      settings)
                 x, info = gesv(d_integrate(model, q, theta, arg1), v_stage, overwrite_a=1)[2:]
                 if info != 0:
                     raise np.linalg.LinAlgError("Singular matrix")
                 k_q[2] = x
                 v_stage, theta = v + dt * a, dt * x
-                k_v[3] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[2], cms, cds, settings)
+                k_v[3] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[2], cms, cds,
+                                  settings)
                 x, info = gesv(d_integrate(model, q, theta, arg1), v_stage, overwrite_a=1)[2:]
                 if info != 0:
                     raise np.linalg.LinAlgError("Singular matrix")
