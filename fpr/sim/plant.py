@@ -584,21 +584,21 @@ class Plant:
                 v_stage, theta = v + half * a, half * v
                 k_v[1] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds,
                                       settings)
-                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage, overwrite_a=1)[2:]
+                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage)[2:]
                 if info != 0:
                     raise np.linalg.LinAlgError("Singular matrix")
                 k_q[1] = x
                 v_stage, theta = v + half * a, half * x
                 k_v[2] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds,
                                       settings)
-                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage, overwrite_a=1)[2:]
+                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage)[2:]
                 if info != 0:
                     raise np.linalg.LinAlgError("Singular matrix")
                 k_q[2] = x
                 v_stage, theta = v + dt * a, dt * x
                 k_v[3] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[2], cms, cds,
                                   settings)
-                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage, overwrite_a=1)[2:]
+                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage)[2:]
                 if info != 0:
                     raise np.linalg.LinAlgError("Singular matrix")
                 k_q[3] = x
