@@ -159,7 +159,7 @@ class CascadedController:
         self._point_robot = r.with_drones_as("point")
         self._chain_map = self._point_robot.T[:, r.indices(r.layout.chain)]  # Pinocchio q of the chain s
         self._upper = np.triu(np.ones((r.nq, r.nq), dtype=bool))
-        self._gains = None  # (key, kp, kd) of the attitude loop, see _attitude_gains
+        self._gains = None  # (key, kp, kd, their lists) of the attitude loop, see _attitude_gains
         self.chain = r.indices(r.layout.chain)
         self.rolls = r.indices(r.layout.rolls)
         self.attitude = r.indices(r.layout.attitude)
@@ -233,7 +233,7 @@ class CascadedController:
             kp = np.array([st.orientation_frequency**2] * 2 + [st.attitude_frequency**2] * n)
             kd = np.array([2 * st.orientation_damping * st.orientation_frequency] * 2
                           + [2 * st.attitude_damping * st.attitude_frequency] * n)
-            self._gains = (key, kp, kd)
+            self._gains = (key, kp, kd, kp.tolist(), kd.tolist())  # the lists for update's loop on floats
         return self._gains[1], self._gains[2]
 
     def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
@@ -263,9 +263,10 @@ class CascadedController:
         target = [0.0, pitch] + roll_desired
         rate = [0.0, 0.0] + reference.roll_rate.tolist()
         acc = [0.0, 0.0] + reference.roll_acceleration.tolist()
-        kp, kd = self._attitude_gains()
+        self._attitude_gains()  # K_pa, K_da up to date, their lists in self._gains
+        kp, kd = self._gains[3], self._gains[4]
         u_a = []
-        for k, (i, goal, kp_k, kd_k, rate_k, acc_k) in enumerate(zip(attitude, target, kp.tolist(), kd.tolist(), rate,
+        for k, (i, goal, kp_k, kd_k, rate_k, acc_k) in enumerate(zip(attitude, target, kp, kd, rate,
                                                                        acc, strict=True)):
             error = ql[i] - goal
             if k >= 2:  # rolls: the shortest angle

@@ -205,10 +205,11 @@ class _FprReader:
         motion = self.root_placement_inv * omi[self.reversed_1] * self.hinge_1_inv  # composite joint
         i0 = self.root_q
         ref = None if reference is None else reference[self.euler_coordinates]
-        euler = euler_zyx(motion.rotation, ref)
+        placement = motion.homogeneous  # one conversion for the rotation and the translation (the simulator's
+        euler = euler_zyx(placement[:3, :3], ref)  # measurement runs this at every tick)
         if ref is None:
             euler[2] = NOMINAL_ROOT_ROLL + wrap_angle(euler[2] - NOMINAL_ROOT_ROLL)
-        qp[i0:i0 + 3] = motion.translation
+        qp[i0:i0 + 3] = placement[:3, 3]
         qp[i0 + 3:i0 + 6] = euler
         hinge_frame = omi[self.q21] * self.hinge_2
         rel = hinge_frame.rotation.T @ omi[self.freeflyer_2].rotation

@@ -319,25 +319,33 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     next_report = 1.0
     failure = failure_time = None
     last = n_t - 1  # index of the last logged tick
-    for k, t in enumerate(ticks):
-        q, v, positions, closure_error = plant.observe()  # one kinematics pass
-        failure = watch.check(t, plant, q, v, positions, closure_error, motion[0, k])
+    # the loop's lookups done once (every tick pays for each attribute or dict access); the times as floats
+    # (the same values; float arithmetic is cheaper than numpy scalars')
+    log_q, log_v, log_speed, log_closure, log_height = (log[k] for k in ("q", "v", "speed", "closure_error",
+                                                                         "drone_height"))
+    log_roll, log_command, log_thrust, log_torque, log_saturated = (
+        log[k] for k in ("roll_desired", "speed_command", "thrust", "torque", "saturated"))
+    observe, check, update, advance = plant.observe, watch.check, controller.update, plant.advance
+    for k, t in enumerate(ticks.tolist()):
+        q, v, positions, closure_error = observe()  # one kinematics pass
+        failure = check(t, plant, q, v, positions, closure_error, motion[0, k])
         if failure is not None and not (np.isfinite(q).all() and np.isfinite(v).all()):
             last, failure_time = k - 1, float(t)  # nothing finite to log at this tick
             break
-        log["q"][k], log["v"][k] = q, v
-        log["speed"][k] = plant.rotor_speeds
-        log["closure_error"][k] = closure_error
-        log["drone_height"][k] = positions[:, 2]
+        log_q[k], log_v[k] = q, v
+        log_speed[k] = plant.rotor_speeds
+        log_closure[k] = closure_error
+        log_height[k] = positions[:, 2]
         q_meas = q + noise_q * rng.normal(size=n) if noise_q else q
         v_meas = v + noise_v * rng.normal(size=n) if noise_v else v
         reference = Reference(motion[:5, k], planned.roll_rate[k], planned.roll_acceleration[k],
                               planned.thrust_vector[k])
-        out = controller.update(t, q_meas, v_meas, reference)
-        log["roll_desired"][k] = out.roll_desired
-        log["speed_command"][k] = out.speeds
-        log["thrust"][k], log["torque"][k] = out.allocation.thrust, out.allocation.torque
-        log["saturated"][k] = out.allocation.saturated
+        out = update(t, q_meas, v_meas, reference)
+        allocation = out.allocation
+        log_roll[k] = out.roll_desired
+        log_command[k] = out.speeds
+        log_thrust[k], log_torque[k] = allocation.thrust, allocation.torque
+        log_saturated[k] = allocation.saturated
         if failure is not None:
             last, failure_time = k, float(t)
             break
@@ -348,10 +356,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
             if new is not None:
                 motion = new.evaluate_held(ticks, order=MOTION_ORDER)
                 planned = inverse_dynamics(robot, motion)
-        command = np.minimum(np.maximum(out.speeds, 0.0), robot.rotor_constants.max_speed)  # np.clip, cheaper
-        try:
-            for _ in range(steps_per_tick):
-                plant.step(command, dt, wind)
+        try:  # the command as the controller gave it: the plant saturates it to [0, w_max]
+            advance(out.speeds, dt, steps_per_tick, wind)
         except PlantDivergedError as error:  # the plant keeps its last finite state
             last, failure_time = k, error.time + dt
             failure = (f"the state diverged ({error.what}) between t = {error.time:.4f} s "

@@ -244,6 +244,8 @@ class Plant:
         self._drone_points = tuple((joint, p.tolist()) for joint, p in self._drone_frames)  # as floats
         self._closure_points = tuple((j1, p1.tolist(), j2, p2.tolist())
                                      for j1, p1, j2, p2 in self._closure_terms)
+        self._point_joints = tuple(sorted({j for j, _ in self._drone_points}
+                                         | {j for j1, _, j2, _ in self._closure_points for j in (j1, j2)}))
         # each drone's free flyer (its hinge frame, build_closed_chain): where its q and v sit, and its thrust
         # axis (the centre frame's z) in the free flyer's frame, read by drone_joint_positions / drone_tilts
         self._freeflyers = tuple((model.joints[j].idx_q, model.joints[j].idx_v,
@@ -330,15 +332,20 @@ class Plant:
 
     def _positions_and_closure(self) -> tuple[np.ndarray, float]:
         """:meth:`drone_positions_and_closure_error` from the joint placements in ``closed.data`` (forward
-        kinematics at ``qc`` already done), 3D closures only: x = R p + t for each point, on floats."""
+        kinematics at ``qc`` already done), 3D closures only: x = R p + t for each point, on floats.
+
+        Each joint's placement is read once, as one 4x4 matrix (``SE3.homogeneous``: one conversion instead
+        of the rotation's and the translation's, each costing more than the arithmetic), for all the points
+        on it.
+        """
         omi = self.closed.data.oMi
+        placements = {joint: omi[joint].homogeneous.tolist() for joint in self._point_joints}
 
         def point(joint, p):  # world position of the point p (a list) of a joint's frame
-            m = omi[joint]
-            (r0, r1, r2), (t0, t1, t2) = m.rotation.tolist(), m.translation.tolist()
-            return (r0[0] * p[0] + r0[1] * p[1] + r0[2] * p[2] + t0,
-                    r1[0] * p[0] + r1[1] * p[1] + r1[2] * p[2] + t1,
-                    r2[0] * p[0] + r2[1] * p[1] + r2[2] * p[2] + t2)
+            (r00, r01, r02, t0), (r10, r11, r12, t1), (r20, r21, r22, t2), _ = placements[joint]
+            return (r00 * p[0] + r01 * p[1] + r02 * p[2] + t0,
+                    r10 * p[0] + r11 * p[1] + r12 * p[2] + t1,
+                    r20 * p[0] + r21 * p[1] + r22 * p[2] + t2)
 
         positions = np.array([point(joint, p) for joint, p in self._drone_points])
         error = 0.0
@@ -504,59 +511,107 @@ class Plant:
         self.qc, self.vc, self._w = qc, vc, w_end
         self.time += dt
 
-    def _lean_step(self, w_cmd, dt: float) -> None:
-        """:meth:`step` without wind: the same RKMK4 step as :func:`rkmk4_step` (equal to round-off; tested),
-        in fewer array calls.
+    def advance(self, w_command, dt: float, steps: int, wind=None) -> None:
+        """``steps`` calls of :meth:`step` with one command held (the closed loop's plant steps of one tick).
 
-        The rotors' generalised force does not depend on the configuration (:func:`_rotor_force_map`), only
-        on the stage's time: the exact lag solution w(t) at the 3 distinct times (0, dt/2, dt) gives the 3
-        forces in one product. The step's constants (dt/2, the RK4 weights, the lag's decay) are computed once
-        per dt; the weighted sums of the stages are one product each.
+        A subclass that overrides :meth:`step` (e.g. :class:`fpr.sim.replanning.ForcedPlant`) gets its own
+        :meth:`step` called ``steps`` times; the base plant without wind runs :meth:`_lean_steps`, the same
+        steps bit for bit with the command saturated once and the step's set-up done once.
+
+        Args:
+            w_command: commanded rotor speeds, shape (n_d, 4) [rad/s], held over the steps (as :meth:`step`).
+            dt: time step [s], > 0.
+            steps: number of steps, >= 1.
+            wind: as :meth:`step`.
+
+        Raises:
+            ModelArgumentError: dt <= 0.
+            PlantDivergedError: the state became non-finite; the plant keeps its last finite state, and
+                the error's ``time`` says after which step.
         """
+        if wind is None and self._rotor_map is not None and type(self).step is Plant.step:
+            if not dt > 0:
+                raise ModelArgumentError("dt", dt, f"dt = {dt!r}: the time step must be positive [s]")
+            self._lean_steps(self.saturate(w_command), dt, steps)
+            return
+        for _ in range(steps):
+            self.step(w_command, dt, wind)
+
+    def _lean_step(self, w_cmd, dt: float) -> None:
+        """:meth:`step` without wind, w_cmd already saturated: one step of :meth:`_lean_steps`."""
+        self._lean_steps(w_cmd, dt, 1)
+
+    def _lean_constants(self, dt: float) -> tuple:
+        """What :meth:`_lean_steps` reads, looked up once per dt: the lag's decay at (0, dt/2, dt), dt/2, the
+        RK4 weights (dt/6, dt/3, dt/3, dt/6), G^T, the Pinocchio objects and functions, two stage buffers."""
         constants = self._step_constants.get(dt)
         if constants is None:
             lag = self.robot.rotor_constants.time_constant
             decay = np.array([1.0, math.exp(-0.5 * dt / lag), math.exp(-dt / lag)] if lag > 0
                              else [0.0, 0.0, 0.0])
-            constants = self._step_constants[dt] = (decay[:, None], 0.5 * dt,
-                                                    np.array([dt / 6.0, dt / 3.0, dt / 3.0, dt / 6.0]))
-        decay, half, weights = constants
+            closed = self.closed
+            nv = closed.model.nv
+            constants = self._step_constants[dt] = (
+                decay[:, None], 0.5 * dt, np.array([dt / 6.0, dt / 3.0, dt / 3.0, dt / 6.0]),
+                self._rotor_map.T,
+                closed.model, closed.data, closed.settings, closed.constraints, closed.constraint_datas,
+                np.empty((4, nv)), np.empty((4, nv)))
+        return constants
+
+    def _lean_steps(self, w_cmd, dt: float, steps: int) -> None:
+        """``steps`` RKMK4 steps without wind, w_cmd saturated: the same steps as :func:`rkmk4_step` (equal to
+        round-off; tested), in fewer array calls.
+
+        The rotors' generalised force does not depend on the configuration (:func:`_rotor_force_map`), only
+        on the stage's time: the exact lag solution w(t) at the 3 distinct times (0, dt/2, dt) gives the 3
+        forces in one product. The step's constants (dt/2, the RK4 weights, the lag's decay, the Pinocchio
+        objects) are looked up once per dt; the stages go into two buffers (k_v the accelerations, k_q the
+        rates of theta) and the weighted sums are one product each. dexp^-1_theta(v) is LAPACK's gesv on
+        ``dIntegrate(q, theta, ARG1)`` (as :func:`rkmk4_step`). After each step the state is checked finite
+        (:class:`PlantDivergedError` with the time of the last finite state otherwise).
+        """
+        constants = self._lean_constants(dt)
+        decay, half, weights, force_map_t, model, data, settings, cms, cds, k_v, k_q = constants
+        dynamics, integrate, d_integrate = pin.constraintDynamics, pin.integrate, pin.dIntegrate
+        arg1, gesv, isfinite = pin.ArgumentPosition.ARG1, _gesv, math.isfinite
         w_cmd = w_cmd.reshape(-1)
-        speeds = w_cmd + (self._w.reshape(-1) - w_cmd) * decay  # (3, 4 n_d): w at 0, dt/2, dt
-        forces = (speeds * speeds).dot(self._rotor_map.T)  # (3, nv)
-        closed = self.closed
-        model, data, settings = closed.model, closed.data, closed.settings
-        cms, cds = closed.constraints, closed.constraint_datas
-        dynamics, integrate, d_integrate, arg1 = pin.constraintDynamics, pin.integrate, pin.dIntegrate, \
-            pin.ArgumentPosition.ARG1
-        q, v = self.qc, self.vc
-
-        def rate(theta, vel):  # dexp^-1_theta(vel), as rkmk4_step's theta_rate
-            x, info = _gesv(d_integrate(model, q, theta, arg1), vel)[2:]
-            if info != 0:
-                raise np.linalg.LinAlgError("Singular matrix")
-            return x
-
-        def integrate_step():
-            # the stages' accelerations go straight into the rows of k_v (no copies of Pinocchio's buffer),
-            # and the final sums are one product each with the weights (dt/6, dt/3, dt/3, dt/6)
-            k_v = np.empty((4, v.size))
-            k_v[0] = dynamics(model, data, q, v, forces[0], cms, cds, settings)
-            v_stage, theta = v + half * k_v[0], half * v
-            k_v[1] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
-            k2q = rate(theta, v_stage)
-            v_stage = v + half * k_v[1]
-            theta = half * k2q
-            k_v[2] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds, settings)
-            k3q = rate(theta, v_stage)
-            v_stage = v + dt * k_v[2]
-            theta = dt * k3q
-            k_v[3] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[2], cms, cds, settings)
-            k4q = rate(theta, v_stage)
-            q_next = integrate(model, q, weights.dot(np.array((v, k2q, k3q, k4q))))
-            return q_next, v + weights.dot(k_v)
-
-        self._advance(integrate_step, dt, speeds[2].reshape(-1, 4))
+        w, q, v = self._w.reshape(-1), self.qc, self.vc
+        for _ in range(steps):
+            speeds = w_cmd + (w - w_cmd) * decay  # (3, 4 n_d): w at 0, dt/2, dt
+            forces = (speeds * speeds).dot(force_map_t)  # (3, nv)
+            try:
+                k_v[0] = a = dynamics(model, data, q, v, forces[0], cms, cds, settings)
+                v_stage, theta = v + half * a, half * v
+                k_v[1] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds,
+                                      settings)
+                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage)[2:]
+                if info != 0:
+                    raise np.linalg.LinAlgError("Singular matrix")
+                k_q[1] = x
+                v_stage, theta = v + half * a, half * x
+                k_v[2] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds,
+                                      settings)
+                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage)[2:]
+                if info != 0:
+                    raise np.linalg.LinAlgError("Singular matrix")
+                k_q[2] = x
+                v_stage, theta = v + dt * a, dt * x
+                k_v[3] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[2], cms, cds,
+                                  settings)
+                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage)[2:]
+                if info != 0:
+                    raise np.linalg.LinAlgError("Singular matrix")
+                k_q[3] = x
+                k_q[0] = v
+                q_next = integrate(model, q, weights.dot(k_q))
+                v_next = v + weights.dot(k_v)
+            except np.linalg.LinAlgError as error:  # a rotation of ~2 pi within one step: the state blew up
+                raise PlantDivergedError(self.time, dt, f"the plant's integrator failed ({error})") from error
+            if not isfinite(q_next.sum() + v_next.sum()):  # NaN or inf if any entry is
+                raise PlantDivergedError(self.time, dt)
+            q, v, w = q_next, v_next, speeds[2]
+            self.qc, self.vc, self._w = q, v, w.reshape(-1, 4)
+            self.time += dt
 
 
 def plant_step_time(robot, steps: int = 1000, dt: float = 1e-3) -> float:

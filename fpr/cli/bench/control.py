@@ -156,7 +156,7 @@ def _tick_timers(acc: dict):
     for cls, method, key in ((Plant, "measure", "measure"),
                              (Plant, "drone_positions_and_closure_error", "logged kinematics"),
                              (Plant, "observe", "observe"),
-                             (Plant, "step", "plant steps"),
+                             (Plant, "advance", "plant steps"),  # the closed loop's steps of a tick
                              (CascadedController, "update", "controller"),
                              (CascadedController, "outer", "outer loop"),
                              (Robot, "attitude_model", "attitude model"),
