@@ -190,3 +190,25 @@ def test_without_a_known_force_the_closed_loop_is_the_same_to_the_bit():
     # told the wind, the controller holds the plan: the end-effector's y error is smaller than blind
     y = robot.layout.chain.index("y")
     assert np.abs(told.tracking_error[:, y]).max() < 0.5 * np.abs(blind.tracking_error[:, y]).max()
+
+
+def test_the_wind_estimate_adds_what_the_controller_feeds_forward():
+    """With the wind fed forward the feedback holds only the rest of it: on the plan (no error) the estimate
+    is the fed force; held off by what a force G needs, it is the fed force plus G."""
+    from controllers.ctc import ControllerSettings
+    from fpr.sim.wind_estimate import WindEstimator
+    from planners.disturbance import task_jacobian
+
+    robot = fpr.load("fpr")
+    settings = ControllerSettings(chain_integral=0.0)
+    s_d = np.array([0.3, 0.2, 4.0, 1.2])
+    fed, rest = np.array([0.0, -6.0, 0.0]), np.array([0.0, -1.0, 0.5])
+    mass = np.asarray(robot.planar("point").mass_matrix(s_d[None]))[0]
+    error = np.linalg.solve(mass, task_jacobian(robot, s_d[None])[0].T @ rest[1:]) / settings.chain_frequency**2
+    on_plan = WindEstimator(robot, settings, time_constant=0.1)
+    held = WindEstimator(robot, settings, time_constant=0.1)
+    for k in range(1001):
+        a = on_plan.update(k * 0.002, s_d, np.zeros(4), np.stack([s_d, np.zeros(4)]), fed)
+        b = held.update(k * 0.002, s_d, np.zeros(4), np.stack([s_d - error, np.zeros(4)]), fed)
+    np.testing.assert_allclose(a, fed, atol=1e-9)
+    np.testing.assert_allclose(b[1:], (fed + rest)[1:], rtol=1e-6)

@@ -51,8 +51,12 @@ class WindEstimator:
         self._last_outer = None
         self._last = None
 
-    def update(self, t: float, s, ds, reference) -> np.ndarray:
-        """One tick at time t [s]: measured chain s, s' and the plan's [s_d, s_d', ...]; the new estimate."""
+    def update(self, t: float, s, ds, reference, fed=None) -> np.ndarray:
+        """One tick at time t [s]: measured chain s, s' and the plan's [s_d, s_d', ...]; the new estimate.
+
+        ``fed``: the force on the task point the controller feeds forward, world [x, y, z] [N], or None: the
+        feedback then holds only the rest of the wind, and the estimate is ``fed`` plus what it holds.
+        """
         s = np.asarray(s, dtype=float)
         error = s - reference[0]
         if self._integral is None:
@@ -66,6 +70,8 @@ class WindEstimator:
         mass = np.asarray(self.planar.mass_matrix(s[None]))[0]
         jac = task_jacobian(self.robot, s[None])[0]  # (2, n_s)
         raw = np.linalg.lstsq(jac.T, mass @ held, rcond=None)[0]
+        if fed is not None:
+            raw = raw + np.asarray(fed, dtype=float)[1:]
         gain = min(1.0, (t - self._last) / self.time_constant)
         self.force[1:] += gain * (raw - self.force[1:])
         self._last = t
