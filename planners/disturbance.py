@@ -19,7 +19,7 @@ What the replanner knows of the gust is said by the caller (:mod:`fpr.sim.replan
 
 **Control headroom in the wind.** The thesis bounds a rotor speed by w >= 0 (3.48) with no design margin on
 that side (the high side keeps m_gr = 150 rad/s). A plan flown in a wind loads the drones unevenly: on the
-built-in ``gust`` mission (8 N along -y) the re-optimised travel has drone 2 carrying ~6 N rolled by 0.3 rad
+``gust`` mission in 8 N along -y (its earlier force) the re-optimised travel has drone 2 carrying ~6 N rolled by 0.3 rad
 against the chain's pull at its offset joint, which takes a steady roll torque of 0.3-0.5 N m, and a rotor
 of it down to 72 rad/s: at the drone's torque authority (f l / 2 = 0.53 N m), where any correction of the
 controller saturates that rotor at 0. So the NLP of a motion in a known wind asks every rotor to keep
