@@ -241,7 +241,8 @@ class CascadedController:
         q_ext = np.zeros(len(self.chain))
         if task_force is not None:
             r = self._point_robot
-            jac = pin.getFrameJacobian(r.model, r.data, self._task_frame, pin.LOCAL_WORLD_ALIGNED)[1:3].dot(self._chain_map)
+            jac = pin.getFrameJacobian(r.model, r.data, self._task_frame, pin.LOCAL_WORLD_ALIGNED)
+            jac = jac[1:3].dot(self._chain_map)
             q_ext += np.asarray(task_force, dtype=float)[1:].dot(jac)
         if drone_forces is not None:
             q_ext += np.asarray(drone_forces, dtype=float)[:, 1:].reshape(-1).dot(hinge_jacobian)
@@ -277,7 +278,8 @@ class CascadedController:
         model, data = r.model, r.data
         q_ext = np.zeros(r.nq)
         if task_force is not None:
-            jac = pin.getFrameJacobian(model, data, self._full_task_frame, pin.LOCAL_WORLD_ALIGNED)[:3].dot(r.T)
+            jac = pin.getFrameJacobian(model, data, self._full_task_frame, pin.LOCAL_WORLD_ALIGNED)[:3]
+            jac = jac.dot(r.T)
             q_ext += np.asarray(task_force, dtype=float).dot(jac)
         if drone_forces is not None:
             for frame, f in zip(r.drone_frame_ids, np.asarray(drone_forces, dtype=float), strict=True):

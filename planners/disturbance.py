@@ -19,7 +19,8 @@ What the replanner knows of the gust is said by the caller (:mod:`fpr.sim.replan
 
 **Control headroom in the wind.** The thesis bounds a rotor speed by w >= 0 (3.48) with no design margin on
 that side (the high side keeps m_gr = 150 rad/s). A plan flown in a wind loads the drones unevenly: on the
-``gust`` mission in 8 N along -y (its earlier force) the re-optimised travel has drone 2 carrying ~6 N rolled by 0.3 rad
+``gust`` mission in 8 N along -y (its earlier force) the re-optimised travel has drone 2 carrying ~6 N rolled
+by 0.3 rad
 against the chain's pull at its offset joint, which takes a steady roll torque of 0.3-0.5 N m, and a rotor
 of it down to 72 rad/s: at the drone's torque authority (f l / 2 = 0.53 N m), where any correction of the
 controller saturates that rotor at 0. So the NLP of a motion in a known wind asks every rotor to keep
@@ -131,7 +132,8 @@ class DisturbedProblem(MotionProblem):
         start_time: the absolute time of the problem's first point [s] (its node times start at 0).
     """
 
-    #: the rotors' headroom the NLP asks for in a known wind [rad/s] (module docstring); None: CONTROL_HEADROOM
+    #: the rotors' headroom the NLP asks for in a known wind [rad/s] (module docstring); None:
+    #: CONTROL_HEADROOM
     headroom_override: float | None = None
 
     @property
@@ -210,7 +212,7 @@ def evaluate_in_gusts(robot, trajectory: PiecewisePolynomial, gusts, rate: float
 
 
 def _speed_limit(robot) -> float:
-    """w_lim = w_max - m_gr [rad/s], the scale of the NLP's rotor rows (:func:`planners.problem.constraint_rows`)."""
+    """w_lim = w_max - m_gr [rad/s], the scale of the NLP's rotor rows (``constraint_rows``)."""
     return robot.rotor_constants.max_speed - robot.margins.rotor_speed
 
 

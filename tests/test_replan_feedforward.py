@@ -44,8 +44,8 @@ def test_the_fed_forward_wind_gives_the_planners_thrusts_in_that_wind(name):
     assert np.abs(planned.thrust_vector - still.thrust_vector).max() > 1.0  # the force matters here
     q, v = _state(robot, motion)
     controller = CascadedController(robot)
-    reference = Reference(motion[:, 0], planned.roll_rate[0], planned.roll_acceleration[0], planned.thrust_vector[0],
-                          task_force=force)
+    reference = Reference(motion[:, 0], planned.roll_rate[0], planned.roll_acceleration[0],
+                          planned.thrust_vector[0], task_force=force)
     np.testing.assert_allclose(controller.outer(q, v, reference), planned.thrust_vector[0], atol=1e-9)
     np.testing.assert_allclose(controller.external_force(force), q_ext, atol=1e-9)
 
@@ -59,10 +59,11 @@ def test_a_force_on_a_drone_is_that_drones_joint_force():
     planned = inverse_dynamics(robot, motion)
     q, v = _state(robot, motion)
     controller = CascadedController(robot)
-    plain = controller.outer(q, v, Reference(motion[:, 0], planned.roll_rate[0], planned.roll_acceleration[0]))
+    plain = controller.outer(q, v, Reference(motion[:, 0], planned.roll_rate[0],
+                                             planned.roll_acceleration[0]))
     drones = np.array([[0.0, 1.5, -2.0], [0.0, 0.0, 0.0]])
-    pushed = controller.outer(q, v, Reference(motion[:, 0], planned.roll_rate[0], planned.roll_acceleration[0],
-                                              drone_forces=drones))
+    pushed = controller.outer(q, v, Reference(motion[:, 0], planned.roll_rate[0],
+                                              planned.roll_acceleration[0], drone_forces=drones))
     np.testing.assert_allclose(pushed[0], plain[0] - drones[0, 1:], atol=1e-9)
     np.testing.assert_allclose(pushed[1], plain[1], atol=1e-9)
 
@@ -103,8 +104,8 @@ def test_no_known_force_is_the_controller_as_it_was():
     q = q + 0.02 * rng.normal(size=q.size)
     a = CascadedController(robot).update(0.0, q, v, Reference(motion[:, 0], planned.roll_rate[0],
                                                                 planned.roll_acceleration[0]))
-    b = CascadedController(robot).update(0.0, q, v, Reference(motion[:, 0], planned.roll_rate[0],
-                                                                planned.roll_acceleration[0], None, None, None))
+    bare = Reference(motion[:, 0], planned.roll_rate[0], planned.roll_acceleration[0], None, None, None)
+    b = CascadedController(robot).update(0.0, q, v, bare)
     assert np.array_equal(a.speeds, b.speeds) and np.array_equal(a.force, b.force)
 
 
@@ -204,7 +205,8 @@ def test_the_wind_estimate_adds_what_the_controller_feeds_forward():
     s_d = np.array([0.3, 0.2, 4.0, 1.2])
     fed, rest = np.array([0.0, -6.0, 0.0]), np.array([0.0, -1.0, 0.5])
     mass = np.asarray(robot.planar("point").mass_matrix(s_d[None]))[0]
-    error = np.linalg.solve(mass, task_jacobian(robot, s_d[None])[0].T @ rest[1:]) / settings.chain_frequency**2
+    push = np.linalg.solve(mass, task_jacobian(robot, s_d[None])[0].T @ rest[1:])  # M_s^-1 Q_ext of the rest
+    error = push / settings.chain_frequency**2
     on_plan = WindEstimator(robot, settings, time_constant=0.1)
     held = WindEstimator(robot, settings, time_constant=0.1)
     for k in range(1001):

@@ -76,7 +76,7 @@ def test_the_gust_mission_saturates_without_replanning_and_not_with_it():
     settings = SimulationSettings()
     chain = [robot.index[c] for c in robot.layout.chain]
 
-    without = InFlight(mission, None, TriggerSettings(), settings.controller, chain, robot)  # told, no replans
+    without = InFlight(mission, None, TriggerSettings(), settings.controller, chain, robot)  # no replanner
     assert without.known_gusts() == tuple(mission.events)
     alone = simulate(result, settings, in_flight=without)
     assert alone.summary()["saturated_ticks"] > 50 and alone.failure is not None

@@ -41,7 +41,8 @@ flown in that wind, :meth:`InFlight.inputs`): with ``known_gusts`` every gust wi
 *with or without* a replanner (the same forecast; without replanning the controller then tracks the
 offline plan in the wind it knows); with ``estimate_wind`` the gusts the replanner assumed from the
 estimate (so only with a replanner); blind: none. Without it the feedback alone holds the wind (its
-integral is clamped: on the built-in ``gust``, 6 N, the robot is blown off the plan and lost at 7.75 s), which is how the closed loop ran
+integral is clamped: on the built-in ``gust``, 6 N, the robot is blown off the plan and lost at 7.75 s),
+which is how the closed loop ran
 before (``feed_forward=False``).
 
 **Deadline of the wind replans.** A replan in a known or estimated wind (at the gust's start, ``wind_lead``
@@ -327,7 +328,8 @@ class InFlight:
                 # likelier, but better than the plan in force, made without the wind)
                 DisturbedProblem.headroom_override = 0.0
                 # triggered when the first solve ends (its latency), so the two latencies add up
-                rp.replan(t + record.latency_s, f"{trigger} (again, without the rotors' headroom)", through=through)
+                again = f"{trigger} (again, without the rotors' headroom)"
+                rp.replan(t + record.latency_s, again, through=through)
         finally:
             rp.options = options
             DisturbedProblem.headroom_override = None

@@ -12,7 +12,8 @@ with I the integrated error clamped like the controller's (``integral_limit``, u
 rate), M_s the planning model's mass matrix (point drones, :mod:`fpr.model.inverse_dynamics`), reads it as a
 force F on the task point (least squares of J_p^T F = Q_hat, J_p the task point's Jacobian, the in-plane
 components y, z), and low-pass filters it (time constant ``time_constant``). It is exact in a steady state
-of a model that matches the plant; on the ``gust`` mission in 8 N along -y (its earlier force) it settled within 10 %
+of a model that matches the plant; on the ``gust`` mission in 8 N along -y (its earlier force) it settled
+within 10 %
 (about -7.2 N; the point-drone model is lighter in rotation than the plant). In transients (the wind
 rising, a sharp turn of the plan) it is wrong: the replanner takes it only after it has stayed above a
 threshold for a while (:class:`fpr.sim.replanning.TriggerSettings`).
