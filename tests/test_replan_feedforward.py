@@ -214,3 +214,31 @@ def test_the_wind_estimate_adds_what_the_controller_feeds_forward():
         b = held.update(k * 0.002, s_d, np.zeros(4), np.stack([s_d - error, np.zeros(4)]), fed)
     np.testing.assert_allclose(a, fed, atol=1e-9)
     np.testing.assert_allclose(b[1:], (fed + rest)[1:], rtol=1e-6)
+
+
+def test_an_infeasible_wind_replan_is_solved_again_without_the_headroom_after_its_latency():
+    """_wind_replan: the wind deadline for the solve; infeasible with the rotors' headroom, a second solve
+    without it (DisturbedProblem.headroom 0 during it only), triggered when the first ends."""
+    from types import SimpleNamespace
+
+    from fpr.sim.closed_loop import SimulationSettings
+    from fpr.sim.replanning import InFlight, TriggerSettings
+    from planners.disturbance import DisturbedProblem
+    from planners.mission import load_mission
+    from planners.replan import ReplanOptions
+
+    calls = []
+
+    def replan(t, trigger, through=None):
+        calls.append((t, trigger, fake.options.deadline, DisturbedProblem.headroom_override))
+        used = len(calls) > 1
+        return SimpleNamespace(used=used, latency_s=0.084, why="used" if used else "not used: infeasible (x)")
+
+    robot = fpr.load("fpr")
+    fake = SimpleNamespace(robot=robot, moves={}, options=ReplanOptions(), replan=replan, gusts=[], assumed=None)
+    hooks = InFlight(load_mission("gust"), fake, TriggerSettings(), SimulationSettings().controller,
+                     [robot.index[c] for c in robot.layout.chain], robot)
+    hooks._wind_replan(5.0, "way point 2 ahead in the wind", through=3)
+    assert [(t, d, h) for t, _, d, h in calls] == [(5.0, 0.3, None), (5.084, 0.3, 0.0)]
+    assert "without the rotors' headroom" in calls[1][1]
+    assert fake.options.deadline == 0.05 and DisturbedProblem.headroom_override is None
