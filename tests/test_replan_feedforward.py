@@ -235,7 +235,8 @@ def test_an_infeasible_wind_replan_is_solved_again_without_the_headroom_after_it
         return SimpleNamespace(used=used, latency_s=0.084, why="used" if used else "not used: infeasible (x)")
 
     robot = fpr.load("fpr")
-    fake = SimpleNamespace(robot=robot, moves={}, options=ReplanOptions(), replan=replan, gusts=[], assumed=None)
+    fake = SimpleNamespace(robot=robot, moves={}, options=ReplanOptions(), replan=replan, gusts=[],
+                           assumed=None)
     hooks = InFlight(load_mission("gust"), fake, TriggerSettings(), SimulationSettings().controller,
                      [robot.index[c] for c in robot.layout.chain], robot)
     hooks._wind_replan(5.0, "way point 2 ahead in the wind", through=3)
