@@ -14,7 +14,16 @@ along the thrust axis, f_i = b_z . F_i - m_i d_i phi_i'^2 (the thesis' 2.21 adds
 model that term lies across the thrust axis, where a thrust cannot cancel it; DESIGN.md).
 
 An integral term K_ip int(s - s_d) dt (not in the thesis) removes the steady error a wrong model
-leaves (mass or rotor-constant mismatch, wind).
+leaves (mass or rotor-constant mismatch, a small wind).
+
+**A known external force** (a wind the controller is told of, or estimates: ``Reference.task_force`` on
+the robot kind's task point, ``Reference.drone_forces`` on the drones) is fed forward in the outer loop:
+the chain's equation of motion with it is M_s s'' + c_s = J_h^T F + Q_ext, Q_ext = J_p(s)^T f_p +
+sum_i J_h,i(s)^T f_i (the same generalised force as the planner's :mod:`planners.disturbance`, J_p the
+task point's Jacobian, J_h,i drone i's joint's: the planning model puts the drone's mass there), so the
+drones must give J_h^T F = M_s u_p + c_s - Q_ext. Without it the feedback alone holds the wind: the
+integral is clamped (``integral_limit``), so a strong wind is balanced by the proportional term, the
+robot blown off the plan. With no force given the outer loop is the one above, to the bit.
 
 The solve J_h^T F = b is the robot kind's (``robot.kind.outer_loop_forces``). **Through the
 prototype's Type-2 singularity** (q2 = 0, seed ch. 4) it cannot be inverted: the prototype solves the
@@ -40,6 +49,7 @@ is called by the simulator at every inner-loop tick and recomputes the outer loo
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -107,12 +117,18 @@ class Reference:
         roll_rate, roll_acceleration: planned phi_i', phi_i'' (feed-forward), shape (n_d,).
         force: planned thrust vectors F_i, shape (n_d, 2) [N], or None. The robot kind's outer-loop
             solve may use it (the prototype's near q2 = 0, module docstring).
+        task_force: a known external force on the robot kind's task point (the FPR's end-effector), world
+            [x, y, z] [N], fed forward (module docstring), or None. x does not act on the planar chain.
+        drone_forces: known external forces on each drone (at its joint, as in the planning model), world
+            [x, y, z], shape (n_d, 3) [N], or None.
     """
 
     motion: np.ndarray
     roll_rate: np.ndarray
     roll_acceleration: np.ndarray
     force: np.ndarray | None = None
+    task_force: np.ndarray | None = None
+    drone_forces: np.ndarray | None = None
 
 
 @dataclass
@@ -158,6 +174,8 @@ class CascadedController:
         # cheaper for a single sample (the closed form is vectorised for the planner's batches).
         self._point_robot = r.with_drones_as("point")
         self._chain_map = self._point_robot.T[:, r.indices(r.layout.chain)]  # Pinocchio q of the chain s
+        self._task_frame = self._point_robot.model.getFrameId(r.kind.task_frame)
+        self._full_task_frame = r.model.getFrameId(r.kind.task_frame)
         self._upper = np.triu(np.ones((r.nq, r.nq), dtype=bool))
         self._gains = None  # (key, kp, kd, their lists) of the attitude loop, see _attitude_gains
         self.chain = r.indices(r.layout.chain)
@@ -204,7 +222,31 @@ class CascadedController:
         sd = reference.motion
         u = sd[2] - kp * (s - sd[0]) - kd * (ds - sd[1]) - st.chain_integral * self._integral
         m, c, jac = self._point_dynamics(s, ds)
-        return self.robot.kind.outer_loop_forces(s, m.dot(u) + c, jac, reference.force, st.singular_band)
+        b = m.dot(u) + c
+        if reference.task_force is not None or reference.drone_forces is not None:
+            b = b - self.external_force(reference.task_force, reference.drone_forces, jac)
+        return self.robot.kind.outer_loop_forces(s, b, jac, reference.force, st.singular_band)
+
+    def external_force(self, task_force=None, drone_forces=None, hinge_jacobian=None) -> np.ndarray:
+        """Q_ext = J_p^T f_p + sum_i J_h,i^T f_i on the chain coordinates [N or N m], shape (n_s,).
+
+        At the configuration of the last :meth:`_point_dynamics` call (the Jacobians of its Pinocchio
+        pass; ``hinge_jacobian`` is its J_h), only the in-plane components (world y, z) of the forces.
+
+        Args:
+            task_force: world force on the task point [x, y, z] [N], or None.
+            drone_forces: world forces on the drones' joints (n_d, 3) [N], or None.
+            hinge_jacobian: J_h (2 n_d, n_s) of that configuration (needed with ``drone_forces``).
+        """
+        q_ext = np.zeros(len(self.chain))
+        if task_force is not None:
+            r = self._point_robot
+            jac = pin.getFrameJacobian(r.model, r.data, self._task_frame, pin.LOCAL_WORLD_ALIGNED)
+            jac = jac[1:3].dot(self._chain_map)
+            q_ext += np.asarray(task_force, dtype=float)[1:].dot(jac)
+        if drone_forces is not None:
+            q_ext += np.asarray(drone_forces, dtype=float)[:, 1:].reshape(-1).dot(hinge_jacobian)
+        return q_ext
 
     def _point_dynamics(self, s, ds):
         """M_s(s), c_s(s, s') and the hinge Jacobian J_h(s) (2 n_d, n_s) of the point-drone planning model.
@@ -223,6 +265,26 @@ class CascadedController:
         jac = np.concatenate([pin.getJointJacobian(model, data, h, pin.LOCAL_WORLD_ALIGNED)[1:3]
                               for h in r.hinge_joint_ids]).dot(t)  # world (y, z) of each hinge point
         return m, c, jac
+
+    def _attitude_in_wind(self, attitude, task_force, drone_forces):
+        """The attitude model (2.12) with the known external forces: c - Q_ext, Q_ext on the full coordinates.
+
+        Q_ext = J_p^T f_p + sum_i J_c,i^T f_i (J_p: the task point's, J_c,i: drone i's centre of mass's, world
+        aligned, 3D), from the Jacobians of the ``attitude_model`` call just made (its Pinocchio pass at q):
+        the wind's push on the chain moves the rolls through the coupled dynamics, which the inner loop's
+        torques must then not fight.
+        """
+        r = self.robot
+        model, data = r.model, r.data
+        q_ext = np.zeros(r.nq)
+        if task_force is not None:
+            jac = pin.getFrameJacobian(model, data, self._full_task_frame, pin.LOCAL_WORLD_ALIGNED)[:3]
+            jac = jac.dot(r.T)
+            q_ext += np.asarray(task_force, dtype=float).dot(jac)
+        if drone_forces is not None:
+            for frame, f in zip(r.drone_frame_ids, np.asarray(drone_forces, dtype=float), strict=True):
+                q_ext += f.dot(pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)[:3].dot(r.T))
+        return dataclasses.replace(attitude, c=attitude.c - q_ext)
 
     def _attitude_gains(self) -> tuple[np.ndarray, np.ndarray]:
         """K_pa, K_da of q_a = [psi, theta, rolls...], rebuilt only when the settings change."""
@@ -274,7 +336,10 @@ class CascadedController:
             u_a.append(acc_k - kp_k * error - kd_k * (vl[i] - rate_k))
         u_a = np.array(u_a)
         thrust = np.array(thrust)
-        allocation = self.allocator.solve(self.robot.attitude_model(q, v), thrust, u_a)
+        attitude = self.robot.attitude_model(q, v)
+        if reference.task_force is not None or reference.drone_forces is not None:  # the known wind (2.12)
+            attitude = self._attitude_in_wind(attitude, reference.task_force, reference.drone_forces)
+        allocation = self.allocator.solve(attitude, thrust, u_a)
         speeds = np.sqrt(np.maximum(allocation.speeds_squared, 0.0))
         return ControlOutput(speeds, allocation, self._force, np.array(roll_desired), thrust, u_a, pitch)
 

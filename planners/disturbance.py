@@ -16,6 +16,19 @@ for the FPR's end-effector (p = [y, z], J_p constant), an approximation for a fo
 
 What the replanner knows of the gust is said by the caller (:mod:`fpr.sim.replanning`): here the force is
 *given*.
+
+**Control headroom in the wind.** The thesis bounds a rotor speed by w >= 0 (3.48) with no design margin on
+that side (the high side keeps m_gr = 150 rad/s). A plan flown in a wind loads the drones unevenly: on the
+``gust`` mission in 8 N along -y (its earlier force) the re-optimised travel has drone 2 carrying ~6 N rolled
+by 0.3 rad
+against the chain's pull at its offset joint, which takes a steady roll torque of 0.3-0.5 N m, and a rotor
+of it down to 72 rad/s: at the drone's torque authority (f l / 2 = 0.53 N m), where any correction of the
+controller saturates that rotor at 0. So the NLP of a motion in a known wind asks every rotor to keep
+:data:`CONTROL_HEADROOM` above 0 (its ``rotor_speed_low`` rows are w^2 - w_h^2 >= 0); the check of the
+result (:func:`dense_check`, which decides whether a replan is used) keeps the thesis' w >= 0, so that a
+replan which does not reach the headroom within its iterations is still used when it holds every
+constraint of the thesis (better than the plan in force, made without the wind). A motion without a known
+gust keeps the thesis' bound in both.
 """
 
 from __future__ import annotations
@@ -34,6 +47,9 @@ from planners.problem import (
 from planners.report import FEASIBILITY_TOLERANCE, evaluate_motion
 
 _STEP = 1e-30
+
+#: w_h [rad/s]: the least rotor speed of a plan flown in a known wind (module docstring).
+CONTROL_HEADROOM = 225.0
 
 
 def task_jacobian(robot, s) -> np.ndarray:
@@ -116,6 +132,15 @@ class DisturbedProblem(MotionProblem):
         start_time: the absolute time of the problem's first point [s] (its node times start at 0).
     """
 
+    #: the rotors' headroom the NLP asks for in a known wind [rad/s] (module docstring); None:
+    #: CONTROL_HEADROOM
+    headroom_override: float | None = None
+
+    @property
+    def headroom(self) -> float:
+        """w_h of this problem [rad/s]: :attr:`headroom_override`, else :data:`CONTROL_HEADROOM`."""
+        return CONTROL_HEADROOM if self.headroom_override is None else self.headroom_override
+
     def __init__(self, *args, gusts=(), start_time: float = 0.0, **kwargs):
         super().__init__(*args, **kwargs)
         self.gusts = tuple(gusts)
@@ -131,6 +156,15 @@ class DisturbedProblem(MotionProblem):
     def _inputs(self, motion):
         """The inverse-dynamics inputs of ``motion`` flown in the gusts (Q_ext at each node)."""
         return inverse_dynamics(self.robot, motion, external=self._external(motion.shape[1]))
+
+    def _quantities(self, motion):
+        """:meth:`MotionProblem._quantities` with the rotors kept :data:`CONTROL_HEADROOM` above 0 when a
+        gust pushes (the scaled rows w^2 / w_lim^2 become (w^2 - w_h^2) / w_lim^2)."""
+        integrands, rows = super()._quantities(motion)
+        if self.external is not None and self.external.any() and self.headroom > 0:
+            low = [i for i, name in enumerate(self._rows_names) if name.startswith("rotor_speed_low")]
+            rows[:, low] -= (self.headroom / _speed_limit(self.robot)) ** 2
+        return integrands, rows
 
 
 def dense_check(robot, part: PiecewisePolynomial, rate: float, start_time: float = 0.0, gusts=()):
@@ -175,6 +209,11 @@ def evaluate_in_gusts(robot, trajectory: PiecewisePolynomial, gusts, rate: float
         return None if force is None else Jet(force)
 
     return evaluate_motion(robot, trajectory, rate, external=external if gusts else None)
+
+
+def _speed_limit(robot) -> float:
+    """w_lim = w_max - m_gr [rad/s], the scale of the NLP's rotor rows (``constraint_rows``)."""
+    return robot.rotor_constants.max_speed - robot.margins.rotor_speed
 
 
 def _unit(name: str) -> str:

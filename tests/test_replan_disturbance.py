@@ -266,7 +266,7 @@ def test_an_estimated_wind_that_drops_is_forgotten_and_kept_as_the_record_of_wha
     from fpr.sim.replanning import InFlight, TriggerSettings
 
     class Scripted:  # the estimator's output, scripted: this test is about what the replanner does with it
-        def update(self, t, s, ds, reference):
+        def update(self, t, s, ds, reference, fed=None):
             return np.array([0.0, -5.0, 0.0]) if 2.0 <= t < 4.0 else np.zeros(3)
 
     mission = load_mission("gust")

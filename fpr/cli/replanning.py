@@ -56,7 +56,8 @@ def add_arguments(group) -> None:
         default="known",
         help="known (default): the replanner is told the force of each gust with a rise as it starts (a "
         "forecast, a wind sensor; a step gust stays unknown); estimated: it estimates a steady force on the end-effector from the tracking error and "
-        "plans against it once it has held 1 s; blind: it sees a gust only through the tracking error",
+        "plans against it once it has held 1 s; blind: it sees a gust only through the tracking error. "
+        "The controller is told the same wind (fed forward), also without --replan in known mode",
     )
     group.add_argument(
         "--replan-timing",

@@ -264,7 +264,9 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
         progress: called as ``progress(simulated_time, total_time)`` about every simulated second.
         in_flight: events and replanning (:class:`fpr.sim.replanning.InFlight`): its ``make_plant`` builds the
             plant (gusts), its ``after_tick(t, q, v, reference)`` may return a new plan in force, tracked from
-            the next tick on (the log's reference is then the plan in force at each tick). None: neither.
+            the next tick on (the log's reference is then the plan in force at each tick); its
+            ``known_force(t)`` is the wind the controller knows, fed forward, and ``inputs`` the plan's
+            inputs flown in it (the roll feed-forward). None: neither.
 
     Returns:
         the :class:`SimulationLog`; when the robot is lost (:mod:`fpr.sim.watch`, or a state that turns
@@ -291,7 +293,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     total = trajectory.total_duration + st.hold
     ticks = np.arange(int(np.floor(total / tick + 1e-9)) + 1) * tick
     motion = trajectory.evaluate_held(ticks, order=MOTION_ORDER)  # at rest after the end
-    planned = inverse_dynamics(robot, motion)
+    # the plan's inputs (roll feed-forward), flown in the wind the controller knows (fpr.sim.replanning)
+    planned = inverse_dynamics(robot, motion) if in_flight is None else in_flight.inputs(robot, ticks, motion)
     q_plan = planned.full_state(robot)[0]
 
     controller = CascadedController(_scaled_robot(robot, st.model_mass_scale), ctrl_settings)
@@ -340,6 +343,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
         v_meas = v + noise_v * rng.normal(size=n) if noise_v else v
         reference = Reference(motion[:5, k], planned.roll_rate[k], planned.roll_acceleration[k],
                               planned.thrust_vector[k])
+        if in_flight is not None:  # a wind the controller knows, fed forward (None: none)
+            reference.task_force, reference.drone_forces = in_flight.known_force(float(t))
         out = update(t, q_meas, v_meas, reference)
         allocation = out.allocation
         log_roll[k] = out.roll_desired
@@ -355,7 +360,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
             new = in_flight.after_tick(float(t), q, v, motion[:5, k])
             if new is not None:
                 motion = new.evaluate_held(ticks, order=MOTION_ORDER)
-                planned = inverse_dynamics(robot, motion)
+            if new is not None or in_flight.known_changed:
+                planned = in_flight.inputs(robot, ticks, motion)
         try:  # the command as the controller gave it: the plant saturates it to [0, w_max]
             advance(out.speeds, dt, steps_per_tick, wind)
         except PlantDivergedError as error:  # the plant keeps its last finite state

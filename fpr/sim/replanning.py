@@ -34,12 +34,32 @@ Triggers (with a :class:`planners.replan.Replanner`, ``--replan``):
   then holds; against a short step blast it cannot help: the saturation there is the controller's
   transient (README "Replanning in flight").
 
+**What the controller knows** (``feed_forward``, default on): the wind the replanner plans against, fed
+forward in the controller's outer loop (:class:`controllers.ctc.Reference` ``task_force``,
+``drone_forces``) and in the plan's inputs it tracks (the rolls, roll rates and accelerations of the plan
+flown in that wind, :meth:`InFlight.inputs`): with ``known_gusts`` every gust with a ``rise`` as it blows,
+*with or without* a replanner (the same forecast; without replanning the controller then tracks the
+offline plan in the wind it knows); with ``estimate_wind`` the gusts the replanner assumed from the
+estimate (so only with a replanner); blind: none. Without it the feedback alone holds the wind (its
+integral is clamped: on the built-in ``gust``, 6 N, the robot is blown off the plan and lost at 7.75 s),
+which is how the closed loop ran
+before (``feed_forward=False``).
+
+**Deadline of the wind replans.** A replan in a known or estimated wind (at the gust's start, ``wind_lead``
+before a way point, on a new estimate) is given ``wind_deadline`` (default 0.3 s) when it is longer than the
+replanner's deadline: it does not react to a surprise (the gust rises over its ``rise``, the way point is
+``wind_lead`` ahead), and the 50 ms default made every wind replan on ``gust`` late (84 ms modelled).
+A wind replan that comes out infeasible (the rotors' headroom of :mod:`planners.disturbance` out of the warm
+SQP's reach) is solved again at once without the headroom, triggered when the first solve ends (the two
+latencies add up): better a plan in the wind at the thesis' w >= 0 than the plan in force, made without it.
+
 Without a replanner the gusts still push and the ``move`` events are ignored: the robot flies the offline
 plan, so both runs can be compared.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -47,8 +67,11 @@ import numpy as np
 import pinocchio as pin
 
 from fpr.model.errors import ModelArgumentError
+from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.model.jets import Jet
 from fpr.sim.plant import Plant
 from fpr.sim.wind_estimate import WindEstimator
+from planners.disturbance import DisturbedProblem, generalized_gust
 from planners.events import END_EFFECTOR, GustEvent, gust_force, moved_positions
 from planners.replan import Replanner, jet
 
@@ -139,6 +162,10 @@ class TriggerSettings:
         wind_lead: in a known or estimated wind, how long before a way point [s] the rest of its travel
             and the next travel are re-optimised (more than the replanner's deadline, so that the splice
             comes before the way point, in the part of the plan already made for the wind).
+        wind_deadline: the deadline [s] of a replan in the wind when longer than the replanner's own (module
+            docstring); less than ``wind_lead``.
+        feed_forward: the controller is told the wind the replanner plans against (module docstring);
+            False: it is not (the feedback alone holds the wind).
     """
 
     tracking_bound: float | None = 0.05
@@ -150,6 +177,8 @@ class TriggerSettings:
     estimate_threshold: float = 1.0
     estimate_delay: float = 1.0
     wind_lead: float = 1.0
+    wind_deadline: float = 0.3
+    feed_forward: bool = True
 
 
 class InFlight:
@@ -191,6 +220,9 @@ class InFlight:
         self._above_since = None  # when the estimate last rose above the threshold [s]
         self._below_since = None  # when it last fell below it [s]
         self._prepared = 0  # interior way points whose next travel is planned for (or passed without wind)
+        self._inputs_for = ()  # the known gusts of the last inputs()
+        self._no_force = (None, None)
+        self._n_drones = self.robot.n_drones
 
     @property
     def replans(self) -> list:
@@ -224,8 +256,8 @@ class InFlight:
             elif event.kind == "gust" and self._plans_against(event) and i not in self._known and starts:
                 self._known.add(i)  # the gust's force is known from its start (forecast, wind sensor)
                 rp.learn(i)
-                rp.replan(t, f"event: a gust of {list(event.force)} N on {event.body} starts (force known)",
-                          through=self._through(t))
+                self._wind_replan(t, f"event: a gust of {list(event.force)} N on {event.body} starts "
+                                  "(force known)", through=self._through(t))
             elif event.kind == "gust" and self.triggers.after_gust and event.at + event.duration <= t + 1e-9:
                 self._done.add(i)
                 rp.replan(t, "event: the gust is over")
@@ -238,7 +270,7 @@ class InFlight:
             if any(g.active(t) for g in rp.gusts):  # the next travel enters the horizon: fly it in the wind
                 if rp.assumed is not None:  # the newest estimate, blending from the last one from t on
                     rp.assume(self._estimated_gust(t, estimated, ramp_from=t))
-                rp.replan(t, f"way point {due} ahead in the wind", through=due + 1)
+                self._wind_replan(t, f"way point {due} ahead in the wind", through=due + 1)
         bound = self.triggers.tracking_bound
         # in a known gust the tracking error is the wind's push, which the plan in force already flies
         # against and a replan from the plan's state cannot remove: no tracking-error replans then
@@ -252,6 +284,55 @@ class InFlight:
             self._next_rate += 1.0 / self.triggers.rate
             rp.replan(t, "rate")
         return None if rp.trajectory is before else rp.trajectory
+
+    def known_gusts(self) -> tuple:
+        """The gusts the controller knows now (module docstring): fed forward, and in the plan's inputs."""
+        if not self.triggers.feed_forward:
+            return ()
+        if self.triggers.known_gusts:
+            return tuple(e for e in self.events if e.kind == "gust" and self._plans_against(e))
+        if self.estimator is not None:
+            return tuple(self.replanner.gusts)
+        return ()
+
+    def known_force(self, t: float) -> tuple:
+        """The known wind at t [s]: (force on the task point (3,), forces on the drones (n_d, 3)) [N], each
+        None when none pushes (:func:`planners.events.gust_force` of :meth:`known_gusts`)."""
+        gusts = self.known_gusts()
+        return gust_force(gusts, t, self._n_drones) if gusts else self._no_force
+
+    @property
+    def known_changed(self) -> bool:
+        """The known gusts changed since the last :meth:`inputs` (the plan's inputs must be recomputed)."""
+        return self.known_gusts() != self._inputs_for
+
+    def inputs(self, robot, ticks, motion):
+        """The plan's inputs (:func:`fpr.model.inverse_dynamics.inverse_dynamics`) at ``ticks`` [s] of
+        ``motion`` (its derivatives 0..MOTION_ORDER), flown in the known gusts (their Q_ext with its time
+        derivatives, :func:`planners.disturbance.generalized_gust`); no gust known: the plan's own."""
+        gusts = self.known_gusts()
+        self._inputs_for = gusts
+        external = generalized_gust(robot, gusts, ticks, motion[0]) if gusts else None
+        return inverse_dynamics(robot, motion, external=None if external is None else Jet(external))
+
+    def _wind_replan(self, t: float, trigger: str, through: int | None = None) -> None:
+        """A replan in the wind, with the deadline ``max(deadline, wind_deadline)`` (module docstring)."""
+        rp = self.replanner
+        options = rp.options
+        if self.triggers.wind_deadline > options.deadline:
+            rp.options = dataclasses.replace(options, deadline=self.triggers.wind_deadline)
+        try:
+            record = rp.replan(t, trigger, through=through)
+            if not record.used and record.why.startswith("not used: infeasible"):
+                # the headroom out of the warm SQP's reach: the thesis' w >= 0 alone (saturation then
+                # likelier, but better than the plan in force, made without the wind)
+                DisturbedProblem.headroom_override = 0.0
+                # triggered when the first solve ends (its latency), so the two latencies add up
+                again = f"{trigger} (again, without the rotors' headroom)"
+                rp.replan(t + record.latency_s, again, through=through)
+        finally:
+            rp.options = options
+            DisturbedProblem.headroom_override = None
 
     def _through(self, t: float) -> int | None:
         """``through`` of a replan in the wind at t: the travel after the next way point too when that way
@@ -270,7 +351,8 @@ class InFlight:
         """Update the wind estimate and plan against it once it has held long enough; the estimate or None."""
         if self.estimator is None:
             return None
-        force = self.estimator.update(t, q[self.chain], v[self.chain], reference)
+        fed = self.known_force(t)[0]  # what the controller feeds forward: the estimate reads the rest
+        force = self.estimator.update(t, q[self.chain], v[self.chain], reference, fed)
         if np.linalg.norm(force) < self.triggers.estimate_threshold:
             self._above_since = None
             if self._below_since is None:
@@ -286,9 +368,7 @@ class InFlight:
             gust = self._estimated_gust(t, force)
             self.replanner.assume(gust)
             said = [round(f, 2) for f in gust.force]
-            self.replanner.replan(
-                t, f"wind estimated: {said} N on the end-effector", through=self._through(t)
-            )
+            self._wind_replan(t, f"wind estimated: {said} N on the end-effector", through=self._through(t))
         return force
 
     def _estimated_gust(self, t: float, force, ramp_from: float | None = None) -> GustEvent:

@@ -12,7 +12,8 @@ with I the integrated error clamped like the controller's (``integral_limit``, u
 rate), M_s the planning model's mass matrix (point drones, :mod:`fpr.model.inverse_dynamics`), reads it as a
 force F on the task point (least squares of J_p^T F = Q_hat, J_p the task point's Jacobian, the in-plane
 components y, z), and low-pass filters it (time constant ``time_constant``). It is exact in a steady state
-of a model that matches the plant; on the built-in ``gust`` mission (8 N along -y) it settles within 10 %
+of a model that matches the plant; on the ``gust`` mission in 8 N along -y (its earlier force) it settled
+within 10 %
 (about -7.2 N; the point-drone model is lighter in rotation than the plant). In transients (the wind
 rising, a sharp turn of the plan) it is wrong: the replanner takes it only after it has stayed above a
 threshold for a while (:class:`fpr.sim.replanning.TriggerSettings`).
@@ -51,8 +52,12 @@ class WindEstimator:
         self._last_outer = None
         self._last = None
 
-    def update(self, t: float, s, ds, reference) -> np.ndarray:
-        """One tick at time t [s]: measured chain s, s' and the plan's [s_d, s_d', ...]; the new estimate."""
+    def update(self, t: float, s, ds, reference, fed=None) -> np.ndarray:
+        """One tick at time t [s]: measured chain s, s' and the plan's [s_d, s_d', ...]; the new estimate.
+
+        ``fed``: the force on the task point the controller feeds forward, world [x, y, z] [N], or None: the
+        feedback then holds only the rest of the wind, and the estimate is ``fed`` plus what it holds.
+        """
         s = np.asarray(s, dtype=float)
         error = s - reference[0]
         if self._integral is None:
@@ -66,6 +71,8 @@ class WindEstimator:
         mass = np.asarray(self.planar.mass_matrix(s[None]))[0]
         jac = task_jacobian(self.robot, s[None])[0]  # (2, n_s)
         raw = np.linalg.lstsq(jac.T, mass @ held, rcond=None)[0]
+        if fed is not None:
+            raw = raw + np.asarray(fed, dtype=float)[1:]
         gain = min(1.0, (t - self._last) / self.time_constant)
         self.force[1:] += gain * (raw - self.force[1:])
         self._last = t
