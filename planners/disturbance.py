@@ -130,19 +130,13 @@ class DisturbedProblem(MotionProblem):
         *args, **kwargs: those of :class:`~planners.problem.MotionProblem`.
         gusts: the gust events the planner knows.
         start_time: the absolute time of the problem's first point [s] (its node times start at 0).
+        headroom: w_h [rad/s], the least rotor speed asked for while a gust pushes (0: the thesis' w >= 0).
     """
 
-    #: the rotors' headroom the NLP asks for in a known wind [rad/s] (module docstring); None:
-    #: CONTROL_HEADROOM
-    headroom_override: float | None = None
-
-    @property
-    def headroom(self) -> float:
-        """w_h of this problem [rad/s]: :attr:`headroom_override`, else :data:`CONTROL_HEADROOM`."""
-        return CONTROL_HEADROOM if self.headroom_override is None else self.headroom_override
-
-    def __init__(self, *args, gusts=(), start_time: float = 0.0, **kwargs):
+    def __init__(self, *args, gusts=(), start_time: float = 0.0, headroom: float = CONTROL_HEADROOM, **kwargs):
         super().__init__(*args, **kwargs)
+        #: w_h, the rotors' headroom the NLP asks for while a gust pushes [rad/s] (module docstring)
+        self.headroom = float(headroom)
         self.gusts = tuple(gusts)
         self.start_time = float(start_time)
         first = self.motion(self.points)[0]

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fpr.model.errors import PlannerArgumentError
-from planners.disturbance import RISE, DisturbedProblem, dense_check
+from planners.disturbance import CONTROL_HEADROOM, RISE, DisturbedProblem, dense_check
 from planners.events import moved_positions
 from planners.methods.way_points import WayPointTask
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
@@ -89,6 +89,8 @@ class ReplanOptions:
         work_cost: the costs of the ``"work"`` latency model [s] (:data:`WORK_COST`).
         fuse_check: the dense check of the SQP's last trial point shares its inverse-dynamics call
             (:func:`planners.replan_check.evaluate_and_check`; same verdict), or (False) is a call of its own.
+        wind_headroom: w_h [rad/s], the least rotor speed the NLP asks for while a known gust pushes
+            (:data:`planners.disturbance.CONTROL_HEADROOM`; the check that decides use keeps w >= 0).
         refine_margin: an SQP iteration after the first (a refinement: the first gives a plan) starts only
             if ``refine_margin`` times the deterministic latency (:meth:`Replanner.latency`) with its
             evaluations is within the deadline: the work model has been up to 1.7 times below the measured
@@ -109,6 +111,7 @@ class ReplanOptions:
     radius: float = 0.3
     fuse_check: bool = True
     refine_margin: float = 1.7
+    wind_headroom: float = CONTROL_HEADROOM
 
     def __post_init__(self):
         if not (np.isfinite(self.deadline) and self.deadline > 0):
@@ -134,6 +137,12 @@ class ReplanOptions:
         if not isinstance(self.fuse_check, bool):
             raise PlannerArgumentError(
                 "fuse_check", self.fuse_check, f"fuse_check = {self.fuse_check!r}: give True or False"
+            )
+        if not (isinstance(self.wind_headroom, (int, float)) and not isinstance(self.wind_headroom, bool)
+                and np.isfinite(self.wind_headroom) and self.wind_headroom >= 0):
+            raise PlannerArgumentError(
+                "wind_headroom", self.wind_headroom,
+                f"wind_headroom = {self.wind_headroom!r}: give a rotor speed >= 0 [rad/s] (0: the thesis' w >= 0)",
             )
         for name in ("radius", "dense_rate", "tolerance"):
             value = getattr(self, name)
@@ -357,7 +366,8 @@ class Replanner:
         free[1:-1] = True
         free[1:-1, 0][is_way[1:-1]] = False  # way points keep their value
         gusts = self._gusts_within(t_s, float(times[-1]))
-        kind, extra = (DisturbedProblem, {"gusts": gusts, "start_time": t_s}) if gusts else (MotionProblem, {})
+        kind, extra = ((DisturbedProblem, {"gusts": gusts, "start_time": t_s, "headroom": self.options.wind_headroom})
+                       if gusts else (MotionProblem, {}))
         problem = kind(
             self.robot,
             points,

@@ -218,19 +218,19 @@ def test_the_wind_estimate_adds_what_the_controller_feeds_forward():
 
 def test_an_infeasible_wind_replan_is_solved_again_without_the_headroom_after_its_latency():
     """_wind_replan: the wind deadline for the solve; infeasible with the rotors' headroom, a second solve
-    without it (DisturbedProblem.headroom 0 during it only), triggered when the first ends."""
+    without it (ReplanOptions.wind_headroom 0 during it only), triggered when the first ends."""
     from types import SimpleNamespace
 
     from fpr.sim.closed_loop import SimulationSettings
     from fpr.sim.replanning import InFlight, TriggerSettings
-    from planners.disturbance import DisturbedProblem
+    from planners.disturbance import CONTROL_HEADROOM
     from planners.mission import load_mission
     from planners.replan import ReplanOptions
 
     calls = []
 
     def replan(t, trigger, through=None):
-        calls.append((t, trigger, fake.options.deadline, DisturbedProblem.headroom_override))
+        calls.append((t, trigger, fake.options.deadline, fake.options.wind_headroom))
         used = len(calls) > 1
         return SimpleNamespace(used=used, latency_s=0.084, why="used" if used else "not used: infeasible (x)")
 
@@ -240,6 +240,14 @@ def test_an_infeasible_wind_replan_is_solved_again_without_the_headroom_after_it
     hooks = InFlight(load_mission("gust"), fake, TriggerSettings(), SimulationSettings().controller,
                      [robot.index[c] for c in robot.layout.chain], robot)
     hooks._wind_replan(5.0, "way point 2 ahead in the wind", through=3)
-    assert [(t, d, h) for t, _, d, h in calls] == [(5.0, 0.3, None), (5.084, 0.3, 0.0)]
+    assert [(t, d, h) for t, _, d, h in calls] == [(5.0, 0.3, CONTROL_HEADROOM), (5.084, 0.3, 0.0)]
     assert "without the rotors' headroom" in calls[1][1]
-    assert fake.options.deadline == 0.05 and DisturbedProblem.headroom_override is None
+    assert fake.options == ReplanOptions()  # the replanner's own options again
+
+
+@pytest.mark.parametrize("value", [-1.0, float("nan"), "225", True])
+def test_wind_headroom_refuses_absurd_values(value):
+    from planners.replan import ReplanOptions
+
+    with pytest.raises(Exception, match="wind_headroom"):
+        ReplanOptions(wind_headroom=value)

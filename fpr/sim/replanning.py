@@ -71,7 +71,7 @@ from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.model.jets import Jet
 from fpr.sim.plant import Plant
 from fpr.sim.wind_estimate import WindEstimator
-from planners.disturbance import DisturbedProblem, generalized_gust
+from planners.disturbance import generalized_gust
 from planners.events import END_EFFECTOR, GustEvent, gust_force, moved_positions
 from planners.replan import Replanner, jet
 
@@ -323,16 +323,15 @@ class InFlight:
             rp.options = dataclasses.replace(options, deadline=self.triggers.wind_deadline)
         try:
             record = rp.replan(t, trigger, through=through)
-            if not record.used and record.why.startswith("not used: infeasible"):
+            if not record.used and record.why.startswith("not used: infeasible") and rp.options.wind_headroom > 0:
                 # the headroom out of the warm SQP's reach: the thesis' w >= 0 alone (saturation then
                 # likelier, but better than the plan in force, made without the wind)
-                DisturbedProblem.headroom_override = 0.0
+                rp.options = dataclasses.replace(rp.options, wind_headroom=0.0)
                 # triggered when the first solve ends (its latency), so the two latencies add up
                 again = f"{trigger} (again, without the rotors' headroom)"
                 rp.replan(t + record.latency_s, again, through=through)
         finally:
             rp.options = options
-            DisturbedProblem.headroom_override = None
 
     def _through(self, t: float) -> int | None:
         """``through`` of a replan in the wind at t: the travel after the next way point too when that way
