@@ -66,10 +66,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
 
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
-from planners.active_set import solve_step_qp
+from planners.active_set import BANDED_MIN_SIZE, solve_step_qp
 from planners.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
 from planners.problem import POWER_SMOOTHING
 
@@ -254,7 +255,7 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     rows = np.vstack([np.hstack([a_k, slack]), np.eye(n + p)])
     lower = np.concatenate([-c_k, np.full(n, -radius), np.zeros(p)])
     upper = np.concatenate([np.full(keep.size, np.inf), np.full(n, radius), np.full(p, np.inf)])
-    res = proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
+    res = _proxqp(h, g, rows, lower, upper)
     d = np.clip(np.asarray(res.x)[:n], -radius, radius)
     model = ev.gradient @ d + 0.5 * d @ hess @ d
     linear = _violation(c + a @ d)  # the pruned constraints stay satisfied inside the region
@@ -264,6 +265,20 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     if keep.size:
         multipliers[keep] = np.maximum(-np.asarray(res.z)[:keep.size], 0.0) / (norms * scale)
     return d, predicted, linear, multipliers
+
+
+def _proxqp(h, g, rows, lower, upper):
+    """ProxQP on min 1/2 y^T h y + g^T y s.t. lower <= rows y <= upper (capped at 300 iterations).
+
+    Its sparse backend on large QPs (:data:`planners.active_set.BANDED_MIN_SIZE` variables or more: a long
+    mission's H is banded and each row touches one or two segments, a few per cent of the entries);
+    the dense one on small ones, where it is as fast (and gives the results the planner's figures were
+    measured with).
+    """
+    if h.shape[0] < BANDED_MIN_SIZE:
+        return proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
+    return proxsuite.proxqp.sparse.solve(sparse.csc_matrix(np.triu(h)), g, None, None, sparse.csc_matrix(rows),
+                                         lower, upper, eps_abs=1e-9, max_iter=300)
 
 
 def _smooth_abs(p):
