@@ -197,6 +197,8 @@ def _violation(c) -> float:
 
 def row_norms(jacobian) -> np.ndarray:
     """max(1, |nabla c_i|_inf) of every constraint row: the scaling of c_hat (module docstring)."""
+    if sparse.issparse(jacobian):
+        return np.maximum(abs(jacobian).max(axis=1).toarray().reshape(-1), 1.0)
     a = np.asarray(jacobian)
     return np.maximum(np.abs(a).max(axis=1), 1.0) if a.size else np.ones(a.shape[0])
 
@@ -207,11 +209,11 @@ def kkt_residual(gradient, constraints, jacobian, multipliers) -> Kkt:
     Args:
         gradient: nabla J (n,).
         constraints: c (m,), >= 0 where satisfied.
-        jacobian: nabla c (m, n).
+        jacobian: nabla c (m, n), an array or a scipy sparse matrix.
         multipliers: lambda (m,) in the units of c (negative entries are taken as 0).
     """
     c = np.asarray(constraints, dtype=float)
-    a = np.asarray(jacobian, dtype=float).reshape(c.size, -1)
+    a = jacobian if sparse.issparse(jacobian) else np.asarray(jacobian, dtype=float).reshape(c.size, -1)
     lam = np.maximum(np.asarray(multipliers, dtype=float), 0.0)
     norms = row_norms(a)
     lam_hat = lam * norms  # multipliers of c_hat = c / norms
@@ -219,6 +221,12 @@ def kkt_residual(gradient, constraints, jacobian, multipliers) -> Kkt:
     complementarity = float((lam_hat * np.abs(c / norms)).max()) if c.size else 0.0
     feasibility = float(max(0.0, -c.min())) if c.size else 0.0
     return Kkt(stationarity, complementarity, feasibility, int(np.count_nonzero(lam_hat > 1e-9)))
+
+
+def _jacobian(ev):
+    """The constraints' Jacobian of an Evaluation: its sparse copy when it has one, else the array."""
+    sparse_copy = getattr(ev, "jacobian_sparse", None)
+    return ev.jacobian if sparse_copy is None else sparse_copy
 
 
 def _qp_step(ev, radius: float, penalty: float, hessian=None):
@@ -233,10 +241,15 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     """
     hess = ev.hessian if hessian is None else hessian
     n = ev.gradient.size
-    c, a = ev.constraints, ev.jacobian
-    keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
-    norms = np.maximum(np.abs(a[keep]).max(axis=1), 1.0)
-    c_k, a_k = c[keep] / norms, a[keep] / norms[:, None]
+    c, a = ev.constraints, _jacobian(ev)
+    if sparse.issparse(a):  # a long mission's (planners.problem.SPARSE_FROM): the same rows, fewer operations
+        keep = np.flatnonzero(c - abs(a).sum(axis=1).A1 * radius <= 0.0)
+        a_keep = a[keep].toarray()
+    else:
+        keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
+        a_keep = a[keep]
+    norms = np.maximum(np.abs(a_keep).max(axis=1), 1.0)
+    c_k, a_k = c[keep] / norms, a_keep / norms[:, None]
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
     if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.active_set)
@@ -458,7 +471,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
             merit = ev.J + penalty * _violation(ev.constraints)
             d, predicted, linear, multipliers, xi = solve_qp(penalty)
         objective_gradient = _model_gradient(ev, xi, composite)
-        kkt = kkt_residual(objective_gradient, ev.constraints, ev.jacobian, multipliers)
+        kkt = kkt_residual(objective_gradient, ev.constraints, _jacobian(ev), multipliers)
         if opt.stop == "kkt" and kkt.residual <= opt.kkt_tolerance and ev.violation <= opt.feasibility:
             success, message = True, f"converged: KKT residual {kkt.residual:.2g} <= {opt.kkt_tolerance:g}"
             break
@@ -496,7 +509,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                 d, trial = 2.0 * d, longer
             actual = merit - (trial.J + penalty * _violation(trial.constraints))
         if accepted:
-            pending = (d, objective_gradient - ev.jacobian.T @ multipliers, multipliers, xi)
+            pending = (d, objective_gradient - _jacobian(ev).T @ multipliers, multipliers, xi)
             x = x + d
             if ratio > 0.75 and step_size > 0.9 * radius:
                 radius *= 2.0
@@ -539,7 +552,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     final = problem.evaluate(x, True)
     if kkt is None or final is not ev:
         # the returned x moved after the last QP: its KKT residual with the last multipliers
-        kkt = kkt_residual(_model_gradient(final, xi, composite), final.constraints, final.jacobian,
+        kkt = kkt_residual(_model_gradient(final, xi, composite), final.constraints, _jacobian(final),
                            multipliers)
     return SqpOutcome(x, success, message, it, evaluations, gradients, time.perf_counter() - start, final.J,
                       final.violation, kkt, multipliers)
