@@ -127,7 +127,7 @@ def bandwidth(matrix) -> int:
 
 
 def banded_solver(hess):
-    """y -> H^-1 y by a banded Cholesky factorisation when H is large and banded, else None.
+    """The solve y -> H^-1 y by a banded Cholesky factorisation when H is large and banded, else None.
 
     The planning problems' H is block-banded: a grid node's quantities depend on the two points of its
     segment only, and x holds the points' entries in order, so H couples entries of neighbouring points

@@ -8,17 +8,18 @@ import pytest
 from scipy import sparse
 
 import planners.active_set as active_set
+import planners.curvature as curvature
 from fpr.cli.bench.cli import parser
 from fpr.cli.bench.scaling import EXPONENT_GOAL, _targets, growth_exponent, scaling_table
 from fpr.model.qp import proxsuite_module
-from planners.active_set import bandwidth, banded_solver, solve_step_qp
+from planners.active_set import banded_solver, bandwidth, solve_step_qp
 from planners.curvature import smoothed_hessian
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
 from planners.missions_gen import LOOP_RADIUS, loop_mission, loop_way_points
 from planners.report import evaluate_motion
 from planners.solving import Grid
-from planners.sqp import _proxqp
+from planners.sqp import _proxqp, kkt_residual
 
 proxqp = proxsuite_module().proxqp
 
@@ -89,14 +90,39 @@ def test_banded_route_equals_the_dense_route(monkeypatch):
 
 
 @pytest.fixture(scope="module")
-def long_qp():
-    """The step QP of the 1-step NLP of 10 way points (1 via point a travel) at its start, as the SQP
-    builds it at a feasible point (rows that can become active, scaled to unit infinity norm)."""
+def long_evaluation():
+    """The 1-step NLP of 10 way points (1 via point a travel: 308 variables) and its evaluation with
+    derivatives at its start."""
     mission = loop_mission(10, 1)
     task = WayPointTask.of(mission, mission.load_robot())
     problem = one_step_problem(task, Grid())
     problem.power_model = True
-    ev = problem.evaluate(problem.x_of(problem.points), True)
+    return problem, problem.evaluate(problem.x_of(problem.points), True)
+
+
+def test_long_problems_sparse_jacobian_is_the_dense_one(long_evaluation, monkeypatch):
+    """The sparse copy holds the same numbers; the KKT residual and the smoothed model's H are the same
+    from it as from the dense arrays."""
+    problem, ev = long_evaluation
+    assert problem.n_x >= 200 and ev.jacobian_sparse is not None
+    np.testing.assert_array_equal(ev.jacobian_sparse.toarray(), ev.jacobian)
+    # a row touches one segment's two points: at most 2 x 20 entries (fewer at the fixed way points)
+    assert ev.jacobian_sparse.nnz <= 40 * ev.jacobian.shape[0]
+    lam = np.random.default_rng(1).random(ev.constraints.size)
+    dense, sparse_kkt = (kkt_residual(ev.gradient, ev.constraints, a, lam)
+                         for a in (ev.jacobian, ev.jacobian_sparse))
+    assert sparse_kkt.stationarity == pytest.approx(dense.stationarity, rel=1e-12)
+    assert sparse_kkt.complementarity == pytest.approx(dense.complementarity, rel=1e-12)
+    h_sparse = smoothed_hessian(ev)
+    monkeypatch.setattr(curvature, "SPARSE_FROM", 10**9)
+    np.testing.assert_allclose(h_sparse, smoothed_hessian(ev), rtol=0, atol=1e-12 * np.abs(h_sparse).max())
+
+
+@pytest.fixture(scope="module")
+def long_qp(long_evaluation):
+    """The step QP of the 1-step NLP of 10 way points (1 via point a travel) at its start, as the SQP
+    builds it at a feasible point (rows that can become active, scaled to unit infinity norm)."""
+    _, ev = long_evaluation
     hess = smoothed_hessian(ev)
     radius = 0.5
     keep = np.flatnonzero(ev.constraints - np.abs(ev.jacobian).sum(axis=1) * radius <= 0.0)
@@ -131,7 +157,8 @@ def test_sparse_proxqp_gives_the_dense_answer(long_qp):
     hess, g, rows, lower, radius = long_qp
     n = g.size
     scale = 1.0 / np.abs(hess).max()
-    args = (hess * scale, g * scale, np.vstack([rows, np.eye(n)]), np.concatenate([lower, np.full(n, -radius)]),
+    args = (hess * scale, g * scale, np.vstack([rows, np.eye(n)]),
+            np.concatenate([lower, np.full(n, -radius)]),
             np.concatenate([np.full(lower.size, np.inf), np.full(n, radius)]))
     assert n >= active_set.BANDED_MIN_SIZE
     ours = _proxqp(*args)
@@ -159,7 +186,8 @@ def test_scaling_goals_and_table():
     exponents = [dict(via_points=1, method="two-step", exponent=1.0), dict(via_points=1, method="one-step",
                                                                              exponent=2.0)]
     goals = {t["target"]: t for t in _targets(rows, exponents)}
-    assert goals["32 way points, two-step <= 2 s"]["met"] and goals["32 way points, two-step <= 2 s"]["value"] == 1.6
+    two_step = goals["32 way points, two-step <= 2 s"]
+    assert two_step["met"] and two_step["value"] == 1.6
     assert not goals["32 way points, one-step <= 30 s"]["met"]  # 51.2 s
     assert goals[f"growth exponent in the way points, two-step <= {EXPONENT_GOAL:g}"]["met"]
     assert not goals[f"growth exponent in the way points, one-step <= {EXPONENT_GOAL:g}"]["met"]

@@ -75,7 +75,8 @@ class WayPointTask:
     def normalisation(self, grid: Grid) -> tuple[float, float]:
         """(J_e0, J_phi0) of the stop motion on ``grid`` (smoothed |.|, as the optimiser sees them, 3.26).
 
-        Computed once per grid (a method asks for it in each of its stages)."""
+        Computed once per grid (a method asks for it in each of its stages).
+        """
         known = self.__dict__.setdefault("_normalisations", {})
         if grid not in known:
             free_way = np.zeros(self.stop.points.shape, dtype=bool)

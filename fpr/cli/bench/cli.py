@@ -133,7 +133,6 @@ def _run(args, argv) -> int:
 def _goals(bench, planning, control, scaling=None) -> list[dict]:
     """Every section's goals in one list: target, value, (goal, unit when given), met and its verdict."""
     rows = [("model", t) for t in model_targets(bench.results)]
-    rows += [(name, t) for name, section in (("planning", planning), ("control", control), ("scaling", scaling))
-             if section
-             for t in section.get("targets", [])]
+    sections = (("planning", planning), ("control", control), ("scaling", scaling))
+    rows += [(name, t) for name, section in sections if section for t in section.get("targets", [])]
     return [dict(section=name, **t, verdict="met" if t["met"] else "not met") for name, t in rows]

@@ -1,5 +1,4 @@
-"""Scaling section of the benchmark (``python -m fpr.bench --section scaling``): planning time against
-the mission's length.
+"""Scaling section of the benchmark (``python -m fpr.bench --section scaling``): planning time by length.
 
 Missions of 4, 8, 16 and 32 way points round a circle (:func:`planners.missions_gen.loop_mission`:
 every travel a 0.5 m chord in 1.5 s), with 0 to 4 via points per travel (``--quick``: 1 only), each
@@ -80,8 +79,8 @@ def _targets(rows, exponents) -> list[dict]:
         row = next((r for r in rows if r["way_points"] == 32 and r["via_points"] == GOAL_VIA_POINTS
                     and r["method"] == method), None)
         if row is not None:
-            out.append(dict(target=f"32 way points, {method} <= {goal:g} s", value=row["wall_time_s"], goal=goal,
-                            unit="s", met=bool(row["wall_time_s"] <= goal)))
+            out.append(dict(target=f"32 way points, {method} <= {goal:g} s", value=row["wall_time_s"],
+                            goal=goal, unit="s", met=bool(row["wall_time_s"] <= goal)))
     for e in exponents:
         if e["via_points"] == GOAL_VIA_POINTS:
             out.append(dict(target=f"growth exponent in the way points, {e['method']} <= {EXPONENT_GOAL:g}",
@@ -106,8 +105,8 @@ def scaling_table(scaling: dict) -> str:
                          f"{'yes' if r['feasible'] else 'no':>4}")
         lines.append(f"{count:>10}  {n_vp:>3}  " + "  ".join(cells))
     for e in scaling["exponents"]:
-        lines.append(f"growth exponent ({FIT_FROM}..32 way points), {e['via_points']} via points, {e['method']}: "
-                     f"{e['exponent']:.2f}")
+        lines.append(f"growth exponent ({FIT_FROM}..32 way points), {e['via_points']} via points, "
+                     f"{e['method']}: {e['exponent']:.2f}")
     for t in scaling["targets"]:
         lines.append(f"target {t['target']}: {t['value']:.4g} -> {'met' if t['met'] else 'NOT met'}")
     return "\n".join(lines)
