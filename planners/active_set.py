@@ -23,6 +23,7 @@ the caller solves the QP another way (ProxQP, capped at its iteration limit, who
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import cho_solve_banded, cholesky_banded
 
 #: Relative violation of a row (in row-scaled units) that counts as holding.
 ROW_TOLERANCE = 1e-10
@@ -30,6 +31,10 @@ ROW_TOLERANCE = 1e-10
 CONDITION = 1e-7
 #: How many working-set changes before giving up.
 MAX_CHANGES = 60
+#: H is treated as banded (:func:`banded_solver`) when its bandwidth is at most this share of its size.
+BANDED_SHARE = 0.25
+#: ... and it has at least this many rows (below it one dense eigendecomposition is cheap).
+BANDED_MIN_SIZE = 200
 
 
 def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
@@ -51,14 +56,19 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
     """
     n = gradient.size
     m = rows.shape[0]
-    # H = V diag(w) V^T; the range-space steps below lose about 1e-16 |H^-1 g| to cancellation: keep
-    # that below 1e-9 of the radius, else leave the QP to a solver that does not invert H
-    w, v = np.linalg.eigh(0.5 * (hess + hess.T))
-    if not w[0] >= CONDITION * max(float(np.abs(gradient).max()), 1e-300) / radius:
-        return None
+    solve = banded_solver(hess)
+    if solve is None:
+        # H = V diag(w) V^T; the range-space steps below lose about 1e-16 |H^-1 g| to cancellation: keep
+        # that below 1e-9 of the radius, else leave the QP to a solver that does not invert H
+        w, v = np.linalg.eigh(0.5 * (hess + hess.T))
+        if not w[0] >= CONDITION * max(float(np.abs(gradient).max()), 1e-300) / radius:
+            return None
 
-    def solve(y):
-        return v @ ((v.T @ y) / (w if np.ndim(y) == 1 else w[:, None]))
+        def solve(y):
+            return v @ ((v.T @ y) / (w if np.ndim(y) == 1 else w[:, None]))
+    elif not float(np.abs(solve(gradient)).max()) <= radius / CONDITION:
+        # the same bound on the cancellation, with |H^-1 g| itself instead of |g| / lambda_min(H)
+        return None
     # all rows as G d >= h: the m constraint rows, then d_i >= -Delta, then -d_i >= -Delta
     def row(k):
         if k < m:
@@ -108,3 +118,36 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
         # a box row and its opposite cannot both be in W
         work += [k for k in added if k < m or ((k - m + n) % (2 * n) + m) not in in_work]
     return None
+
+
+def bandwidth(matrix) -> int:
+    """The largest |i - j| with matrix[i, j] != 0 (0 for a diagonal or zero matrix)."""
+    i, j = np.nonzero(matrix)
+    return int(np.abs(i - j).max()) if i.size else 0
+
+
+def banded_solver(hess):
+    """The solve y -> H^-1 y by a banded Cholesky factorisation when H is large and banded, else None.
+
+    The planning problems' H is block-banded: a grid node's quantities depend on the two points of its
+    segment only, and x holds the points' entries in order, so H couples entries of neighbouring points
+    only (bandwidth about two points' entries, 40 for the FPR, whatever the mission's length). Factoring
+    it costs O(n b^2) and each solve O(n b) (b the bandwidth), where the eigendecomposition of the dense
+    route costs O(n^3) and each solve O(n^2). Used when n >= :data:`BANDED_MIN_SIZE` and
+    b <= :data:`BANDED_SHARE` n; None also when the factorisation fails (H not positive definite to
+    round-off): the dense route decides then.
+    """
+    n = hess.shape[0]
+    if n < BANDED_MIN_SIZE:
+        return None
+    b = bandwidth(hess)
+    if b > BANDED_SHARE * n:
+        return None
+    upper = np.zeros((b + 1, n))  # LAPACK's upper banded storage: upper[b + i - j, j] = H[i, j], i <= j
+    for k in range(b + 1):
+        upper[b - k, k:] = 0.5 * (np.diagonal(hess, k) + np.diagonal(hess, -k))
+    try:
+        factor = cholesky_banded(upper, lower=False)
+    except np.linalg.LinAlgError:
+        return None
+    return lambda y: cho_solve_banded((factor, False), y)

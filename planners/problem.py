@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from itertools import product
 
 import numpy as np
+from scipy import sparse
 
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
@@ -49,6 +50,10 @@ POWER_CURVATURE_FLOOR = 1e-2  # [W]
 # between grid nodes (a rotor-speed peak a few milliseconds off a node) stays within the limits:
 # 1e-3 is 1 mm, 1 mrad, or about 0.4 rad/s at the rotor-speed limit.
 CONSTRAINT_BACKOFF = 1e-3
+#: From this many variables on, an evaluation also gives its constraints' Jacobian as a sparse matrix
+#: (``Evaluation.jacobian_sparse``): each row touches one segment's two points, and the SQP's per-row
+#: work on the dense array grows as the square of the mission's length.
+SPARSE_FROM = 200
 
 
 @dataclass(frozen=True)
@@ -208,6 +213,8 @@ class Evaluation:
             [W]), their weights a_e w_k in J (J = sum_k a_e w_k |P_k|_eps + a_phi J_phi) and their
             derivatives (K, n_x): the SQP models the sum of |P_k| piecewise linearly (or None).
         rate_hessian: the Gauss-Newton matrix of the a_phi J_phi part alone (or None).
+        jacobian_sparse: ``jacobian`` as a scipy CSR matrix (same numbers), for problems of
+            :data:`SPARSE_FROM` variables or more (else None).
     """
 
     J: float
@@ -220,6 +227,7 @@ class Evaluation:
     power_weight: np.ndarray | None = None
     power_jacobian: np.ndarray | None = None
     rate_hessian: np.ndarray | None = None
+    jacobian_sparse: object | None = None
 
     @property
     def violation(self) -> float:
@@ -317,6 +325,13 @@ class MotionProblem:
         scale = entry_scales(self.durations)[:, :, None] * np.ones((1, 1, n))
         self.scale = scale[self.free]
         self.n_x = int(self.free.sum())
+        # the x index of every entry of the points (flat, in the order of points.reshape(-1)), -1 if fixed
+        self._column = np.full(self.points.size, -1)
+        self._column[np.flatnonzero(self.free.reshape(-1))] = np.arange(self.n_x)
+        # the windows as one index array (W, L) when they have one length (the usual grids), else None
+        lengths = {b - a for a, b in self.windows}
+        self._window_index = (np.array([a for a, _ in self.windows])[:, None] + np.arange(lengths.pop())
+                              if len(lengths) == 1 else None)
         self._cache: tuple[bytes, bool, Evaluation] | None = None
         #: set by the composite SQP (:mod:`planners.sqp`): evaluations with derivatives then also give the
         #: powers, their derivatives and J_phi's Gauss-Newton matrix (``Evaluation.power``...)
@@ -436,33 +451,54 @@ class MotionProblem:
                 rate_hess = self._assemble((2 * a_phi * self.weights)[:, None] * np.ones(rate_local.shape[1]),
                                            rate_local, free)
                 # the powers' derivatives with respect to x: (N n_d, n_x)
-                p_full = np.zeros((n_s, n_d, size))
-                rows_i = np.arange(n_s)[:, None, None]
-                p_full[rows_i, np.arange(n_d)[None, :, None], index[:, None, :]] = local[:, :n_d]
-                p_jac = p_full.reshape(n_s * n_d, size)[:, free] * self.scale
+                p_jac = self._scatter(np.repeat(index, n_d, axis=0), local[:, :n_d].reshape(n_s * n_d, -1))
                 p_weight = np.repeat(a_e * self.weights, n_d)
         n_d = raw.shape[1] // 2
         terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
-        mins, picks = [], []
-        for a, b in self.windows:
-            arg = a + np.argmin(rows[a:b], axis=0)  # (R,)
-            mins.append(rows[arg, np.arange(rows.shape[1])])
-            picks.append(arg)
-        constraints = np.concatenate(mins) - CONSTRAINT_BACKOFF
+        if self._window_index is not None:  # every window at once: the first node of each window's minimum
+            arg = self._window_index[:, 0, None] + np.argmin(rows[self._window_index], axis=1)  # (W, R)
+            constraints = np.take_along_axis(rows, arg, axis=0).reshape(-1) - CONSTRAINT_BACKOFF
+            picks = list(arg)
+        else:
+            mins, picks = [], []
+            for a, b in self.windows:
+                arg = a + np.argmin(rows[a:b], axis=0)  # (R,)
+                mins.append(rows[arg, np.arange(rows.shape[1])])
+                picks.append(arg)
+            constraints = np.concatenate(mins) - CONSTRAINT_BACKOFF
         if derivatives:
             sample = np.concatenate(picks)  # (W R,)
             column = np.tile(np.arange(rows.shape[1]), len(self.windows))
             local = np.einsum("xrj,rxsk->xskj", sens_rows[sample, column], self.basis[:, sample])
-            full = np.zeros((sample.size,) + self.points.shape)
-            rows_idx = np.arange(sample.size)[:, None]
-            full[rows_idx, self.segment[sample][:, None] + np.arange(2)] = local
-            jac = full[:, self.free] * self.scale
+            width = 2 * N_DERIVS * n  # the entries of a segment's two points, in the points' flat order
+            entries = self.segment[sample][:, None] * (N_DERIVS * n) + np.arange(width)
+            jac, jac_sparse = self._scatter(entries, local.reshape(sample.size, width), True)
         if not derivatives:
             return Evaluation(value, terms, constraints)
         if not self.power_model:
-            return Evaluation(value, terms, constraints, grad, jac, hess)
-        return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess)
+            return Evaluation(value, terms, constraints, grad, jac, hess, jacobian_sparse=jac_sparse)
+        return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess,
+                          jac_sparse)
+
+    def _scatter(self, entries, values, with_sparse: bool = False):
+        """The (rows, n_x) derivatives with respect to x of rows whose derivatives with respect to the
+        points' flat entries ``entries`` (rows, w) are ``values`` (rows, w): the free entries, scaled.
+
+        The same numbers as filling a (rows, points.size) array and taking its free columns, without that
+        array (each row touches one segment's two points: a long mission's would be mostly zeros). With
+        ``with_sparse``: (that array, the same as a CSR matrix or None below :data:`SPARSE_FROM` variables).
+        """
+        cols = self._column[entries]
+        hit = cols >= 0
+        out = np.zeros((entries.shape[0], self.n_x))
+        row, col, value = np.nonzero(hit)[0], cols[hit], values[hit] * self.scale[cols[hit]]
+        out[row, col] = value
+        if not with_sparse:
+            return out
+        if self.n_x < SPARSE_FROM:
+            return out, None
+        return out, sparse.csr_matrix((value, (row, col)), shape=out.shape)
 
     def _assemble(self, curvature, local, free) -> np.ndarray:
         """Sum over nodes i and quantities q of c_iq grad q_i grad q_i^T, for the free entries in x's scaling.

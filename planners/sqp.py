@@ -66,10 +66,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
 
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
-from planners.active_set import solve_step_qp
+from planners.active_set import BANDED_MIN_SIZE, solve_step_qp
 from planners.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
 from planners.problem import POWER_SMOOTHING
 
@@ -196,6 +197,8 @@ def _violation(c) -> float:
 
 def row_norms(jacobian) -> np.ndarray:
     """max(1, |nabla c_i|_inf) of every constraint row: the scaling of c_hat (module docstring)."""
+    if sparse.issparse(jacobian):
+        return np.maximum(abs(jacobian).max(axis=1).toarray().reshape(-1), 1.0)
     a = np.asarray(jacobian)
     return np.maximum(np.abs(a).max(axis=1), 1.0) if a.size else np.ones(a.shape[0])
 
@@ -206,11 +209,11 @@ def kkt_residual(gradient, constraints, jacobian, multipliers) -> Kkt:
     Args:
         gradient: nabla J (n,).
         constraints: c (m,), >= 0 where satisfied.
-        jacobian: nabla c (m, n).
+        jacobian: nabla c (m, n), an array or a scipy sparse matrix.
         multipliers: lambda (m,) in the units of c (negative entries are taken as 0).
     """
     c = np.asarray(constraints, dtype=float)
-    a = np.asarray(jacobian, dtype=float).reshape(c.size, -1)
+    a = jacobian if sparse.issparse(jacobian) else np.asarray(jacobian, dtype=float).reshape(c.size, -1)
     lam = np.maximum(np.asarray(multipliers, dtype=float), 0.0)
     norms = row_norms(a)
     lam_hat = lam * norms  # multipliers of c_hat = c / norms
@@ -218,6 +221,12 @@ def kkt_residual(gradient, constraints, jacobian, multipliers) -> Kkt:
     complementarity = float((lam_hat * np.abs(c / norms)).max()) if c.size else 0.0
     feasibility = float(max(0.0, -c.min())) if c.size else 0.0
     return Kkt(stationarity, complementarity, feasibility, int(np.count_nonzero(lam_hat > 1e-9)))
+
+
+def _jacobian(ev):
+    """The constraints' Jacobian of an Evaluation: its sparse copy when it has one, else the array."""
+    sparse_copy = getattr(ev, "jacobian_sparse", None)
+    return ev.jacobian if sparse_copy is None else sparse_copy
 
 
 def _qp_step(ev, radius: float, penalty: float, hessian=None):
@@ -232,10 +241,15 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     """
     hess = ev.hessian if hessian is None else hessian
     n = ev.gradient.size
-    c, a = ev.constraints, ev.jacobian
-    keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
-    norms = np.maximum(np.abs(a[keep]).max(axis=1), 1.0)
-    c_k, a_k = c[keep] / norms, a[keep] / norms[:, None]
+    c, a = ev.constraints, _jacobian(ev)
+    if sparse.issparse(a):  # a long mission's (planners.problem.SPARSE_FROM): the same rows, fewer operations
+        keep = np.flatnonzero(c - abs(a).sum(axis=1).A1 * radius <= 0.0)
+        a_keep = a[keep].toarray()
+    else:
+        keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
+        a_keep = a[keep]
+    norms = np.maximum(np.abs(a_keep).max(axis=1), 1.0)
+    c_k, a_k = c[keep] / norms, a_keep / norms[:, None]
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
     if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.active_set)
@@ -254,7 +268,7 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     rows = np.vstack([np.hstack([a_k, slack]), np.eye(n + p)])
     lower = np.concatenate([-c_k, np.full(n, -radius), np.zeros(p)])
     upper = np.concatenate([np.full(keep.size, np.inf), np.full(n, radius), np.full(p, np.inf)])
-    res = proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
+    res = _proxqp(h, g, rows, lower, upper)
     d = np.clip(np.asarray(res.x)[:n], -radius, radius)
     model = ev.gradient @ d + 0.5 * d @ hess @ d
     linear = _violation(c + a @ d)  # the pruned constraints stay satisfied inside the region
@@ -264,6 +278,20 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     if keep.size:
         multipliers[keep] = np.maximum(-np.asarray(res.z)[:keep.size], 0.0) / (norms * scale)
     return d, predicted, linear, multipliers
+
+
+def _proxqp(h, g, rows, lower, upper):
+    """ProxQP on min 1/2 y^T h y + g^T y s.t. lower <= rows y <= upper (capped at 300 iterations).
+
+    Its sparse backend on large QPs (:data:`planners.active_set.BANDED_MIN_SIZE` variables or more: a long
+    mission's H is banded and each row touches one or two segments, a few per cent of the entries);
+    the dense one on small ones, where it is as fast (and gives the results the planner's figures were
+    measured with).
+    """
+    if h.shape[0] < BANDED_MIN_SIZE:
+        return proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
+    return proxsuite.proxqp.sparse.solve(sparse.csc_matrix(np.triu(h)), g, None, None, sparse.csc_matrix(rows),
+                                         lower, upper, eps_abs=1e-9, max_iter=300)
 
 
 def _smooth_abs(p):
@@ -443,7 +471,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
             merit = ev.J + penalty * _violation(ev.constraints)
             d, predicted, linear, multipliers, xi = solve_qp(penalty)
         objective_gradient = _model_gradient(ev, xi, composite)
-        kkt = kkt_residual(objective_gradient, ev.constraints, ev.jacobian, multipliers)
+        kkt = kkt_residual(objective_gradient, ev.constraints, _jacobian(ev), multipliers)
         if opt.stop == "kkt" and kkt.residual <= opt.kkt_tolerance and ev.violation <= opt.feasibility:
             success, message = True, f"converged: KKT residual {kkt.residual:.2g} <= {opt.kkt_tolerance:g}"
             break
@@ -481,7 +509,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                 d, trial = 2.0 * d, longer
             actual = merit - (trial.J + penalty * _violation(trial.constraints))
         if accepted:
-            pending = (d, objective_gradient - ev.jacobian.T @ multipliers, multipliers, xi)
+            pending = (d, objective_gradient - _jacobian(ev).T @ multipliers, multipliers, xi)
             x = x + d
             if ratio > 0.75 and step_size > 0.9 * radius:
                 radius *= 2.0
@@ -524,7 +552,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     final = problem.evaluate(x, True)
     if kkt is None or final is not ev:
         # the returned x moved after the last QP: its KKT residual with the last multipliers
-        kkt = kkt_residual(_model_gradient(final, xi, composite), final.constraints, final.jacobian,
+        kkt = kkt_residual(_model_gradient(final, xi, composite), final.constraints, _jacobian(final),
                            multipliers)
     return SqpOutcome(x, success, message, it, evaluations, gradients, time.perf_counter() - start, final.J,
                       final.violation, kkt, multipliers)

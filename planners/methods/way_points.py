@@ -73,11 +73,17 @@ class WayPointTask:
                              windows_per_segment=grid.windows_per_segment)
 
     def normalisation(self, grid: Grid) -> tuple[float, float]:
-        """(J_e0, J_phi0) of the stop motion on ``grid`` (smoothed |.|, as the optimiser sees them, 3.26)."""
-        free_way = np.zeros(self.stop.points.shape, dtype=bool)
-        free_way[1:-1, 1:] = True
-        problem = self.problem(self.stop.points, self.way_times, free_way, (1.0, 1.0), grid)
-        return tuple(problem.objective_terms(self.stop.points))
+        """(J_e0, J_phi0) of the stop motion on ``grid`` (smoothed |.|, as the optimiser sees them, 3.26).
+
+        Computed once per grid (a method asks for it in each of its stages).
+        """
+        known = self.__dict__.setdefault("_normalisations", {})
+        if grid not in known:
+            free_way = np.zeros(self.stop.points.shape, dtype=bool)
+            free_way[1:-1, 1:] = True
+            problem = self.problem(self.stop.points, self.way_times, free_way, (1.0, 1.0), grid)
+            known[grid] = tuple(problem.objective_terms(self.stop.points))
+        return known[grid]
 
     def result(self, method: str, trajectory: PiecewisePolynomial, is_way, report: MotionReport,
                reference: MotionReport, stages: list) -> PlanResult:

@@ -14,7 +14,9 @@ a reference's). The sections, each in its own module:
 * ``control`` (:mod:`fpr.cli.bench.control`): the rotor allocation's QP solvers side by side, and the
   closed-loop simulation's real-time factor;
 * ``replan`` (:mod:`fpr.cli.bench.replan`): the latency of a replan in flight (median, 95th percentile,
-  worst) on the built-in missions.
+  worst) on the built-in missions;
+* ``scaling`` (:mod:`fpr.cli.bench.scaling`): planning time against the mission's length (4 to 32 way
+  points, 0 to 4 via points, both methods) and its growth exponent.
 
 Timings depend on the machine and its load: no test asserts them.
 """
@@ -33,6 +35,7 @@ from fpr.cli.bench.control import control_table, run_control
 from fpr.cli.bench.model import model_targets, run_residuals, run_timings
 from fpr.cli.bench.planning import planning_table, run_planning
 from fpr.cli.bench.replan import replan_table, run_replan
+from fpr.cli.bench.scaling import run_scaling, scaling_table
 from fpr.cli.bench.timing import Bench, fmt
 
 
@@ -46,9 +49,9 @@ def parser() -> contract.Parser:
     p.add_argument("--quick", action="store_true",
                    help="3 repeats of ~20 ms loops instead of 7 of ~50 ms; planning: 1 run per item, "
                         "baseline capped at 15 s instead of 120 s; control: 32 states instead of 64, "
-                        "1 simulation run instead of 3")
-    p.add_argument("--section", choices=("all", "model", "planning", "control", "replan"), default="all",
-                   help="which part to run")
+                        "1 simulation run instead of 3; scaling: 1 via point only")
+    p.add_argument("--section", choices=("all", "model", "planning", "control", "replan", "scaling"),
+                   default="all", help="which part to run")
     contract.add_debug(p)
     return p
 
@@ -80,7 +83,8 @@ def _run(args, argv) -> int:
                               progress=not args.json)
     if args.section in ("all", "replan"):  # replanning latency (fpr/cli/bench/replan.py)
         replan = run_replan(args.quick, progress=not args.json)
-    goals = _goals(bench, planning, control)
+    scaling = run_scaling(args.quick, progress=not args.json) if args.section in ("all", "scaling") else None
+    goals = _goals(bench, planning, control, scaling)
     if args.json:
         doc = dict(machine=info, repeats=bench.repeats, loop_target_s=bench.target, timings=bench.results,
                    residuals=residuals, goals=goals)
@@ -90,6 +94,8 @@ def _run(args, argv) -> int:
             doc["control"] = control
         if replan is not None:
             doc["replan"] = replan
+        if scaling is not None:
+            doc["scaling"] = scaling
         print(json.dumps(doc, indent=2))
         return 0
     print(" ".join(f"{k} {v}" for k, v in info.items()))
@@ -114,6 +120,9 @@ def _run(args, argv) -> int:
     if replan is not None:
         print()
         print(replan_table(replan))
+    if scaling is not None:
+        print()
+        print(scaling_table(scaling))
     if goals:
         print("\ngoals (issue 13)")
         for g in goals:
@@ -121,9 +130,9 @@ def _run(args, argv) -> int:
     return 0
 
 
-def _goals(bench, planning, control) -> list[dict]:
+def _goals(bench, planning, control, scaling=None) -> list[dict]:
     """Every section's goals in one list: target, value, (goal, unit when given), met and its verdict."""
     rows = [("model", t) for t in model_targets(bench.results)]
-    rows += [(name, t) for name, section in (("planning", planning), ("control", control)) if section
-             for t in section.get("targets", [])]
+    sections = (("planning", planning), ("control", control), ("scaling", scaling))
+    rows += [(name, t) for name, section in sections if section for t in section.get("targets", [])]
     return [dict(section=name, **t, verdict="met" if t["met"] else "not met") for name, t in rows]
