@@ -119,8 +119,8 @@ class Reference:
             solve may use it (the prototype's near q2 = 0, module docstring).
         task_force: a known external force on the robot kind's task point (the FPR's end-effector), world
             [x, y, z] [N], fed forward (module docstring), or None. x does not act on the planar chain.
-        drone_forces: known external forces on each drone (at its joint, as in the planning model), world
-            [x, y, z], shape (n_d, 3) [N], or None.
+        drone_forces: known external forces on each drone, world [x, y, z], shape (n_d, 3) [N], or None: at
+            its joint in the outer loop (as in the planning model), at its centre of mass in the attitude model.
     """
 
     motion: np.ndarray

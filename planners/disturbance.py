@@ -130,12 +130,13 @@ class DisturbedProblem(MotionProblem):
         *args, **kwargs: those of :class:`~planners.problem.MotionProblem`.
         gusts: the gust events the planner knows.
         start_time: the absolute time of the problem's first point [s] (its node times start at 0).
-        headroom: w_h [rad/s], the least rotor speed asked for while a gust pushes (0: the thesis' w >= 0).
+        headroom: w_h [rad/s], the least rotor speed asked for at every node of a problem in which a gust
+            pushes somewhere (0: the thesis' w >= 0).
     """
 
     def __init__(self, *args, gusts=(), start_time: float = 0.0, headroom: float = CONTROL_HEADROOM, **kwargs):
         super().__init__(*args, **kwargs)
-        #: w_h, the rotors' headroom the NLP asks for while a gust pushes [rad/s] (module docstring)
+        #: w_h, the rotors' headroom the NLP asks for at every node when a gust pushes in it [rad/s] (module docstring)
         self.headroom = float(headroom)
         self.gusts = tuple(gusts)
         self.start_time = float(start_time)

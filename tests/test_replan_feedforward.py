@@ -251,3 +251,45 @@ def test_wind_headroom_refuses_absurd_values(value):
 
     with pytest.raises(Exception, match="wind_headroom"):
         ReplanOptions(wind_headroom=value)
+
+
+@pytest.mark.parametrize("field, value", [("wind_deadline", float("inf")), ("wind_deadline", "0.3"),
+                                          ("wind_deadline", -1.0), ("wind_deadline", 1.5),
+                                          ("feed_forward", "no"), ("known_gusts", 1), ("rate", 0.0),
+                                          ("tracking_bound", float("nan")), ("wind_lead", 0.0)])
+def test_trigger_settings_refuse_absurd_values_by_name(field, value):
+    """A deadline that is not a finite time before the wind lead, a flag that is not a bool, a rate or a
+    bound <= 0: refused at once with the field's name (they used to fail mid-flight or pass silently)."""
+    from fpr.sim.replanning import TriggerSettings
+
+    with pytest.raises(Exception, match=field):
+        TriggerSettings(**{field: value})
+
+
+def test_an_estimate_is_fed_to_the_controller_as_a_ramp_from_its_take_up():
+    """The replanner's first estimate is fully on when assumed; the controller's copy ramps on over its rise
+    from that time (the feedback held the wind until then), and later blended estimates are as assumed."""
+    from types import SimpleNamespace
+
+    from fpr.sim.closed_loop import SimulationSettings
+    from fpr.sim.replanning import InFlight, TriggerSettings
+    from planners.mission import load_mission
+
+    robot = fpr.load("fpr")
+    fake = SimpleNamespace(robot=robot, moves={}, gusts=[], assumed=None)
+    hooks = InFlight(load_mission("gust"), fake, TriggerSettings(known_gusts=False, estimate_wind=True),
+                     SimulationSettings().controller, [robot.index[c] for c in robot.layout.chain], robot)
+    t_up = 3.5
+    first = hooks._estimated_gust(t_up, (0.0, -5.0, 0.0))
+    hooks._taken_up[(first.at, first.force)] = t_up
+    fake.gusts.append(first)
+    (fed,) = hooks.known_gusts()
+    assert first.at + first.rise == pytest.approx(t_up)  # the planner's copy: fully on at take-up
+    assert fed.at == t_up and fed.rise == first.rise and fed.at + fed.duration == first.at + first.duration
+    task = [hooks.known_force(t)[0] for t in (t_up - 0.1, t_up, t_up + 0.25, t_up + first.rise + 0.1)]
+    assert task[0] is None  # nothing fed before the take-up
+    assert task[1] is None or not np.any(task[1])  # and no step at it
+    assert 0.0 < -task[2][1] < 5.0 and task[3][1] == pytest.approx(-5.0)  # ramping, then all of it
+    later = hooks._estimated_gust(6.0, (0.0, -6.0, 0.0), ramp_from=6.0)
+    fake.gusts.append(later)
+    assert hooks.known_gusts()[-1] == later

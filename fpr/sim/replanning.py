@@ -180,6 +180,33 @@ class TriggerSettings:
     wind_deadline: float = 0.3
     feed_forward: bool = True
 
+    def __post_init__(self):
+        def number(name, value, least=0.0, strict=True):
+            ok = (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                  and (value > least if strict else value >= least))
+            if not ok:
+                sign = ">" if strict else ">="
+                raise ModelArgumentError(name, value, f"{name} = {value!r}: give a finite number {sign} {least:g}")
+
+        for name in ("after_gust", "known_gusts", "estimate_wind", "feed_forward"):
+            value = getattr(self, name)
+            if not isinstance(value, bool):
+                raise ModelArgumentError(name, value, f"{name} = {value!r}: give True or False")
+        for name in ("tracking_bound", "rate"):
+            if getattr(self, name) is not None:
+                number(name, getattr(self, name))
+        number("min_interval", self.min_interval, strict=False)
+        number("estimate_threshold", self.estimate_threshold)
+        number("estimate_delay", self.estimate_delay, strict=False)
+        number("wind_lead", self.wind_lead)
+        number("wind_deadline", self.wind_deadline)
+        if self.wind_deadline >= self.wind_lead:
+            raise ModelArgumentError(
+                "wind_deadline", self.wind_deadline,
+                f"wind_deadline = {self.wind_deadline!r}: give less than wind_lead = {self.wind_lead!r} [s] (the "
+                "splice must come before the way point)",
+            )
+
 
 class InFlight:
     """The closed loop's hooks for events and replanning (module docstring).
@@ -221,6 +248,7 @@ class InFlight:
         self._below_since = None  # when it last fell below it [s]
         self._prepared = 0  # interior way points whose next travel is planned for (or passed without wind)
         self._inputs_for = ()  # the known gusts of the last inputs()
+        self._taken_up = {}  # (at, force) of an estimate fully on when assumed -> when it was [s]
         self._no_force = (None, None)
         self._n_drones = self.robot.n_drones
 
@@ -292,8 +320,19 @@ class InFlight:
         if self.triggers.known_gusts:
             return tuple(e for e in self.events if e.kind == "gust" and self._plans_against(e))
         if self.estimator is not None:
-            return tuple(self.replanner.gusts)
+            return tuple(g for g in map(self._taken_up_from, self.replanner.gusts) if g is not None)
         return ()
+
+    def _taken_up_from(self, gust):
+        """The controller's copy of an assumed estimate: the replanner's first estimate is fully on at once
+        (the wind has built up), but until then the feedback held it, so a step in the fed force would count
+        it twice for a while (a kick back past the plan: 788 rad/s on ``gust``); it ramps on over its rise
+        from the time it was taken up instead. None: not on yet."""
+        up = self._taken_up.get((gust.at, gust.force))
+        if up is None or gust.at >= up:
+            return gust
+        left = gust.duration - (up - gust.at)
+        return dataclasses.replace(gust, at=up, duration=left) if left > 0 else None
 
     def known_force(self, t: float) -> tuple:
         """The known wind at t [s]: (force on the task point (3,), forces on the drones (n_d, 3)) [N], each
@@ -323,7 +362,8 @@ class InFlight:
             rp.options = dataclasses.replace(options, deadline=self.triggers.wind_deadline)
         try:
             record = rp.replan(t, trigger, through=through)
-            if not record.used and record.why.startswith("not used: infeasible") and rp.options.wind_headroom > 0:
+            infeasible = not record.used and not record.feasible and not record.solver.startswith("QP failed")
+            if infeasible and rp.options.wind_headroom > 0:
                 # the headroom out of the warm SQP's reach: the thesis' w >= 0 alone (saturation then
                 # likelier, but better than the plan in force, made without the wind)
                 rp.options = dataclasses.replace(rp.options, wind_headroom=0.0)
@@ -365,6 +405,7 @@ class InFlight:
             self._above_since = t
         if self.replanner.assumed is None and t - self._above_since >= self.triggers.estimate_delay - 1e-9:
             gust = self._estimated_gust(t, force)
+            self._taken_up[(gust.at, gust.force)] = t
             self.replanner.assume(gust)
             said = [round(f, 2) for f in gust.force]
             self._wind_replan(t, f"wind estimated: {said} N on the end-effector", through=self._through(t))
