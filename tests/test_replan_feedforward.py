@@ -232,7 +232,8 @@ def test_an_infeasible_wind_replan_is_solved_again_without_the_headroom_after_it
     def replan(t, trigger, through=None):
         calls.append((t, trigger, fake.options.deadline, fake.options.wind_headroom))
         used = len(calls) > 1
-        return SimpleNamespace(used=used, latency_s=0.084, why="used" if used else "not used: infeasible (x)")
+        return SimpleNamespace(used=used, feasible=used, solver="iteration limit reached", latency_s=0.084,
+                               why="used" if used else "not used: infeasible (x)")
 
     robot = fpr.load("fpr")
     fake = SimpleNamespace(robot=robot, moves={}, options=ReplanOptions(), replan=replan, gusts=[],
