@@ -581,28 +581,16 @@ class Plant:
             forces = (speeds * speeds).dot(force_map_t)  # (3, nv)
             try:
                 k_v[0] = a = dynamics(model, data, q, v, forces[0], cms, cds, settings)
-                v_stage, theta = v + half * a, half * v
-                k_v[1] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds,
-                                      settings)
-                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage)[2:]
-                if info != 0:
-                    raise np.linalg.LinAlgError("Singular matrix")
-                k_q[1] = x
-                v_stage, theta = v + half * a, half * x
-                k_v[2] = a = dynamics(model, data, integrate(model, q, theta), v_stage, forces[1], cms, cds,
-                                      settings)
-                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage)[2:]
-                if info != 0:
-                    raise np.linalg.LinAlgError("Singular matrix")
-                k_q[2] = x
-                v_stage, theta = v + dt * a, dt * x
-                k_v[3] = dynamics(model, data, integrate(model, q, theta), v_stage, forces[2], cms, cds,
-                                  settings)
-                x, info = gesv(d_integrate(model, q, theta, arg1), v_stage)[2:]
-                if info != 0:
-                    raise np.linalg.LinAlgError("Singular matrix")
-                k_q[3] = x
-                k_q[0] = v
+                k_q[0] = x = v
+                # stages 2-4: from the previous stage's rates, at dt/2, dt/2, dt (forces at those times)
+                for stage, h, force in ((1, half, forces[1]), (2, half, forces[1]), (3, dt, forces[2])):
+                    v_stage, theta = v + h * a, h * x
+                    q_stage = integrate(model, q, theta)
+                    k_v[stage] = a = dynamics(model, data, q_stage, v_stage, force, cms, cds, settings)
+                    x, info = gesv(d_integrate(model, q, theta, arg1), v_stage)[2:]
+                    if info != 0:
+                        raise np.linalg.LinAlgError("Singular matrix")
+                    k_q[stage] = x
                 q_next = integrate(model, q, weights.dot(k_q))
                 v_next = v + weights.dot(k_v)
             except np.linalg.LinAlgError as error:  # a rotation of ~2 pi within one step: the state blew up
