@@ -134,9 +134,10 @@ class DisturbedProblem(MotionProblem):
             pushes somewhere (0: the thesis' w >= 0).
     """
 
-    def __init__(self, *args, gusts=(), start_time: float = 0.0, headroom: float = CONTROL_HEADROOM, **kwargs):
+    def __init__(self, *args, gusts=(), start_time: float = 0.0, headroom: float = CONTROL_HEADROOM,
+                 **kwargs):
         super().__init__(*args, **kwargs)
-        #: w_h, the rotors' headroom the NLP asks for at every node when a gust pushes in it [rad/s] (module docstring)
+        #: w_h, the rotors' headroom the NLP asks for at every node when a gust pushes in it [rad/s]
         self.headroom = float(headroom)
         self.gusts = tuple(gusts)
         self.start_time = float(start_time)
@@ -146,7 +147,8 @@ class DisturbedProblem(MotionProblem):
     def _external(self, n_samples: int):
         if self.external is None:
             return None
-        return Jet(np.tile(self.external, (1, n_samples // self.external.shape[1], 1)))  # perturbed node copies
+        # the perturbed copies of the nodes (complex-step derivatives) each get their node's force
+        return Jet(np.tile(self.external, (1, n_samples // self.external.shape[1], 1)))
 
     def _inputs(self, motion):
         """The inverse-dynamics inputs of ``motion`` flown in the gusts (Q_ext at each node)."""
@@ -178,18 +180,39 @@ def dense_check(robot, part: PiecewisePolynomial, rate: float, start_time: float
     Returns:
         (feasible, the violated constraint names (worst first), the number of samples).
     """
-    t = np.unique(np.concatenate([part.sample_times(rate), part.knots]))
+    t = dense_times(part, rate)
     motion = part.evaluate(t, order=4)
     external = generalized_gust(robot, gusts, start_time + t, motion[0]) if gusts else None
     inputs = inverse_dynamics(robot, motion, external=None if external is None else Jet(external))
+    feasible, violated = verdict(robot, motion, inputs)
+    return feasible, violated, int(t.size)
+
+
+def dense_times(part: PiecewisePolynomial, rate: float) -> np.ndarray:
+    """The times [s] of :func:`dense_check`: ``part`` sampled at ``rate`` [Hz], plus its knots, sorted."""
+    return np.unique(np.concatenate([part.sample_times(rate), part.knots]))
+
+
+def verdict(robot, motion, inputs) -> tuple[bool, list[str]]:
+    """Feasibility of dense samples (:func:`dense_check`'s): every planning row (natural units) within its
+    unit's tolerance; a constraint is violated when its smallest margin is below -``FEASIBILITY_TOLERANCE``
+    of its unit (1 mm, 1 mrad, 1 rad/s...).
+
+    Args:
+        robot: the robot.
+        motion: the samples' s and derivatives, (5, N, n_s).
+        inputs: their :class:`fpr.model.inverse_dynamics.MotionInputs`.
+
+    Returns:
+        (feasible, the violated constraint names, worst first).
+    """
     rows, names, _ = constraint_rows(robot, motion, inputs, scaled=False)
-    worst = {}
+    worst: dict[str, float] = {}
     for col, name in enumerate(names):
-        unit_tol = FEASIBILITY_TOLERANCE[_unit(name)]
-        margin = float(rows[:, col].min()) / unit_tol
-        worst[name] = min(worst.get(name, np.inf), margin)
+        tolerance = FEASIBILITY_TOLERANCE[CONSTRAINT_KINDS[constraint_kind(name)][0]]
+        worst[name] = min(worst.get(name, np.inf), float(rows[:, col].min()) / tolerance)
     bad = sorted((m, name) for name, m in worst.items() if m < -1.0)
-    return not bad, [name for _, name in bad], int(t.size)
+    return not bad, [name for _, name in bad]
 
 
 def evaluate_in_gusts(robot, trajectory: PiecewisePolynomial, gusts, rate: float = 500.0):
@@ -211,8 +234,6 @@ def _speed_limit(robot) -> float:
     return robot.rotor_constants.max_speed - robot.margins.rotor_speed
 
 
-def _unit(name: str) -> str:
-    return CONSTRAINT_KINDS[constraint_kind(name)][0]
 
-
-__all__ = ["DisturbedProblem", "dense_check", "evaluate_in_gusts", "generalized_gust", "task_jacobian"]
+__all__ = ["DisturbedProblem", "dense_check", "dense_times", "evaluate_in_gusts", "generalized_gust",
+           "task_jacobian", "verdict"]

@@ -19,10 +19,8 @@ import numpy as np
 
 from fpr.model.inverse_dynamics import MotionInputs, inverse_dynamics
 from fpr.model.jets import Jet
-from planners.disturbance import generalized_gust
+from planners.disturbance import dense_times, generalized_gust, verdict
 from planners.polynomial import PiecewisePolynomial
-from planners.problem import CONSTRAINT_KINDS, constraint_kind, constraint_rows
-from planners.report import FEASIBILITY_TOLERANCE
 
 
 def _split(inputs: MotionInputs, n: int) -> tuple[MotionInputs, MotionInputs]:
@@ -33,24 +31,6 @@ def _split(inputs: MotionInputs, n: int) -> tuple[MotionInputs, MotionInputs]:
         axis = 1 if f.name == "motion" else 0
         head[f.name], tail[f.name] = np.split(value, [n], axis=axis)
     return MotionInputs(**head), MotionInputs(**tail)
-
-
-def verdict(robot, motion, inputs: MotionInputs) -> tuple[bool, list[str]]:
-    """Feasibility of dense samples: every planning row (natural units) within its unit's tolerance.
-
-    The verdict of :func:`planners.disturbance.dense_check`: a constraint is violated when its smallest
-    margin is below -``FEASIBILITY_TOLERANCE`` of its unit (1 mm, 1 mrad, 1 rad/s...).
-
-    Returns:
-        (feasible, the violated constraint names, worst first).
-    """
-    rows, names, _ = constraint_rows(robot, motion, inputs, scaled=False)
-    worst: dict[str, float] = {}
-    for col, name in enumerate(names):
-        tolerance = FEASIBILITY_TOLERANCE[CONSTRAINT_KINDS[constraint_kind(name)][0]]
-        worst[name] = min(worst.get(name, np.inf), float(rows[:, col].min()) / tolerance)
-    bad = sorted((m, name) for name, m in worst.items() if m < -1.0)
-    return not bad, [name for _, name in bad]
 
 
 def evaluate_and_check(problem, x, rate: float, start_time: float = 0.0, gusts=()):
@@ -70,7 +50,7 @@ def evaluate_and_check(problem, x, rate: float, start_time: float = 0.0, gusts=(
     x = np.asarray(x, dtype=float)
     points = problem.points_of(x)
     part = PiecewisePolynomial(points, problem.durations)
-    t = np.unique(np.concatenate([part.sample_times(rate), part.knots]))
+    t = dense_times(part, rate)
     dense = part.evaluate(t, order=4)
     grid = problem.motion(points)
     n = grid.shape[1]
@@ -99,4 +79,4 @@ def evaluate_and_check(problem, x, rate: float, start_time: float = 0.0, gusts=(
     return evaluation, (feasible, violated, int(t.size))
 
 
-__all__ = ["evaluate_and_check", "verdict"]
+__all__ = ["evaluate_and_check"]
