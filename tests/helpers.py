@@ -8,6 +8,21 @@ def random_state(robot, rng, scale=1.0):
     return q, scale * rng.normal(size=robot.nq)
 
 
+def near_hover(robot, seed):
+    """A minimal state near hover at the reference pose, with a random velocity, and a rotor command 5 % off
+    hover: (q, v, hover rotor speeds w, command, the rng after these draws)."""
+    import numpy as np
+
+    from fpr.sim.plant import hover_configuration, hover_speeds
+
+    rng = np.random.default_rng(seed)
+    q = hover_configuration(robot, robot.kind.reference_chain)
+    w = hover_speeds(robot, q)
+    q = q + 0.05 * rng.normal(size=robot.nq)
+    v = 0.5 * rng.normal(size=robot.nq)
+    return q, v, w, w * (1 + 0.05 * rng.normal(size=w.shape)), rng
+
+
 # A one-travel prototype mission short enough for campaign tests (tests/test_campaign*.py).
 SHORT_HOP = """description = "a short hop of the prototype's drone, for tests"
 robot = "prototype"

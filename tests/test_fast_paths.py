@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from helpers import near_hover
 
 import fpr
 from controllers.allocation import Allocator, allocation_qp, selectors
@@ -33,12 +34,8 @@ DT = 1e-3
 def _moving_plant(name, seed):
     """A plant near hover with a random velocity, and rotor speeds 5 % off hover (all within bounds)."""
     robot = fpr.load(name)
-    rng = np.random.default_rng(seed)
-    q = hover_configuration(robot, robot.kind.reference_chain)
-    w = hover_speeds(robot, q)
-    q = q + 0.05 * rng.normal(size=robot.nq)
-    v = 0.5 * rng.normal(size=robot.nq)
-    return robot, Plant.from_minimal(robot, q, v, w=w), w * (1 + 0.05 * rng.normal(size=w.shape)), rng
+    q, v, w, command, rng = near_hover(robot, seed)
+    return robot, Plant.from_minimal(robot, q, v, w=w), command, rng
 
 
 @pytest.mark.parametrize("name", fpr.ROBOTS)

@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import near_hover
 
 import fpr
-from fpr.sim.plant import Plant, PlantDivergedError, hover_configuration, hover_speeds
+from fpr.sim.plant import Plant, PlantDivergedError
 
 DT = 1e-3
 
@@ -26,12 +27,7 @@ def _twins(name, seed):
     """Two equal plants near hover with a random velocity, and a command 5 % off hover with one rotor above
     w_max (so that the saturation matters)."""
     robot = fpr.load(name)
-    rng = np.random.default_rng(seed)
-    q = hover_configuration(robot, robot.kind.reference_chain)
-    w = hover_speeds(robot, q)
-    q = q + 0.05 * rng.normal(size=robot.nq)
-    v = 0.5 * rng.normal(size=robot.nq)
-    command = w * (1 + 0.05 * rng.normal(size=w.shape))
+    q, v, w, command, _ = near_hover(robot, seed)
     command[0, 0] = 1.5 * robot.rotor_constants.max_speed
     plants = [Plant.from_minimal(robot, q, v, w=w) for _ in range(2)]
     return robot, plants, command
