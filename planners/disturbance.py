@@ -182,10 +182,16 @@ def dense_check(robot, part: PiecewisePolynomial, rate: float, start_time: float
     """
     t = dense_times(part, rate)
     motion = part.evaluate(t, order=4)
-    external = generalized_gust(robot, gusts, start_time + t, motion[0]) if gusts else None
-    inputs = inverse_dynamics(robot, motion, external=None if external is None else Jet(external))
-    feasible, violated = verdict(robot, motion, inputs)
+    feasible, violated = verdict(robot, motion, inputs_in_gusts(robot, motion, start_time + t, gusts))
     return feasible, violated, int(t.size)
+
+
+def inputs_in_gusts(robot, motion, t, gusts=()):
+    """:func:`fpr.model.inverse_dynamics.inverse_dynamics` of ``motion`` (its derivatives at absolute times t
+    [s]) flown in the ``gusts`` (their Q_ext and its time derivatives, :func:`generalized_gust`); no gust
+    pushing: the motion's own inputs."""
+    external = generalized_gust(robot, gusts, t, motion[0]) if gusts else None
+    return inverse_dynamics(robot, motion, external=None if external is None else Jet(external))
 
 
 def dense_times(part: PiecewisePolynomial, rate: float) -> np.ndarray:
@@ -236,4 +242,4 @@ def _speed_limit(robot) -> float:
 
 
 __all__ = ["DisturbedProblem", "dense_check", "dense_times", "evaluate_in_gusts", "generalized_gust",
-           "task_jacobian", "verdict"]
+           "inputs_in_gusts", "task_jacobian", "verdict"]

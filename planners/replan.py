@@ -139,7 +139,8 @@ class ReplanOptions:
                 and np.isfinite(self.wind_headroom) and self.wind_headroom >= 0):
             raise PlannerArgumentError(
                 "wind_headroom", self.wind_headroom,
-                f"wind_headroom = {self.wind_headroom!r}: give a rotor speed >= 0 [rad/s] (0: the thesis' w >= 0)",
+                f"wind_headroom = {self.wind_headroom!r}: give a rotor speed >= 0 [rad/s] "
+                "(0: the thesis' w >= 0)",
             )
         for name in ("radius", "dense_rate", "tolerance"):
             value = getattr(self, name)
@@ -280,9 +281,9 @@ class Replanner:
     def assume(self, gust) -> None:
         """Plan against ``gust`` (a :class:`planners.events.GustEvent`, e.g. estimated in flight) from now on.
 
-        It replaces the gust assumed before, which is kept in :attr:`gusts` but ends where ``gust`` is fully on
-        (``gust.at + gust.rise``; the two blend over the ramp): the record of the wind each part of the plan
-        was made for, against which the executed plan is checked. The gusts learnt from the mission stay.
+        It replaces the gust assumed before, which is kept in :attr:`gusts` but ends where ``gust`` is fully
+        on (``gust.at + gust.rise``; the two blend over the ramp): the record of the wind each part of the
+        plan was made for, against which the executed plan is checked. The gusts learnt from the mission stay.
         """
         if self._assumed is not None:
             self._end_assumed(gust.at + gust.rise)
@@ -363,8 +364,10 @@ class Replanner:
         free[1:-1] = True
         free[1:-1, 0][is_way[1:-1]] = False  # way points keep their value
         gusts = self._gusts_within(t_s, float(times[-1]))
-        kind, extra = ((DisturbedProblem, {"gusts": gusts, "start_time": t_s, "headroom": self.options.wind_headroom})
-                       if gusts else (MotionProblem, {}))
+        kind, extra = MotionProblem, {}
+        if gusts:
+            kind = DisturbedProblem
+            extra = {"gusts": gusts, "start_time": t_s, "headroom": self.options.wind_headroom}
         problem = kind(
             self.robot,
             points,
@@ -415,7 +418,7 @@ class Replanner:
             record.why = "not used: no way point ahead of the splice"
             return record
         problem, x0, times, j_end = built
-        gusts = self._gusts_within(t_s, float(times[-1]))
+        gusts = getattr(problem, "gusts", ())  # those the horizon's NLP flies in (problem)
         final = None
         if opt.fuse_check:
             final = lambda x: evaluate_and_check(problem, x, opt.dense_rate, t_s, gusts)  # noqa: E731

@@ -67,11 +67,9 @@ import numpy as np
 import pinocchio as pin
 
 from fpr.model.errors import ModelArgumentError
-from fpr.model.inverse_dynamics import inverse_dynamics
-from fpr.model.jets import Jet
 from fpr.sim.plant import Plant
 from fpr.sim.wind_estimate import WindEstimator
-from planners.disturbance import generalized_gust
+from planners.disturbance import inputs_in_gusts
 from planners.events import END_EFFECTOR, GustEvent, gust_force, moved_positions
 from planners.replan import Replanner, jet
 
@@ -186,7 +184,8 @@ class TriggerSettings:
                   and (value > least if strict else value >= least))
             if not ok:
                 sign = ">" if strict else ">="
-                raise ModelArgumentError(name, value, f"{name} = {value!r}: give a finite number {sign} {least:g}")
+                raise ModelArgumentError(name, value,
+                                         f"{name} = {value!r}: give a finite number {sign} {least:g}")
 
         for name in ("after_gust", "known_gusts", "estimate_wind", "feed_forward"):
             value = getattr(self, name)
@@ -203,8 +202,8 @@ class TriggerSettings:
         if self.wind_deadline >= self.wind_lead:
             raise ModelArgumentError(
                 "wind_deadline", self.wind_deadline,
-                f"wind_deadline = {self.wind_deadline!r}: give less than wind_lead = {self.wind_lead!r} [s] (the "
-                "splice must come before the way point)",
+                f"wind_deadline = {self.wind_deadline!r}: give less than wind_lead = {self.wind_lead!r} [s] "
+                "(the splice must come before the way point)",
             )
 
 
@@ -351,8 +350,7 @@ class InFlight:
         derivatives, :func:`planners.disturbance.generalized_gust`); no gust known: the plan's own."""
         gusts = self.known_gusts()
         self._inputs_for = gusts
-        external = generalized_gust(robot, gusts, ticks, motion[0]) if gusts else None
-        return inverse_dynamics(robot, motion, external=None if external is None else Jet(external))
+        return inputs_in_gusts(robot, motion, ticks, gusts)
 
     def _wind_replan(self, t: float, trigger: str, through: int | None = None) -> None:
         """A replan in the wind, with the deadline ``max(deadline, wind_deadline)`` (module docstring)."""
@@ -396,7 +394,8 @@ class InFlight:
             self._above_since = None
             if self._below_since is None:
                 self._below_since = t
-            if self.replanner.assumed is not None and t - self._below_since >= self.triggers.estimate_delay - 1e-9:
+            dropped = t - self._below_since >= self.triggers.estimate_delay - 1e-9
+            if self.replanner.assumed is not None and dropped:
                 self.replanner.forget(t)  # the wind has dropped: plan without it from now on
                 self.replanner.replan(t, "wind estimate below the threshold: planned without wind")
             return force
