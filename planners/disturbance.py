@@ -37,6 +37,7 @@ import numpy as np
 
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.model.jets import Jet
+from planners.events import smooth_ramp
 from planners.polynomial import PiecewisePolynomial
 from planners.problem import (
     CONSTRAINT_KINDS,
@@ -70,15 +71,6 @@ def task_jacobian(robot, s) -> np.ndarray:
 RISE = 0.5
 
 
-def _ramp(u, rise: float):
-    """C2 ramp 10u^3 - 15u^4 + 6u^5 of u in [0, 1] and its first two time derivatives (u = time / rise)."""
-    u = np.clip(u, 0.0, 1.0)
-    value = u**3 * (10.0 + u * (-15.0 + 6.0 * u))
-    rate = 30.0 * u**2 * (1.0 - u) ** 2 / rise
-    curvature = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / rise**2
-    return np.stack([value, rate, curvature])
-
-
 def gust_profile(gust, t, rise: float = RISE) -> np.ndarray:
     """The planned share (0..1) of ``gust``'s force at times t [s] and its two time derivatives, (3, N).
 
@@ -86,12 +78,9 @@ def gust_profile(gust, t, rise: float = RISE) -> np.ndarray:
     a step gust as a box from ``at`` to ``at + duration`` smoothed by a C2 ramp of ``rise`` [s] at both
     ends, lagging the true force (``rise`` 0: the box itself)."""
     t = np.asarray(t, dtype=float)
-    if getattr(gust, "rise", 0.0) > 0.0:
+    if gust.rise > 0.0 or rise <= 0:  # its own onset, or the box itself (a step gust's strength)
         return gust.strength(t)
-    if rise <= 0:
-        box = ((gust.at <= t) & (t < gust.at + gust.duration)).astype(float)
-        return np.stack([box, 0.0 * box, 0.0 * box])
-    return _ramp((t - gust.at) / rise, rise) - _ramp((t - gust.at - gust.duration) / rise, rise)
+    return smooth_ramp((t - gust.at) / rise, rise) - smooth_ramp((t - gust.at - gust.duration) / rise, rise)
 
 
 def generalized_gust(robot, gusts, t, s, rise: float = RISE) -> np.ndarray | None:
