@@ -30,15 +30,12 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 
-from planners.problem import POWER_CURVATURE_FLOOR, POWER_SMOOTHING
+from planners.problem import POWER_CURVATURE_FLOOR, POWER_SMOOTHING, SPARSE_FROM
 
 #: mu of the model's smoothing of |P| [W] (module docstring).
 POWER_WIDTH = 0.1
 #: Share of the majoriser curvature 1 / |P| kept in the model (module docstring).
 MAJORISER_SHARE = 0.05
-#: From this many variables on, the model's sum over the powers is a sparse product (the same sum to
-#: round-off; below it, the dense product the planner's figures were measured with).
-SPARSE_FROM = 200
 
 
 def power_curvature(power, width: float = POWER_WIDTH, share: float = MAJORISER_SHARE) -> np.ndarray:
@@ -58,7 +55,10 @@ def smoothed_hessian(ev, width: float = POWER_WIDTH, share: float = MAJORISER_SH
         return ev.hessian
     pj = ev.power_jacobian
     weight = ev.power_weight * power_curvature(ev.power, width, share)
-    if pj.shape[1] >= SPARSE_FROM:  # a long mission: each P_k depends on one segment's entries only
+    # a long mission (planners.problem.SPARSE_FROM variables or more, where the evaluation's Jacobian is
+    # sparse too): each P_k depends on one segment's entries only, so the sum over the powers is a sparse
+    # product (the same sum to round-off; below, the dense product the planner's figures were measured with)
+    if pj.shape[1] >= SPARSE_FROM:
         pj = sparse.csr_matrix(pj)
         return ev.rate_hessian + (pj.T @ (pj.multiply(weight[:, None]))).toarray()
     return ev.rate_hessian + pj.T @ (weight[:, None] * pj)
