@@ -161,7 +161,10 @@ def test_notebook_runs(path, tmp_path, monkeypatch):
                             resources={"metadata": {"path": str(tmp_path)}})
     client.execute()  # raises CellExecutionError, with the cell and the traceback, when a cell fails
 
-    executable, prefix, cwd = nb.cells[n_cells].outputs[0]["text"].split("\n")[:3]
+    # the kernel may send a cell's stdout in several stream messages (seen under load): join them
+    printed = "".join(o["text"] for o in nb.cells[n_cells].outputs
+                      if o.output_type == "stream" and o.name == "stdout")
+    executable, prefix, cwd = printed.split("\n")[:3]
     # the same interpreter in the same environment (a venv's python is a symlink: compare unresolved paths)
     assert (executable, prefix) == (sys.executable, sys.prefix), "the kernel runs another interpreter"
     assert Path(cwd).resolve() == tmp_path.resolve()
