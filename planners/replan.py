@@ -316,10 +316,13 @@ class Replanner:
         for j in range(j0, j_end + 1):
             begin = max(self.way_times[j - 1], t_s)
             n = int(self.n_via[j - 1])
-            # the rest of a travel gets via points in proportion (short segments make the degree-9
-            # polynomials wiggle between the grid nodes), at least one when it is all the horizon holds
-            rest = (self.way_times[j] - begin) / (self.way_times[j] - self.way_times[j - 1])
-            n = max(int(round(n * rest)), 1 if j0 == j_end else 0)
+            if begin > self.way_times[j - 1]:
+                # the rest of a travel cut by the splice keeps the via points that leave its segments at
+                # least as long as the offline plan's (shorter segments make the degree-9 polynomials
+                # wiggle between the grid nodes, and each one costs the solve nodes), at least one when
+                # it is all the horizon holds
+                rest = (self.way_times[j] - begin) / (self.way_times[j] - self.way_times[j - 1])
+                n = max(min(n, int(np.floor(rest * (n + 1) + 1e-9)) - 1), 1 if j0 == j_end else 0)
             times += list(begin + (self.way_times[j] - begin) * np.arange(1, n + 1) / (n + 1))
             times.append(self.way_times[j])
             is_way += [False] * n + [True]

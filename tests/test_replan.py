@@ -133,3 +133,26 @@ def test_a_start_off_the_plan_is_solved_but_not_spliced(moving):
     record = replanner.replan(2.0, "tracking error", start=start)
     assert record.start == "robot" and record.iterations >= 1 and not record.used
     assert "off the plan" in record.why and replanner.trajectory is result.trajectory
+
+
+def test_a_travel_cut_by_the_splice_keeps_segments_as_long_as_the_offline_plans(moving):
+    """The cut travel's via points leave segments no shorter than the offline ones (at least one when the
+    travel is the whole horizon); the travels after it keep all their via points."""
+    mission, result = moving
+    replanner = Replanner(result, ReplanOptions())
+    way = replanner.way_times
+    for t_s, j0, j_end in [(4.05, 2, 3), (3.2, 2, 3), (5.9, 2, 2), (4.05, 2, 2), (6.0 + 1e-3, 3, 4)]:
+        times, is_way = replanner._layout(t_s, j0, j_end)
+        assert times[0] == t_s and is_way[-1] and np.all(np.diff(times) > 0)
+        assert np.array_equal(times[is_way], way[j0 : j_end + 1])
+        for j in range(j0, j_end + 1):
+            inside = times[(times > max(way[j - 1], t_s) - 1e-12) & (times <= way[j] + 1e-12)]
+            if way[j - 1] < t_s:  # the travel the splice cuts
+                segments = np.diff(np.concatenate([[t_s], inside]) if inside[0] > t_s else inside)
+                offline = (way[j] - way[j - 1]) / (replanner.n_via[j - 1] + 1)
+                if j0 < j_end or segments.size > 2:
+                    assert segments.min() >= offline - 1e-9, (t_s, j, segments, offline)
+                assert segments.size >= (2 if j0 == j_end else 1)  # at least one via point alone
+                assert np.allclose(segments, segments[0])
+            else:  # a whole travel keeps the offline via points
+                assert inside.size == replanner.n_via[j - 1] + 2
