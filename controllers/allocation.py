@@ -239,7 +239,7 @@ class Allocator:
         self.upper = np.full(self.n, speed**2)
         self.lower = np.zeros(self.n)
         self.scale = speed**2  # the bounded routes solve for zeta = z / w_max^2 in [0, 1]: well scaled
-        self._constants()  # also z = inv_f f + inv_tau tau, w^2 of (f, tau) for every drone (the R_f^-1 blocks)
+        self._constants()  # also inv_f, inv_tau: z = inv_f f + inv_tau tau, w^2 of every drone's (f, tau)
         self._tol = 1e-6 * self.scale  # a rotor within this of a bound is reported saturated
         self._unsaturated = np.zeros((n_d, 4), dtype=bool)
         self._unsaturated.flags.writeable = False
@@ -267,9 +267,9 @@ class Allocator:
                 and self.robot.nq <= module.MAX_COORDINATES:
             return module.tick
         if self._compiled:
-            raise RuntimeError("Allocator(compiled=True): the compiled allocation (controllers/_alloc.c) is not "
-                               "built or does not fit this robot; build it with `pip install -e .` (a C compiler "
-                               "is needed) or `python setup.py build_ext --inplace`")
+            raise RuntimeError("Allocator(compiled=True): the compiled allocation (controllers/_alloc.c) is "
+                               "not built or does not fit this robot; build it with `pip install -e .` (a C "
+                               "compiler is needed) or `python setup.py build_ext --inplace`")
         return None
 
     @property
@@ -371,8 +371,8 @@ class Allocator:
         tick = self._kernel
         if tick is None:
             return self._solve_python(attitude, thrust_desired, attitude_desired)
-        found = tick(attitude.m_inv_a, attitude.j_f, attitude.a_tau, attitude.c, thrust_desired, attitude_desired,
-                     self._kernel_constants, self._state)
+        found = tick(attitude.m_inv_a, attitude.j_f, attitude.a_tau, attitude.c, thrust_desired,
+                     attitude_desired, self._kernel_constants, self._state)
         if found is None:  # declined (class docstring): the Python path decides this tick
             self._handover(to_compiled=False)
             try:
