@@ -31,6 +31,7 @@ holds one ProxQP workspace, built once and warm-started at every call.
 from __future__ import annotations
 
 import functools
+import importlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,10 +50,9 @@ def _load_kernel():
     """The compiled allocation tick (``controllers/_alloc.c``, built by ``setup.py``), or None when it was not
     built (no compiler at install time) or cannot be imported."""
     try:
-        from controllers import _alloc
+        return importlib.import_module("controllers._alloc")
     except ImportError:
         return None
-    return _alloc
 
 
 #: the routes of the compiled tick's answer, by its route number
