@@ -10,7 +10,7 @@
  *   Returns (route, iterations, w^2 (n_d, 4), thrust (n_d,), torque (n_d, 3), saturation bits) and writes the
  *   final active bounds into `state` (all FREE when none); or None, `state` untouched, when the Python
  *   reference must decide (A_tau A_tau^T not positive definite, the active-set method cycled or met a
- *   singular block): the caller then runs the Python path (its pinv builder, ProxQP).
+ *   singular block, an input not finite): the caller then runs the Python path (its pinv builder, ProxQP).
  * box_qp(h, g, state, max_iterations, tolerance): solve_box_qp_state alone (for the tests):
  *   (x list, state tuple, iterations) or None.
  *
@@ -247,13 +247,20 @@ static PyObject *tick(PyObject *self, PyObject *args)
             tau[p] = s;
         }
         double lowest = INFINITY, highest = -INFINITY;
+        int finite = 1;
         for (int i = 0; i < n; i++) {
             double s = 0.0;
             for (int j = 0; j < nd; j++) s += inv_f[i * nd + j] * fd[j];
             for (int j = 0; j < nt; j++) s += inv_tau[i * nt + j] * tau[j];
             z[i] = s;
+            finite &= isfinite(s) != 0;
             if (s < lowest) lowest = s;
             if (s > highest) highest = s;
+        }
+        if (!finite) {  /* a non-finite input: the Python path decides (the reference's behaviour) */
+            result = Py_None;
+            Py_INCREF(result);
+            goto done;
         }
         if (lowest >= 0.0 && highest <= scale) {
             unsigned long long bits = 0;
@@ -311,8 +318,11 @@ static PyObject *tick(PyObject *self, PyObject *args)
         for (int p = 0; p < na; p++) t += a[p * n + i] * r[p];
         g[i] = s - t;
     }
-    iterations = active_set(h, g, n, guess, 12, 1e-12, zeta);
-    if (iterations == 0) {  /* cycled or singular: the Python path (its ProxQP fallback) decides */
+    int finite = 1;
+    for (int i = 0; i < n * n; i++) finite &= isfinite(h[i]) != 0;
+    for (int i = 0; i < n; i++) finite &= isfinite(g[i]) != 0;
+    iterations = finite ? active_set(h, g, n, guess, 12, 1e-12, zeta) : 0;
+    if (iterations == 0) {  /* cycled, singular or not finite: the Python path (its ProxQP fallback) decides */
         result = Py_None;
         Py_INCREF(result);
         goto done;

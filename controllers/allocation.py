@@ -209,7 +209,7 @@ class Allocator:
     the code counts its calls. Routes 1 and 2 also exist compiled (``controllers/_alloc.c``, the same
     computation in C, a few microseconds per call): used when the extension was built (``pip install -e .``
     builds it when a C compiler is present). When it declines (A_tau A_tau^T singular, the active-set method
-    cycled) the Python path decides that tick, ProxQP included.
+    cycled, an input not finite) the Python path decides that tick, ProxQP included.
 
     Args:
         robot: the robot (rotor maps and limits).
@@ -239,8 +239,8 @@ class Allocator:
         self.upper = np.full(self.n, speed**2)
         self.lower = np.zeros(self.n)
         self.scale = speed**2  # the bounded routes solve for zeta = z / w_max^2 in [0, 1]: well scaled
-        self._constants()  # also inv_f, inv_tau: z = inv_f f + inv_tau tau, w^2 of every drone's (f, tau)
         self._tol = 1e-6 * self.scale  # a rotor within this of a bound is reported saturated
+        self._constants()  # also inv_f, inv_tau: z = inv_f f + inv_tau tau, w^2 of every drone's (f, tau)
         self._unsaturated = np.zeros((n_d, 4), dtype=bool)
         self._unsaturated.flags.writeable = False
         self._n_d = n_d
@@ -354,7 +354,7 @@ class Allocator:
             inverse[4 * i:4 * i + 4, 4 * i:4 * i + 4] = rotor.inverse_mixing_matrix
         self._inv_f = np.ascontiguousarray(inverse[:, 0::4])
         self._inv_tau = np.ascontiguousarray(np.delete(inverse, np.s_[0::4], axis=1))
-        header = [n_d, n_a, scale, 1e-6 * scale, self._regularisation, float(self._unit_attitude_weight)]
+        header = [n_d, n_a, scale, self._tol, self._regularisation, float(self._unit_attitude_weight)]
         self._kernel_constants = np.concatenate(
             [header] + [np.ravel(x) for x in (self._w_a, self._inv_f, self._inv_tau, self._scaled_s_f,
                                               self._scaled_s_tau, self._h_constant, self._thrust_g)])

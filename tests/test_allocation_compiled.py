@@ -191,3 +191,23 @@ def test_without_the_extension_the_python_path_is_used(name, monkeypatch):
     assert allocator.routes["active set"] > 0
     with pytest.raises(RuntimeError, match="compiled=True"):
         Allocator(robot, compiled=True)
+
+
+@needs_kernel
+def test_non_finite_input_is_decided_by_the_python_path():
+    """A NaN attitude acceleration, an infinite thrust: the C tick declines, the answer is the reference's
+    (NaN speeds, the same route and iterations)."""
+    robot, calls = _walk("fpr", 3, 1)
+    attitude, thrust, u_a = calls[0]
+    u_nan = u_a.copy()
+    u_nan[1] = np.nan
+    thrust_inf = thrust.copy()
+    thrust_inf[0] = np.inf
+    for case in ((attitude, thrust, u_nan), (attitude, thrust_inf, u_a)):
+        fast, reference = Allocator(robot, compiled=True), Allocator(robot, compiled=False)
+        assert fast._kernel(case[0].m_inv_a, case[0].j_f, case[0].a_tau, case[0].c, case[1], case[2],
+                            fast._kernel_constants, fast._state) is None
+        with np.errstate(invalid="ignore"):
+            a, b = fast.solve(*case), reference.solve(*case)
+        assert np.isnan(a.speeds_squared).all() and np.isnan(b.speeds_squared).all()
+        assert a.iterations == b.iterations and fast.routes == reference.routes
