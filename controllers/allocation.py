@@ -31,6 +31,7 @@ holds one ProxQP workspace, built once and warm-started at every call.
 from __future__ import annotations
 
 import functools
+import importlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,6 +44,19 @@ from fpr.model.qp import proxsuite_module
 proxsuite = proxsuite_module()
 
 _posv = lapack.dposv
+
+
+def _load_kernel():
+    """The compiled allocation tick (``controllers/_alloc.c``, built by ``setup.py``), or None when it was not
+    built (no compiler at install time) or cannot be imported."""
+    try:
+        return importlib.import_module("controllers._alloc")
+    except ImportError:
+        return None
+
+
+#: the routes of the compiled tick's answer, by its route number
+_ROUTE_NAMES = ("closed form", "active set")
 
 
 @dataclass(frozen=True)
@@ -192,7 +206,10 @@ class Allocator:
        initialised at its first use, then updated (H, g only) and solved warm from its previous result.
 
     Small arrays: each numpy call costs about a microsecond or more, ``a.dot(b)`` about half of ``a @ b``;
-    the code counts its calls.
+    the code counts its calls. Routes 1 and 2 also exist compiled (``controllers/_alloc.c``, the same
+    computation in C, a few microseconds per call): used when the extension was built (``pip install -e .``
+    builds it when a C compiler is present). When it declines (A_tau A_tau^T singular, the active-set method
+    cycled, an input not finite) the Python path decides that tick, ProxQP included.
 
     Args:
         robot: the robot (rotor maps and limits).
@@ -200,15 +217,18 @@ class Allocator:
         thrust_weight: W_f, scalar or (n_d,).
         regularisation: epsilon, picks the least-norm torque (the pseudo-inverse's) [1/(N m)^2].
         max_speed: upper rotor speed bound [rad/s] (default: the robot's w_max).
+        compiled: None: the compiled tick when the extension is importable, else the Python path; True:
+            require it (RuntimeError when it is not built); False: the Python path (the reference).
 
     Attributes:
         qp: the ProxQP workspace of route 3 (``proxsuite.proxqp.dense.QP``); built in the constructor,
             initialised at its first use.
+        compiled: whether the compiled tick is used (read only).
         routes: how many calls took each route, {"closed form": n, "active set": n, "proxqp": n}.
     """
 
     def __init__(self, robot, attitude_weight=1.0, thrust_weight=1.0, regularisation: float = 100.0,
-                 max_speed: float | None = None):
+                 max_speed: float | None = None, compiled: bool | None = None):
         self.robot = robot
         self.s_f, self.s_tau = selectors(robot)
         self.n = self.s_f.shape[1]
@@ -219,14 +239,8 @@ class Allocator:
         self.upper = np.full(self.n, speed**2)
         self.lower = np.zeros(self.n)
         self.scale = speed**2  # the bounded routes solve for zeta = z / w_max^2 in [0, 1]: well scaled
-        self._constants()
-        # w^2 of (f, tau) for every drone at once: z = inv_f f + inv_tau tau (the R_f^-1 blocks)
-        inverse = np.zeros((self.n, 4 * n_d))
-        for i, rotor in enumerate(robot.rotors):
-            inverse[4 * i:4 * i + 4, 4 * i:4 * i + 4] = rotor.inverse_mixing_matrix
-        self._inv_f = np.ascontiguousarray(inverse[:, 0::4])
-        self._inv_tau = np.ascontiguousarray(np.delete(inverse, np.s_[0::4], axis=1))
         self._tol = 1e-6 * self.scale  # a rotor within this of a bound is reported saturated
+        self._constants()  # also inv_f, inv_tau: z = inv_f f + inv_tau tau, w^2 of every drone's (f, tau)
         self._unsaturated = np.zeros((n_d, 4), dtype=bool)
         self._unsaturated.flags.writeable = False
         self._n_d = n_d
@@ -238,6 +252,52 @@ class Allocator:
         self._initialised = False
         self.routes = {"closed form": 0, "active set": 0, "proxqp": 0}
         self._active = None  # the active bounds of the previous tick (a box_qp state), when it had some
+        # the same for the compiled tick (which updates it in place): FREE everywhere when none
+        self._state = np.zeros(self.n, dtype=np.int8)
+        self._bit_masks = {}  # the compiled tick's saturation masks, by its bit pattern
+        self._compiled = compiled
+        self._kernel = self._resolve_kernel()
+
+    def _resolve_kernel(self):
+        """The compiled tick for this allocator (``compiled``), or None for the Python path."""
+        if self._compiled is False:
+            return None
+        module = _load_kernel()
+        if module is not None and self.n <= module.MAX_ROTORS and self._w_a.size <= module.MAX_ATTITUDE \
+                and self.robot.nq <= module.MAX_COORDINATES:
+            return module.tick
+        if self._compiled:
+            raise RuntimeError("Allocator(compiled=True): the compiled allocation (controllers/_alloc.c) is "
+                               "not built or does not fit this robot; build it with `pip install -e .` (a C "
+                               "compiler is needed) or `python setup.py build_ext --inplace`")
+        return None
+
+    @property
+    def compiled(self) -> bool:
+        """Whether :meth:`solve` uses the compiled tick (``controllers/_alloc.c``)."""
+        return self._kernel is not None
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_kernel"] = None  # an extension's function: resolved again where it is unpickled
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._kernel = self._resolve_kernel()
+        self._handover(to_compiled=self._kernel is not None)
+
+    def _handover(self, to_compiled: bool) -> None:
+        """Move the previous tick's active bounds to the representation of the path that runs next (the Python
+        path's tuple ``_active`` or the compiled tick's array ``_state``)."""
+        if to_compiled:
+            if self._active is not None:
+                self._state[:] = self._active
+            self._active = None
+        else:
+            if self._state.any():
+                self._active = tuple(self._state.tolist())
+            self._state[:] = 0
 
     @property
     def regularisation(self) -> float:
@@ -287,6 +347,17 @@ class Allocator:
         self._unit_attitude_weight = bool(np.all(self._w_a == 1.0))
         # [f; tau] of all drones from zeta in one product (the bounded route's result)
         self._scaled_wrench = np.vstack([self._scaled_s_f, self._scaled_s_tau])
+        # the compiled tick's constants, one vector (the layout of controllers/_alloc.c's header comment)
+        n_d = self.s_f.shape[0]
+        inverse = np.zeros((self.n, 4 * n_d))
+        for i, rotor in enumerate(self.robot.rotors):
+            inverse[4 * i:4 * i + 4, 4 * i:4 * i + 4] = rotor.inverse_mixing_matrix
+        self._inv_f = np.ascontiguousarray(inverse[:, 0::4])
+        self._inv_tau = np.ascontiguousarray(np.delete(inverse, np.s_[0::4], axis=1))
+        header = [n_d, n_a, scale, self._tol, self._regularisation, float(self._unit_attitude_weight)]
+        self._kernel_constants = np.concatenate(
+            [header] + [np.ravel(x) for x in (self._w_a, self._inv_f, self._inv_tau, self._scaled_s_f,
+                                              self._scaled_s_tau, self._h_constant, self._thrust_g)])
 
     def build(self, attitude, thrust_desired, attitude_desired):
         """(H, g) at this state (see :func:`allocation_qp`)."""
@@ -297,6 +368,31 @@ class Allocator:
     def solve(self, attitude, thrust_desired, attitude_desired) -> AllocationResult:
         """Allocate the rotor speeds for wanted thrusts f_d (n_d,) [N] and attitude accelerations u_a (n_a,)
         [rad/s^2] at the state of ``attitude`` (:class:`fpr.model.robot.AttitudeModel`)."""
+        tick = self._kernel
+        if tick is None:
+            return self._solve_python(attitude, thrust_desired, attitude_desired)
+        found = tick(attitude.m_inv_a, attitude.j_f, attitude.a_tau, attitude.c, thrust_desired,
+                     attitude_desired, self._kernel_constants, self._state)
+        if found is None:  # declined (class docstring): the Python path decides this tick
+            self._handover(to_compiled=False)
+            try:
+                return self._solve_python(attitude, thrust_desired, attitude_desired)
+            finally:
+                self._handover(to_compiled=True)
+        route, iterations, z, thrust, torque, bits = found
+        self.routes[_ROUTE_NAMES[route]] += 1
+        if bits:
+            saturated = self._bit_masks.get(bits)
+            if saturated is None:
+                saturated = np.array([bool(bits >> i & 1) for i in range(self.n)]).reshape(-1, 4)
+                saturated.flags.writeable = False
+                self._bit_masks[bits] = saturated
+        else:
+            saturated = self._unsaturated
+        return _result(z, thrust, torque, saturated, iterations, attitude, attitude_desired, thrust_desired)
+
+    def _solve_python(self, attitude, thrust_desired, attitude_desired) -> AllocationResult:
+        """:meth:`solve` in Python (numpy, LAPACK, ProxQP): the reference of the compiled tick."""
         f_d = np.asarray(thrust_desired, dtype=float)
         u_a = np.asarray(attitude_desired, dtype=float)
         a_tau = attitude.a_tau

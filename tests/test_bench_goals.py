@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 import fpr
+from controllers.allocation import Allocator
 from fpr.cli.bench.cli import _goals
-from fpr.cli.bench.loop_allocation import replay
+from fpr.cli.bench.loop_allocation import replay, replay_paths
 from fpr.cli.bench.model import MASS_MATRIX_GOAL_S, model_targets
 from fpr.cli.bench.timing import Bench
 from fpr.sim.plant import hover_configuration, hover_speeds
@@ -32,6 +33,18 @@ def test_replay_splits_the_ticks_by_route():
     for route in ("all", "closed_form", "qp"):
         s = out[route]
         assert 0.0 < s["median_s"] <= s["p90_s"] <= s["max_s"]
+
+
+def test_replay_says_which_path_it_measured():
+    """The Python path by request; both paths interleaved: one dict each, the same ticks split alike (the compiled
+    path only where the extension is built)."""
+    robot = fpr.load("prototype")
+    calls = _calls(robot, np.random.default_rng(1), [1.0] * 3 + [3.0] * 3)
+    assert replay(robot, calls, passes=1, compiled=False)["path"] == "Python"
+    default, python = replay_paths(robot, calls, 2, (None, False))
+    assert python["path"] == "Python"
+    assert default["path"] == ("compiled (C)" if Allocator(robot).compiled else "Python")
+    assert default["bound_active_ticks"] == python["bound_active_ticks"] == 3
 
 
 def test_goals_carry_value_goal_and_verdict():

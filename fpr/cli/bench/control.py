@@ -5,7 +5,8 @@ the hover thrusts (bounds active):
 
 1. the full :meth:`controllers.allocation.Allocator.solve` call (its closed form when no bound is active,
    else its bounded route; the states cycled, so not warm from a neighbouring tick: the loop's figure is
-   :mod:`fpr.cli.bench.loop_allocation`'s), and the allocator's ProxQP workspace warm-started: the QP solve
+   :mod:`fpr.cli.bench.loop_allocation`'s; the row names the path, the compiled tick when it is built, and the
+   Python path has its own row then), and the allocator's ProxQP workspace warm-started: the QP solve
    alone (``allocator.qp.solve()`` after ``qp.update``, only the solve timed), with ``qp.update`` and the
    building of H, g on their own rows;
 2. ProxQP cold: ``proxsuite.proxqp.dense.solve`` from scratch on the same scaled problem;
@@ -97,8 +98,13 @@ def _allocation_rows(bench: Bench, robot, case: str, states, thrust, quadprog) -
         allocator.qp.update(H=h, g=g, update_preconditioner=False)
         allocator.qp.solve()
         iterations.append(int(allocator.qp.results.info.iter))
-    rows = [bench.time(f"{label}: (1) Allocator.solve, full call (states cycled)",
-                       cycling(allocator.solve, [(a, thrust, u) for a, u in states]))]
+    calls = [(a, thrust, u) for a, u in states]
+    path = "compiled (C)" if allocator.compiled else "Python"
+    rows = [bench.time(f"{label}: (1) Allocator.solve, full call ({path} path, states cycled)",
+                       cycling(allocator.solve, calls))]
+    if allocator.compiled:  # the Python path (the reference) on the same calls
+        rows.append(bench.time(f"{label}:     Allocator.solve, full call (Python path, states cycled)",
+                               cycling(Allocator(robot, compiled=False).solve, calls)))
     pool = itertools.cycle(problems)
     current = [None]
 

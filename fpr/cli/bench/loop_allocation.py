@@ -13,7 +13,9 @@ call is warm from the previous tick, as in the loop), timing every whole ``Alloc
 (``time.perf_counter`` around it: the closed form or the QP's build, update and solve, and the result),
 garbage collector off; ``passes`` replays, and each tick keeps its least time (the machine's noise only adds).
 The ticks are split by the route the allocator took (closed form: no bound active; QP: a bound active, the
-active-set method or ProxQP).
+active-set method or ProxQP). The default path is measured (the compiled tick, ``controllers/_alloc.c``, when
+it is built; the lines say which) and, when it is the compiled one, the Python path too, interleaved pass by
+pass (their ratio: an A/B in one run); the goals are the default path's.
 """
 
 from __future__ import annotations
@@ -51,31 +53,48 @@ def record_allocations(result, settings: SimulationSettings) -> tuple[list[tuple
     return calls, log
 
 
-def replay(robot, calls: list[tuple], passes: int) -> dict:
+def _path_name(allocator) -> str:
+    """Which path an allocator's ``solve`` runs."""
+    return "compiled (C)" if allocator.compiled else "Python"
+
+
+def replay(robot, calls: list[tuple], passes: int, compiled: bool | None = None) -> dict:
     """Time every call of a recorded sequence through fresh allocators (module docstring).
 
+    Args:
+        compiled: the allocator's ``compiled`` (None: the compiled tick when it is built).
+
     Returns:
-        ticks, their routes, and per route (and over all ticks) the median, mean, 90th percentile and
-        largest time per call [s].
+        the path measured ("compiled (C)" or "Python"), ticks, their routes, and per route (and over all
+        ticks) the median, mean, 90th percentile and largest time per call [s].
     """
-    best = np.full(len(calls), np.inf)
-    routes = []
+    return replay_paths(robot, calls, passes, (compiled,))[0]
+
+
+def replay_paths(robot, calls: list[tuple], passes: int, paths) -> list[dict]:
+    """:func:`replay` for several ``compiled`` settings, interleaved pass by pass (an A/B on a shared machine:
+    the load changes both alike); one :func:`replay` dict per setting."""
+    best = [np.full(len(calls), np.inf) for _ in paths]
+    routes = [[] for _ in paths]
+    names = []
     for p in range(passes):
-        allocator = Allocator(robot)
-        counts = allocator.routes
-        gc.disable()
-        try:
-            for k, (attitude, thrust, u_a) in enumerate(calls):
-                before = counts["closed form"]
-                start = time.perf_counter()
-                allocator.solve(attitude, thrust, u_a)
-                elapsed = time.perf_counter() - start
-                best[k] = min(best[k], elapsed)
-                if p == 0:
-                    routes.append("closed form" if counts["closed form"] > before else "qp")
-        finally:
-            gc.enable()
-    routes = np.array(routes)
+        for m, compiled in enumerate(paths):
+            allocator = Allocator(robot, compiled=compiled)
+            if p == 0:
+                names.append(_path_name(allocator))
+            counts = allocator.routes
+            gc.disable()
+            try:
+                for k, (attitude, thrust, u_a) in enumerate(calls):
+                    before = counts["closed form"]
+                    start = time.perf_counter()
+                    allocator.solve(attitude, thrust, u_a)
+                    elapsed = time.perf_counter() - start
+                    best[m][k] = min(best[m][k], elapsed)
+                    if p == 0:
+                        routes[m].append("closed form" if counts["closed form"] > before else "qp")
+            finally:
+                gc.enable()
 
     def stats(times):
         if times.size == 0:
@@ -83,9 +102,13 @@ def replay(robot, calls: list[tuple], passes: int) -> dict:
         return dict(ticks=int(times.size), median_s=float(np.median(times)), mean_s=float(times.mean()),
                     p90_s=float(np.percentile(times, 90)), max_s=float(times.max()))
 
-    return dict(ticks=len(calls), passes=passes, bound_active_ticks=int((routes == "qp").sum()),
-                all=stats(best), closed_form=stats(best[routes == "closed form"]),
-                qp=stats(best[routes == "qp"]))
+    out = []
+    for name, times, route in zip(names, best, routes, strict=True):
+        route = np.array(route)
+        out.append(dict(path=name, ticks=len(calls), passes=passes,
+                        bound_active_ticks=int((route == "qp").sum()), all=stats(times),
+                        closed_form=stats(times[route == "closed form"]), qp=stats(times[route == "qp"])))
+    return out
 
 
 def allocation_along_loops(square_plan, fast_plan, passes: int, say) -> dict:
@@ -95,15 +118,19 @@ def allocation_along_loops(square_plan, fast_plan, passes: int, say) -> dict:
                                     ("fast square", fast_plan, SimulationSettings(hold=0.0))):
         calls, log = record_allocations(result, settings)
         say(f"bench control: recorded {len(calls)} allocations along the {label} closed loop")
-        sequences[label] = dict(replay(result.robot, calls, passes), failure=log.failure)
+        measured = replay_paths(result.robot, calls, passes, (None, False))  # the default path, Python's
+        default = measured[0]
+        python = measured[1] if default["path"] != "Python" else None
+        sequences[label] = dict(default, failure=log.failure, python=python)
     targets = []
     for label, route, what in (("square", "closed_form", "no bound active"),
                                ("fast square", "qp", "bounds active")):
         figures = sequences[label][route]
         value = figures["median_s"] if figures else float("nan")
-        targets.append(dict(target=f"allocation, whole Allocator.solve call, {what} (median over the {label} "
-                                   f"closed loop's ticks) <= 20 us", value=value, goal=ALLOCATION_GOAL_S,
-                            unit="s", met=bool(value <= ALLOCATION_GOAL_S)))
+        path = sequences[label]["path"]
+        targets.append(dict(target=f"allocation, whole Allocator.solve call ({path} path), {what} (median "
+                                   f"over the {label} closed loop's ticks) <= 20 us", value=value,
+                            goal=ALLOCATION_GOAL_S, unit="s", met=bool(value <= ALLOCATION_GOAL_S)))
     return dict(sequences=sequences, targets=targets)
 
 
@@ -114,13 +141,19 @@ def allocation_lines(loops: dict, fmt) -> list[str]:
     for label, seq in loops["sequences"].items():
         lines.append(f"  {label}: {seq['ticks']} ticks, {seq['bound_active_ticks']} with a bound active"
                      + (f" (stopped: {seq['failure']})" if seq["failure"] else ""))
+        measured = [seq] + ([seq["python"]] if seq.get("python") else [])
         for route in ("all", "closed_form", "qp"):
-            s = seq[route]
-            if s:
-                name = route.replace("_", " ")
-                lines.append(f"    {name:<12} {s['ticks']:5d} ticks: median {fmt(s['median_s'])}, "
-                             f"mean {fmt(s['mean_s'])}, p90 {fmt(s['p90_s'])}, max {fmt(s['max_s'])}")
+            for path in measured:
+                s = path[route]
+                if s:
+                    name = route.replace("_", " ")
+                    ratio = (f", Python / compiled {s['median_s'] / seq[route]['median_s']:.2f}"
+                             if path is not seq else "")
+                    lines.append(f"    {name:<12} {path['path']:<12} {s['ticks']:5d} ticks: median "
+                                 f"{fmt(s['median_s'])}, mean {fmt(s['mean_s'])}, p90 {fmt(s['p90_s'])}, "
+                                 f"max {fmt(s['max_s'])}{ratio}")
     return lines
 
 
-__all__ = ["ALLOCATION_GOAL_S", "allocation_along_loops", "allocation_lines", "record_allocations", "replay"]
+__all__ = ["ALLOCATION_GOAL_S", "allocation_along_loops", "allocation_lines", "record_allocations", "replay",
+           "replay_paths"]

@@ -1,0 +1,436 @@
+/* The allocation tick of controllers/allocation.py's Allocator in C (issue 13): the same computation as its
+ * Python reference (Allocator._solve_python, controllers/box_qp.py's solve_box_qp_state), without the
+ * interpreter's and numpy's per-call costs (about a microsecond per small-array call there).
+ *
+ * tick(m_inv_a, j_f, a_tau, c, f_d, u_a, constants, state):
+ *   1. no bound active in `state` (all FREE): the thesis' law (2.24) by one Cholesky solve of A_tau A_tau^T;
+ *      if every w^2 is within [0, w_max^2] it is the QP's minimiser (route 0);
+ *   2. else the scaled QP's H and g (Allocator._lean_qp) and the primal-dual active-set method
+ *      (box_qp.solve_box_qp_state), warm-started from `state` or from the bounds the law crosses (route 1).
+ *   Returns (route, iterations, w^2 (n_d, 4), thrust (n_d,), torque (n_d, 3), saturation bits) and writes the
+ *   final active bounds into `state` (all FREE when none); or None, `state` untouched, when the Python
+ *   reference must decide (A_tau A_tau^T not positive definite, the active-set method cycled or met a
+ *   singular block, an input not finite): the caller then runs the Python path (its pinv builder, ProxQP).
+ * box_qp(h, g, state, max_iterations, tolerance): solve_box_qp_state alone (for the tests):
+ *   (x list, state tuple, iterations) or None.
+ *
+ * `constants` (Allocator._kernel_constants, one float64 vector): n_d, n_a, w_max^2, saturation tolerance,
+ * epsilon, unit-weight flag, then W_a (n_a), R_f^-1's thrust columns (n, n_d) and torque columns (n, 3 n_d),
+ * S_f w_max^2 (n_d, n), S_tau w_max^2 (3 n_d, n), H's constant part (n, n), g's thrust matrix (n, n_d), all
+ * row-major; n = 4 n_d. Input arrays may have any strides (m_inv_a is a transposed view).
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+#include <math.h>
+#include <string.h>
+
+#define MAX_N 32    /* rotor variables (8 drones) */
+#define MAX_A 24    /* attitude rows */
+#define MAX_V 64    /* coordinates */
+#define FREE 0
+#define AT_LOWER 1
+#define AT_UPPER 2
+#define HEADER 6
+
+typedef struct {
+    PyArrayObject *array;
+    const char *data;
+    npy_intp rows, cols, s0, s1;
+} View;
+
+/* A float64 view of obj with `ndim` dimensions (1: a row vector of `cols`); 0 on a wrong type or shape. */
+static int view(PyObject *obj, int ndim, View *v)
+{
+    v->array = (PyArrayObject *)PyArray_FROM_OTF(obj, NPY_DOUBLE, NPY_ARRAY_ALIGNED);
+    if (v->array == NULL) return 0;
+    if (PyArray_NDIM(v->array) != ndim) {
+        PyErr_Format(PyExc_ValueError, "expected a %d-d array", ndim);
+        Py_CLEAR(v->array);
+        return 0;
+    }
+    v->data = PyArray_BYTES(v->array);
+    if (ndim == 2) {
+        v->rows = PyArray_DIM(v->array, 0);
+        v->cols = PyArray_DIM(v->array, 1);
+        v->s0 = PyArray_STRIDE(v->array, 0);
+        v->s1 = PyArray_STRIDE(v->array, 1);
+    } else {
+        v->rows = 1;
+        v->cols = PyArray_DIM(v->array, 0);
+        v->s0 = 0;
+        v->s1 = PyArray_STRIDE(v->array, 0);
+    }
+    return 1;
+}
+
+#define AT(v, i, j) (*(const double *)((v).data + (i) * (v).s0 + (j) * (v).s1))
+
+/* Cholesky A = R^T R of the k x k matrix a (leading dimension lda), its upper triangle read as LAPACK's posv;
+ * R's upper triangle into r (leading dimension k). 0 when not positive definite. */
+static int cholesky(const double *a, int lda, int k, double *r)
+{
+    for (int j = 0; j < k; j++) {
+        double d = a[j * lda + j];
+        for (int p = 0; p < j; p++) d -= r[p * k + j] * r[p * k + j];
+        if (!(d > 0.0)) return 0;
+        double rjj = sqrt(d);
+        r[j * k + j] = rjj;
+        for (int i = j + 1; i < k; i++) {
+            double s = a[j * lda + i];
+            for (int p = 0; p < j; p++) s -= r[p * k + j] * r[p * k + i];
+            r[j * k + i] = s / rjj;
+        }
+    }
+    return 1;
+}
+
+/* x (in place) := (R^T R)^-1 x, R from cholesky (k x k). */
+static void cholesky_solve(const double *r, int k, double *x)
+{
+    for (int i = 0; i < k; i++) {
+        double s = x[i];
+        for (int p = 0; p < i; p++) s -= r[p * k + i] * x[p];
+        x[i] = s / r[i * k + i];
+    }
+    for (int i = k - 1; i >= 0; i--) {
+        double s = x[i];
+        for (int p = i + 1; p < k; p++) s -= r[i * k + p] * x[p];
+        x[i] = s / r[i * k + i];
+    }
+}
+
+/* box_qp.solve_box_qp_state: min 0.5 x^T H x + g^T x over [0, 1]^n (H n x n, row-major, symmetric), from
+ * the guess `state` (updated in place on success). Returns the iterations, 0 when the guesses cycled or a
+ * block was not positive definite (state then untouched). */
+static int active_set(const double *h, const double *g, int n, signed char *state, int max_iterations,
+                      double tolerance, double *x)
+{
+    double gmax = 1.0;
+    for (int i = 0; i < n; i++) {
+        if (g[i] > gmax) gmax = g[i];
+        if (-g[i] > gmax) gmax = -g[i];
+    }
+    const double slack = tolerance * gmax, above = 1.0 + slack, below = -slack;
+    signed char guess[MAX_N], next[MAX_N];
+    int free[MAX_N];
+    double t[MAX_N], grad[MAX_N], block[MAX_N * MAX_N], r[MAX_N * MAX_N], rhs[MAX_N];
+    memcpy(guess, state, n);
+    for (int iteration = 1; iteration <= max_iterations; iteration++) {
+        int k = 0;
+        for (int i = 0; i < n; i++) {
+            x[i] = guess[i] == AT_UPPER ? 1.0 : 0.0;
+            if (guess[i] == FREE) free[k++] = i;
+        }
+        for (int i = 0; i < n; i++) {  /* t = H x_0 + g */
+            double s = 0.0;
+            for (int j = 0; j < n; j++) s += h[i * n + j] * x[j];
+            t[i] = s + g[i];
+        }
+        if (k > 0) {
+            for (int a = 0; a < k; a++) {
+                for (int b = 0; b < k; b++) block[a * k + b] = h[free[a] * n + free[b]];
+                rhs[a] = -t[free[a]];
+            }
+            if (!cholesky(block, k, k, r)) return 0;
+            cholesky_solve(r, k, rhs);
+            for (int a = 0; a < k; a++) x[free[a]] = rhs[a];
+        }
+        for (int i = 0; i < n; i++) {  /* H x + g = t + H[:, F] x_F */
+            double s = t[i];
+            for (int a = 0; a < k; a++) s += h[i * n + free[a]] * rhs[a];
+            grad[i] = s;
+        }
+        int same = 1;
+        for (int i = 0; i < n; i++) {
+            signed char s = guess[i], u;
+            if (s == AT_LOWER) u = grad[i] >= below ? AT_LOWER : FREE;
+            else if (s == AT_UPPER) u = grad[i] <= slack ? AT_UPPER : FREE;
+            else u = x[i] < below ? AT_LOWER : x[i] > above ? AT_UPPER : FREE;
+            next[i] = u;
+            same &= u == s;
+        }
+        if (same) {
+            for (int i = 0; i < n; i++) x[i] = x[i] < 0.0 ? 0.0 : x[i] > 1.0 ? 1.0 : x[i];
+            memcpy(state, guess, n);
+            return iteration;
+        }
+        memcpy(guess, next, n);
+    }
+    return 0;
+}
+
+static PyObject *new_array(int rows, int cols, const double *values, double factor)
+{
+    npy_intp dims[2] = {rows, cols};
+    PyObject *out = cols ? PyArray_SimpleNew(2, dims, NPY_DOUBLE) : PyArray_SimpleNew(1, dims, NPY_DOUBLE);
+    if (out == NULL) return NULL;
+    double *d = (double *)PyArray_DATA((PyArrayObject *)out);
+    int count = cols ? rows * cols : rows;
+    for (int i = 0; i < count; i++) d[i] = values[i] * factor;
+    return out;
+}
+
+static PyObject *tick(PyObject *self, PyObject *args)
+{
+    PyObject *o_m, *o_jf, *o_at, *o_c, *o_f, *o_u, *o_k, *o_state;
+    if (!PyArg_UnpackTuple(args, "tick", 8, 8, &o_m, &o_jf, &o_at, &o_c, &o_f, &o_u, &o_k, &o_state))
+        return NULL;
+    if (!PyArray_Check(o_k) || PyArray_TYPE((PyArrayObject *)o_k) != NPY_DOUBLE
+        || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o_k) || !PyArray_Check(o_state)
+        || PyArray_TYPE((PyArrayObject *)o_state) != NPY_INT8
+        || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o_state) || !PyArray_ISWRITEABLE((PyArrayObject *)o_state)) {
+        PyErr_SetString(PyExc_TypeError, "tick: constants must be contiguous float64, state writable int8");
+        return NULL;
+    }
+    const double *k = (const double *)PyArray_DATA((PyArrayObject *)o_k);
+    const npy_intp k_len = PyArray_SIZE((PyArrayObject *)o_k);
+    if (k_len < HEADER) goto bad_constants;
+    const int nd = (int)k[0], na = (int)k[1], n = 4 * nd, nt = 3 * nd;
+    const double scale = k[2], tol = k[3], reg = k[4];
+    const int unit_weight = k[5] != 0.0;
+    if (nd < 1 || n > MAX_N || na < 1 || na > MAX_A
+        || k_len != HEADER + na + n * nd + n * nt + nd * n + nt * n + n * n + n * nd
+        || PyArray_SIZE((PyArrayObject *)o_state) != n)
+        goto bad_constants;
+    const double *w_a = k + HEADER, *inv_f = w_a + na, *inv_tau = inv_f + n * nd, *ssf = inv_tau + n * nt,
+                 *sst = ssf + nd * n, *hconst = sst + nt * n, *thrust_g = hconst + n * n;
+    signed char *state = (signed char *)PyArray_DATA((PyArrayObject *)o_state);
+
+    View m = {0}, jf = {0}, at = {0}, c = {0}, f = {0}, u = {0};
+    PyObject *result = NULL;
+    if (!view(o_m, 2, &m) || !view(o_jf, 2, &jf) || !view(o_at, 2, &at) || !view(o_c, 1, &c)
+        || !view(o_f, 1, &f) || !view(o_u, 1, &u))
+        goto done;
+    const int nv = (int)m.cols;
+    if (m.rows != na || nv > MAX_V || jf.rows != nd || jf.cols != nv || at.rows != na || at.cols != nt
+        || c.cols != nv || f.cols != nd || u.cols != na) {
+        PyErr_SetString(PyExc_ValueError, "tick: the attitude model's or the inputs' shapes do not fit");
+        goto done;
+    }
+
+    double gram[MAX_A * MAX_A], rg[MAX_A * MAX_A], z[MAX_N], tau[MAX_N], thrust[MAX_N], zeta[MAX_N];
+    double fd[MAX_N];
+    for (int i = 0; i < nd; i++) fd[i] = AT(f, 0, i);
+    for (int i = 0; i < na; i++)  /* A_tau A_tau^T: its upper triangle (the Cholesky reads it) */
+        for (int j = i; j < na; j++) {
+            double s = 0.0;
+            for (int p = 0; p < nt; p++) s += AT(at, i, p) * AT(at, j, p);
+            gram[i * na + j] = s;
+        }
+    if (!cholesky(gram, na, na, rg)) {  /* rank deficient (never on these robots): the Python path's pinv */
+        result = Py_None;
+        Py_INCREF(result);
+        goto done;
+    }
+    int bounded = 0, route, iterations = 0;
+    for (int i = 0; i < n; i++) bounded |= state[i] != FREE;
+    signed char guess[MAX_N];
+    memcpy(guess, state, n);
+    if (!bounded) {  /* route 1: the law; tau = A_tau^T (A A^T)^-1 (u_a + M_inv,a (c - J_f^T f_d)) */
+        double y[MAX_V], x[MAX_A];
+        for (int p = 0; p < nv; p++) {
+            double s = AT(c, 0, p);
+            for (int i = 0; i < nd; i++) s -= AT(jf, i, p) * fd[i];
+            y[p] = s;
+        }
+        for (int i = 0; i < na; i++) {
+            double s = 0.0;
+            for (int p = 0; p < nv; p++) s += AT(m, i, p) * y[p];
+            x[i] = AT(u, 0, i) + s;
+        }
+        cholesky_solve(rg, na, x);
+        for (int p = 0; p < nt; p++) {
+            double s = 0.0;
+            for (int i = 0; i < na; i++) s += AT(at, i, p) * x[i];
+            tau[p] = s;
+        }
+        double lowest = INFINITY, highest = -INFINITY;
+        int finite = 1;
+        for (int i = 0; i < n; i++) {
+            double s = 0.0;
+            for (int j = 0; j < nd; j++) s += inv_f[i * nd + j] * fd[j];
+            for (int j = 0; j < nt; j++) s += inv_tau[i * nt + j] * tau[j];
+            z[i] = s;
+            finite &= isfinite(s) != 0;
+            if (s < lowest) lowest = s;
+            if (s > highest) highest = s;
+        }
+        if (!finite) {  /* a non-finite input: the Python path decides (the reference's behaviour) */
+            result = Py_None;
+            Py_INCREF(result);
+            goto done;
+        }
+        if (lowest >= 0.0 && highest <= scale) {
+            unsigned long long bits = 0;
+            if (!(lowest > tol && highest < scale - tol))
+                for (int i = 0; i < n; i++)
+                    if (z[i] <= tol || z[i] >= scale - tol) bits |= 1ULL << i;
+            memcpy(thrust, fd, sizeof(double) * nd);
+            route = 0;
+            result = Py_BuildValue("iiNNNK", route, 0, new_array(nd, 4, z, 1.0), new_array(nd, 0, thrust, 1.0),
+                                   new_array(nd, 3, tau, 1.0), bits);
+            goto done;
+        }
+        for (int i = 0; i < n; i++) guess[i] = z[i] < 0.0 ? AT_LOWER : z[i] > scale ? AT_UPPER : FREE;
+    }
+    /* route 2: H and g of the scaled QP (Allocator._lean_qp) */
+    double b[MAX_A * MAX_N], a[MAX_A * MAX_N], xb[MAX_A * MAX_N], mj[MAX_A * MAX_N], r[MAX_A];
+    double h[MAX_N * MAX_N], g[MAX_N], col[MAX_A];
+    for (int i = 0; i < na; i++) {
+        for (int j = 0; j < nd; j++) {  /* M_inv,a J_f^T */
+            double s = 0.0;
+            for (int p = 0; p < nv; p++) s += AT(m, i, p) * AT(jf, j, p);
+            mj[i * nd + j] = s;
+        }
+        for (int j = 0; j < n; j++) {  /* B = A_tau S_tau, A = B + M_inv,a J_f^T S_f (scaled) */
+            double s = 0.0, t = 0.0;
+            for (int p = 0; p < nt; p++) s += AT(at, i, p) * sst[p * n + j];
+            for (int p = 0; p < nd; p++) t += mj[i * nd + p] * ssf[p * n + j];
+            b[i * n + j] = s;
+            a[i * n + j] = s + t;
+        }
+        double s = 0.0;
+        for (int p = 0; p < nv; p++) s += AT(m, i, p) * AT(c, 0, p);
+        r[i] = AT(u, 0, i) + s;
+        if (!unit_weight) {
+            for (int j = 0; j < n; j++) a[i * n + j] *= w_a[i];
+            r[i] *= w_a[i];
+        }
+    }
+    for (int j = 0; j < n; j++) {  /* X = (A_tau A_tau^T)^-1 B, column by column */
+        for (int i = 0; i < na; i++) col[i] = b[i * n + j];
+        cholesky_solve(rg, na, col);
+        for (int i = 0; i < na; i++) xb[i * n + j] = col[i];
+    }
+    for (int i = 0; i < n; i++) {  /* H = A^T A + const - eps B^T X (upper triangle, mirrored) */
+        for (int j = i; j < n; j++) {
+            double s = 0.0, t = 0.0;
+            for (int p = 0; p < na; p++) {
+                s += a[p * n + i] * a[p * n + j];
+                t += b[p * n + i] * xb[p * n + j];
+            }
+            h[i * n + j] = h[j * n + i] = s + hconst[i * n + j] - reg * t;
+        }
+        double s = 0.0, t = 0.0;
+        for (int p = 0; p < nd; p++) s += thrust_g[i * nd + p] * fd[p];
+        for (int p = 0; p < na; p++) t += a[p * n + i] * r[p];
+        g[i] = s - t;
+    }
+    int finite = 1;
+    for (int i = 0; i < n * n; i++) finite &= isfinite(h[i]) != 0;
+    for (int i = 0; i < n; i++) finite &= isfinite(g[i]) != 0;
+    iterations = finite ? active_set(h, g, n, guess, 12, 1e-12, zeta) : 0;
+    if (iterations == 0) {  /* cycled, singular or not finite: the Python path (its ProxQP fallback) decides */
+        result = Py_None;
+        Py_INCREF(result);
+        goto done;
+    }
+    int any = 0;
+    for (int i = 0; i < n; i++) any |= guess[i] != FREE;
+    if (any) memcpy(state, guess, n);
+    else memset(state, FREE, n);
+    unsigned long long bits = 0;
+    const double low = tol / scale, high = 1.0 - tol / scale;
+    for (int i = 0; i < n; i++)
+        if (zeta[i] <= low || zeta[i] >= high) bits |= 1ULL << i;
+    for (int i = 0; i < nd; i++) {  /* [f; tau] = [S_f; S_tau] w_max^2 zeta */
+        double s = 0.0;
+        for (int j = 0; j < n; j++) s += ssf[i * n + j] * zeta[j];
+        thrust[i] = s;
+    }
+    for (int i = 0; i < nt; i++) {
+        double s = 0.0;
+        for (int j = 0; j < n; j++) s += sst[i * n + j] * zeta[j];
+        tau[i] = s;
+    }
+    route = 1;
+    result = Py_BuildValue("iiNNNK", route, iterations, new_array(nd, 4, zeta, scale),
+                           new_array(nd, 0, thrust, 1.0), new_array(nd, 3, tau, 1.0), bits);
+done:
+    Py_XDECREF(m.array);
+    Py_XDECREF(jf.array);
+    Py_XDECREF(at.array);
+    Py_XDECREF(c.array);
+    Py_XDECREF(f.array);
+    Py_XDECREF(u.array);
+    return result;
+bad_constants:
+    PyErr_SetString(PyExc_ValueError, "tick: the constants vector does not fit its header");
+    return NULL;
+}
+
+static PyObject *box_qp(PyObject *self, PyObject *args)
+{
+    PyObject *o_h, *o_g, *o_state;
+    int max_iterations = 12;
+    double tolerance = 1e-12;
+    if (!PyArg_ParseTuple(args, "OOO|id", &o_h, &o_g, &o_state, &max_iterations, &tolerance)) return NULL;
+    View hv = {0}, gv = {0};
+    PyObject *result = NULL, *seq = NULL;
+    if (!view(o_h, 2, &hv) || !view(o_g, 1, &gv)) goto done;
+    const int n = (int)gv.cols;
+    if (hv.rows != n || hv.cols != n || n > MAX_N) {
+        PyErr_SetString(PyExc_ValueError, "box_qp: H must be (n, n), g (n,), n <= 32");
+        goto done;
+    }
+    seq = PySequence_Fast(o_state, "box_qp: state must be a sequence");
+    if (seq == NULL) goto done;
+    if (PySequence_Fast_GET_SIZE(seq) != n) {
+        PyErr_SetString(PyExc_ValueError, "box_qp: state must have n entries");
+        goto done;
+    }
+    signed char state[MAX_N];
+    double h[MAX_N * MAX_N], g[MAX_N], x[MAX_N];
+    for (int i = 0; i < n; i++) {
+        long s = PyLong_AsLong(PySequence_Fast_GET_ITEM(seq, i));
+        if (s == -1 && PyErr_Occurred()) goto done;
+        state[i] = (signed char)s;
+        g[i] = AT(gv, 0, i);
+        for (int j = 0; j < n; j++) h[i * n + j] = AT(hv, i, j);
+    }
+    int iterations = active_set(h, g, n, state, max_iterations, tolerance, x);
+    if (iterations == 0) {
+        result = Py_None;
+        Py_INCREF(result);
+        goto done;
+    }
+    PyObject *xs = PyList_New(n), *ss = PyTuple_New(n);
+    if (xs == NULL || ss == NULL) {
+        Py_XDECREF(xs);
+        Py_XDECREF(ss);
+        goto done;
+    }
+    for (int i = 0; i < n; i++) {
+        PyList_SET_ITEM(xs, i, PyFloat_FromDouble(x[i]));
+        PyTuple_SET_ITEM(ss, i, PyLong_FromLong(state[i]));
+    }
+    result = Py_BuildValue("NNi", xs, ss, iterations);
+done:
+    Py_XDECREF(seq);
+    Py_XDECREF(hv.array);
+    Py_XDECREF(gv.array);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"tick", tick, METH_VARARGS, "One allocation tick (see the module's C source): a tuple or None."},
+    {"box_qp", box_qp, METH_VARARGS, "box_qp(h, g, state, max_iterations=12, tolerance=1e-12): "
+                                     "controllers.box_qp.solve_box_qp_state in C."},
+    {NULL, NULL, 0, NULL}};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "controllers._alloc",
+                                    "The rotor allocation's tick in C (controllers.allocation.Allocator).", -1,
+                                    methods};
+
+PyMODINIT_FUNC PyInit__alloc(void)
+{
+    import_array();
+    PyObject *mod = PyModule_Create(&module);
+    if (mod == NULL) return NULL;
+    PyModule_AddIntConstant(mod, "MAX_ROTORS", MAX_N);
+    PyModule_AddIntConstant(mod, "MAX_ATTITUDE", MAX_A);
+    PyModule_AddIntConstant(mod, "MAX_COORDINATES", MAX_V);
+    return mod;
+}
