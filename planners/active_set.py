@@ -23,6 +23,7 @@ the caller solves the QP another way (ProxQP, capped at its iteration limit, who
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
 from scipy.linalg import cho_solve_banded, cholesky_banded
 
 #: Relative violation of a row (in row-scaled units) that counts as holding.
@@ -45,7 +46,8 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
     Args:
         hess: H (n, n), symmetric positive definite.
         gradient: g (n,).
-        rows: A (m, n), best scaled to unit infinity norm.
+        rows: A (m, n), an array or a scipy CSR matrix (a long mission's few per cent non-zero), best
+            scaled to unit infinity norm.
         lower: b (m,); b <= 0 (d = 0 is feasible).
         radius: the trust-region radius Delta > 0.
         working: indices into the m rows to start the working set with (e.g. the last QP's active
@@ -70,12 +72,16 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
         # the same bound on the cancellation, with |H^-1 g| itself instead of |g| / lambda_min(H)
         return None
     # all rows as G d >= h: the m constraint rows, then d_i >= -Delta, then -d_i >= -Delta
-    def row(k):
-        if k < m:
-            return rows[k]
-        e = np.zeros(n)
-        e[(k - m) % n] = 1.0 if k < m + n else -1.0
-        return e
+    def rows_of(work):
+        out = np.zeros((len(work), n))
+        mine = [i for i, k in enumerate(work) if k < m]
+        if mine:
+            picked = rows[[work[i] for i in mine]]
+            out[mine] = picked.toarray() if sparse.issparse(picked) else picked
+        for i, k in enumerate(work):
+            if k >= m:
+                out[i, (k - m) % n] = 1.0 if k < m + n else -1.0
+        return out
 
     def values(d):
         return np.concatenate([rows @ d - lower, d + radius, radius - d])
@@ -84,7 +90,7 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
     h_inv_g = solve(gradient)
     for _ in range(MAX_CHANGES):
         if work:
-            g_w = np.array([row(k) for k in work])
+            g_w = rows_of(work)
             h_w = np.array([lower[k] if k < m else -radius for k in work])
             h_inv_gt = solve(g_w.T)
             schur = g_w @ h_inv_gt

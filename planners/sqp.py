@@ -198,6 +198,8 @@ def _violation(c) -> float:
 def row_norms(jacobian) -> np.ndarray:
     """max(1, |nabla c_i|_inf) of every constraint row: the scaling of c_hat (module docstring)."""
     if sparse.issparse(jacobian):
+        if jacobian.shape[0] == 0 or jacobian.shape[1] == 0:
+            return np.ones(jacobian.shape[0])
         return np.maximum(abs(jacobian).max(axis=1).toarray().reshape(-1), 1.0)
     a = np.asarray(jacobian)
     return np.maximum(np.abs(a).max(axis=1), 1.0) if a.size else np.ones(a.shape[0])
@@ -244,16 +246,16 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     c, a = ev.constraints, _jacobian(ev)
     if sparse.issparse(a):  # a long mission's (planners.problem.SPARSE_FROM): the same rows, fewer operations
         keep = np.flatnonzero(c - abs(a).sum(axis=1).A1 * radius <= 0.0)
-        a_keep = a[keep].toarray()
+        a_keep = a[keep]
     else:
         keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
         a_keep = a[keep]
-    norms = np.maximum(np.abs(a_keep).max(axis=1), 1.0)
-    c_k, a_k = c[keep] / norms, a_keep / norms[:, None]
+    norms = row_norms(a_keep)
+    c_k, a_k = c[keep] / norms, _rows_divided(a_keep, norms)
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
     if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.active_set)
-        regularised = hess + (1e-9 * max(np.trace(hess) / n, 1e-12)) * np.eye(n)
+        regularised = _regularised(hess)
         exact = solve_step_qp(regularised, ev.gradient, a_k, -c_k, radius)
         if exact is not None:
             d, lam = exact[0], np.zeros(c.size)
@@ -261,11 +263,16 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
             return d, -(ev.gradient @ d + 0.5 * d @ hess @ d), _violation(c + a @ d), lam
     scale = 1.0 / max(1.0, np.abs(hess).max())
     h = np.zeros((n + p, n + p))
-    h[:n, :n] = (hess + (1e-9 * max(np.trace(hess) / n, 1e-12)) * np.eye(n)) * scale
+    h[:n, :n] = _regularised(hess) * scale
     g = np.concatenate([ev.gradient * scale, penalty * norms[soft] * scale])  # slack in row-scaled units
-    slack = np.zeros((keep.size, p))
-    slack[soft, np.arange(p)] = 1.0
-    rows = np.vstack([np.hstack([a_k, slack]), np.eye(n + p)])
+    if sparse.issparse(a_k):  # the rows as they are: the sparse backend takes them (_proxqp), no dense copy
+        slack = sparse.csr_matrix((np.ones(p), (soft, np.arange(p))), shape=(keep.size, p))
+        rows = sparse.vstack([sparse.hstack([a_k, slack]), sparse.identity(n + p)], format="csc")
+        rows.eliminate_zeros()
+    else:
+        slack = np.zeros((keep.size, p))
+        slack[soft, np.arange(p)] = 1.0
+        rows = np.vstack([np.hstack([a_k, slack]), np.eye(n + p)])
     lower = np.concatenate([-c_k, np.full(n, -radius), np.zeros(p)])
     upper = np.concatenate([np.full(keep.size, np.inf), np.full(n, radius), np.full(p, np.inf)])
     res = _proxqp(h, g, rows, lower, upper)
@@ -289,9 +296,26 @@ def _proxqp(h, g, rows, lower, upper):
     measured with).
     """
     if h.shape[0] < BANDED_MIN_SIZE:
+        rows = rows.toarray() if sparse.issparse(rows) else rows
         return proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
     return proxsuite.proxqp.sparse.solve(sparse.csc_matrix(np.triu(h)), g, None, None, sparse.csc_matrix(rows),
                                          lower, upper, eps_abs=1e-9, max_iter=300)
+
+
+def _regularised(hess):
+    """H + 1e-9 mean(diag H) I (at least 1e-21 I): the step QP's curvature made positive definite."""
+    out = np.array(hess, dtype=float)
+    out[np.diag_indices_from(out)] += 1e-9 * max(np.trace(hess) / hess.shape[0], 1e-12)
+    return out
+
+
+def _rows_divided(a, norms):
+    """The rows of ``a`` (an array or a CSR matrix) divided by ``norms``, in the same format (same numbers)."""
+    if not sparse.issparse(a):
+        return a / norms[:, None]
+    out = sparse.csr_matrix(a, copy=True)
+    out.data /= np.repeat(norms, np.diff(out.indptr))
+    return out
 
 
 def _smooth_abs(p):
@@ -330,7 +354,7 @@ def _composite_qp_step(ev, radius: float, penalty: float, hessian):
     scale = 1.0 / max(1.0, np.abs(hessian).max())
     size = n + q + p
     h = np.zeros((size, size))
-    h[:n, :n] = (hessian + (1e-9 * max(np.trace(hessian) / n, 1e-12)) * np.eye(n)) * scale
+    h[:n, :n] = _regularised(hessian) * scale
     g = np.concatenate([g_lin * scale, pw[near] * p_norms * scale, penalty * norms[soft] * scale])
     m_c = keep.size
     rows = np.zeros((m_c + 2 * q + size, size))
