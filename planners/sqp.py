@@ -118,6 +118,12 @@ class SqpOptions:
             along the step), it can save iterations (with the ``"smoothed"`` defaults it did not pay).
         power_width, majoriser_share: mu [W] and the majoriser's share of the ``"smoothed"`` curvature
             (:func:`planners.curvature.power_curvature`).
+        trial_derivatives: evaluate a trial point with its derivatives (unless the trial before was
+            rejected): an accepted trial is the next iterate, whose derivatives the next iteration needs,
+            so one evaluation serves both; a rejected one costs the derivatives in vain. The planning
+            problems accept nearly every step, and a value-only evaluation is 2-20 % of one with
+            derivatives. The iterates are the same either way (values with derivatives are the same to
+            round-off).
     """
 
     max_iterations: int = 100
@@ -134,6 +140,7 @@ class SqpOptions:
     extrapolate: bool = False
     power_width: float = POWER_WIDTH
     majoriser_share: float = MAJORISER_SHARE
+    trial_derivatives: bool = True
 
     def __post_init__(self):
         if self.stop not in STOPS:
@@ -173,6 +180,10 @@ class Kkt:
 @dataclass
 class SqpOutcome:
     """What happened: x, success, message, counts, wall time, and the KKT residual.
+
+    ``evaluations`` counts the problem's evaluations without derivatives, ``gradient_evaluations`` those
+    with (each evaluation once: one after a rejected step is reused, one of a trial serves the next
+    iteration and the end).
 
     ``kkt`` is the KKT residual of the returned x with the multipliers of the last QP solved
     (``multipliers``: one per constraint, >= 0, in the units of the problem's constraints).
@@ -435,6 +446,18 @@ def damped_bfgs(b: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
     return b - np.outer(bs, bs) / sbs + np.outer(r, r) / float(s @ r)
 
 
+def prepare(problem, options: SqpOptions) -> None:
+    """Set ``problem`` up for ``options`` before its first evaluation.
+
+    The ``"composite"`` and ``"smoothed"`` curvatures need the powers and their derivatives with every
+    gradient (``problem.power_model``); an evaluation cached without them is dropped.
+    """
+    if options.curvature in ("composite", "smoothed") and hasattr(problem, "power_model") \
+            and not problem.power_model:
+        problem.power_model = True
+        problem._cache = None
+
+
 def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, name: str = "") -> SqpOutcome:
     """Minimise ``problem``'s J subject to its constraints >= 0, from x0.
 
@@ -448,10 +471,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     """
     opt = options or SqpOptions()
     start = time.perf_counter()
-    if opt.curvature in ("composite", "smoothed") and hasattr(problem, "power_model") \
-            and not problem.power_model:
-        problem.power_model = True  # the powers and their derivatives with every gradient
-        problem._cache = None  # an evaluation cached without them
+    prepare(problem, opt)
     x = np.asarray(x0, dtype=float).copy()
     radius, penalty = opt.radius, opt.penalty
     evaluations = gradients = 0
@@ -463,9 +483,13 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     pending = None  # (s, grad L at the point before, multipliers) of the last accepted step
     kkt = multipliers = xi = None
     composite = False
+    known = None  # the evaluation with derivatives at x, when one is at hand (x unchanged, or a trial's)
+    trial_derivatives = opt.trial_derivatives
     for it in range(1, opt.max_iterations + 1):
-        ev = problem.evaluate(x, True)
-        gradients += 1
+        if known is None:
+            known = problem.evaluate(x, True)
+            gradients += 1
+        ev = known
         composite = opt.curvature == "composite" and getattr(ev, "power", None) is not None
         hessian = None
         if opt.curvature == "composite":
@@ -505,8 +529,8 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
             message = f"converged: no decrease predicted (KKT residual {kkt.residual:.2g})" if success else \
                 "stopped at a point where the linearised constraints cannot be met (locally infeasible)"
             break
-        trial = problem.evaluate(x + d)
-        evaluations += 1
+        trial = problem.evaluate(x + d, trial_derivatives)
+        gradients, evaluations = (gradients + 1, evaluations) if trial_derivatives else (gradients, evaluations + 1)
         actual = merit - (trial.J + penalty * _violation(trial.constraints))
         ratio = actual / predicted
         if ratio <= 0.1 and opt.second_order and trial.violation > ev.violation:
@@ -532,9 +556,11 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                     break
                 d, trial = 2.0 * d, longer
             actual = merit - (trial.J + penalty * _violation(trial.constraints))
+        trial_derivatives = opt.trial_derivatives and accepted  # after a rejection, the next trial values only
         if accepted:
             pending = (d, objective_gradient - _jacobian(ev).T @ multipliers, multipliers, xi)
             x = x + d
+            known = trial if trial.gradient is not None else None  # (an extrapolated trial has no derivatives)
             if ratio > 0.75 and step_size > 0.9 * radius:
                 radius *= 2.0
         else:
@@ -569,11 +595,17 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                        "iterations (round-off)")
             break
         if radius < 1e-10:
-            viol = problem.evaluate(x).violation
+            if known is None:
+                known = problem.evaluate(x, True)
+                gradients += 1
+            viol = known.violation
             success = viol <= opt.feasibility
             message = "converged: trust region collapsed" if success else "trust region collapsed while infeasible"
             break
-    final = problem.evaluate(x, True)
+    if known is None:
+        known = problem.evaluate(x, True)
+        gradients += 1
+    final = known
     if kkt is None or final is not ev:
         # the returned x moved after the last QP: its KKT residual with the last multipliers
         kkt = kkt_residual(_model_gradient(final, xi, composite), final.constraints, _jacobian(final),
