@@ -3,6 +3,8 @@ one and ProxQP, the scaling bench's fit and goals."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy import sparse
@@ -19,7 +21,7 @@ from planners.methods.way_points import WayPointTask
 from planners.missions_gen import LOOP_RADIUS, loop_mission, loop_way_points
 from planners.report import evaluate_motion
 from planners.solving import Grid
-from planners.sqp import _proxqp, kkt_residual
+from planners.sqp import _proxqp, _qp_step, kkt_residual
 
 proxqp = proxsuite_module().proxqp
 
@@ -173,6 +175,40 @@ def test_sparse_proxqp_gives_the_dense_answer(long_qp):
 
 
 # ---------------------------------------------------------------------------------------------- the bench
+def test_active_set_on_sparse_rows_is_the_dense_one():
+    """solve_step_qp with its rows as a CSR matrix (a long mission's step QP) returns the dense rows' step,
+    multipliers and working set: the same numbers, the rows are only stored differently."""
+    h, g, rows, lower = _banded_qp()
+    dense = solve_step_qp(h, g, rows, lower, 0.5)
+    on_sparse = solve_step_qp(h, g, sparse.csr_matrix(rows), lower, 0.5)
+    assert dense is not None and on_sparse is not None and len(dense[2]) > 0  # some rows active
+    assert on_sparse[2] == dense[2]
+    np.testing.assert_allclose(on_sparse[0], dense[0], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(on_sparse[1], dense[1], rtol=0, atol=1e-12 * np.abs(dense[1]).max())
+
+
+@pytest.mark.parametrize("violated, radius", [(0, 0.5), (0, 3.0), (5, 0.5), (5, 3.0)])
+def test_step_qp_from_the_sparse_jacobian_is_the_dense_ones(long_evaluation, violated, radius):
+    """The SQP's step QP on a long mission from the Jacobian's sparse copy (rows kept sparse, scaled in
+    place; ProxQP gets them sparse) gives the dense Jacobian's step, predicted decrease and multipliers:
+    at the feasible start (the active set) and with ``violated`` rows made violated (the elastic QP,
+    ProxQP)."""
+    _, ev = long_evaluation
+    if violated:
+        c = ev.constraints.copy()
+        c[np.argsort(c)[:violated]] = -0.01
+        ev = dataclasses.replace(ev, constraints=c)
+    hess = smoothed_hessian(ev)
+    from_sparse = _qp_step(ev, radius, 10.0, hess)
+    from_dense = _qp_step(dataclasses.replace(ev, jacobian_sparse=None), radius, 10.0, hess)
+    assert np.abs(from_sparse[0]).max() > 0.1 * radius  # a real step
+    np.testing.assert_allclose(from_sparse[0], from_dense[0], rtol=0, atol=1e-12)
+    assert from_sparse[1] == pytest.approx(from_dense[1], rel=1e-12)
+    assert from_sparse[2] == pytest.approx(from_dense[2], abs=1e-15)
+    np.testing.assert_allclose(from_sparse[3], from_dense[3], rtol=0, atol=1e-12)
+    assert (np.count_nonzero(from_sparse[3]) > 0) == (violated > 0)  # violated rows carry multipliers
+
+
 def test_growth_exponent_is_the_log_log_slope_from_8_way_points():
     counts = [4, 8, 16, 32]
     times = [100.0, 2.0 * 8**1.3, 2.0 * 16**1.3, 2.0 * 32**1.3]  # 4 way points left out of the fit
