@@ -266,8 +266,7 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
     if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.active_set)
-        regularised = _regularised(hess)
-        exact = solve_step_qp(regularised, ev.gradient, a_k, -c_k, radius)
+        exact = solve_step_qp(hess, ev.gradient, a_k, -c_k, radius, shift=_shift(hess))
         if exact is not None:
             d, lam = exact[0], np.zeros(c.size)
             lam[keep] = exact[1] / norms
@@ -313,10 +312,15 @@ def _proxqp(h, g, rows, lower, upper):
                                          lower, upper, eps_abs=1e-9, max_iter=300)
 
 
+def _shift(hess) -> float:
+    """1e-9 mean(diag H) (at least 1e-21): what the step QP adds to H's diagonal to make it positive definite."""
+    return 1e-9 * max(np.trace(hess) / hess.shape[0], 1e-12)
+
+
 def _regularised(hess):
-    """H + 1e-9 mean(diag H) I (at least 1e-21 I): the step QP's curvature made positive definite."""
+    """H + :func:`_shift` (H) I: the step QP's curvature made positive definite."""
     out = np.array(hess, dtype=float)
-    out[np.diag_indices_from(out)] += 1e-9 * max(np.trace(hess) / hess.shape[0], 1e-12)
+    out[np.diag_indices_from(out)] += _shift(hess)
     return out
 
 

@@ -79,6 +79,35 @@ def test_banded_solver_inverts_h():
     assert banded_solver(np.ones((300, 300)) + np.eye(300)) is None  # dense H
 
 
+def test_bandwidth_is_the_largest_offset_of_a_non_zero():
+    """bandwidth (from each row's first and last non-zero) against the definition on the non-zeros' indices:
+    random banded, lopsided and mostly empty matrices."""
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        n = int(rng.integers(1, 60))
+        m = rng.normal(size=(n, n)) * (rng.random((n, n)) < 0.05)
+        m[rng.random(n) < 0.3] = 0.0  # empty rows
+        i, j = np.nonzero(m)
+        assert bandwidth(m) == (int(np.abs(i - j).max()) if i.size else 0)
+    assert bandwidth(np.zeros((5, 5))) == 0 and bandwidth(np.eye(4)) == 0
+
+
+@pytest.mark.parametrize("banded", [True, False])
+def test_shift_is_h_plus_shift_times_identity(banded, monkeypatch):
+    """solve_step_qp(H, ..., shift=s) is solve_step_qp(H + s I, ...) bit for bit, banded and dense routes."""
+    h, g, rows, lower = _banded_qp()
+    if not banded:
+        monkeypatch.setattr(active_set, "BANDED_MIN_SIZE", 10**9)
+    shift = 0.3
+    shifted = h.copy()
+    shifted[np.diag_indices_from(shifted)] += shift
+    mine, reference = solve_step_qp(h, g, rows, lower, 0.5, shift=shift), solve_step_qp(shifted, g, rows, lower, 0.5)
+    assert mine is not None and reference is not None
+    np.testing.assert_array_equal(mine[0], reference[0])
+    np.testing.assert_array_equal(mine[1], reference[1])
+    assert not np.array_equal(mine[0], solve_step_qp(h, g, rows, lower, 0.5)[0])  # the shift matters
+
+
 def test_banded_route_equals_the_dense_route(monkeypatch):
     """The same active set and step, whether H^-1 comes from a banded Cholesky factor or the eigenvectors."""
     h, g, rows, lower = _banded_qp()
