@@ -137,6 +137,7 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
         stage.kkt_stationarity = stage.kkt_complementarity = 0.0
         return np.asarray(x0, dtype=float), stage
     if solver == "sqp":
+        del ev0  # not kept alive through the solve: with derivatives, a long mission's holds ~100 MB
         out = solve_sqp(problem, x0, settings, progress, name)
         stage.success, stage.message, stage.status = out.success, out.message, 0 if out.success else 1
         stage.iterations, stage.evaluations = out.iterations, out.evaluations + out.gradient_evaluations
