@@ -23,6 +23,7 @@ the caller solves the QP another way (ProxQP, capped at its iteration limit, who
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
 from scipy.linalg import cho_solve_banded, cholesky_banded
 
 #: Relative violation of a row (in row-scaled units) that counts as holding.
@@ -37,27 +38,32 @@ BANDED_SHARE = 0.25
 BANDED_MIN_SIZE = 200
 
 
-def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
-    """The minimiser of 1/2 d^T H d + g^T d s.t. rows d >= lower, |d|_inf <= radius, or None.
+def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None, shift: float = 0.0):
+    """The minimiser of 1/2 d^T (H + shift I) d + g^T d s.t. rows d >= lower, |d|_inf <= radius, or None.
 
     See the module docstring.
 
     Args:
         hess: H (n, n), symmetric positive definite.
         gradient: g (n,).
-        rows: A (m, n), best scaled to unit infinity norm.
+        rows: A (m, n), an array or a scipy CSR matrix (a long mission's few per cent non-zero), best
+            scaled to unit infinity norm.
         lower: b (m,); b <= 0 (d = 0 is feasible).
         radius: the trust-region radius Delta > 0.
         working: indices into the m rows to start the working set with (e.g. the last QP's active
             rows), or None.
+        shift: added to H's diagonal (a regularisation; no copy of a long mission's H is made for it).
 
     Returns:
         (d (n,), multipliers (m,) >= 0 of the rows, the final working set of rows), or None.
     """
     n = gradient.size
     m = rows.shape[0]
-    solve = banded_solver(hess)
+    solve = banded_solver(hess, shift)
     if solve is None:
+        if shift:
+            hess = np.array(hess, dtype=float)
+            hess[np.diag_indices(n)] += shift
         # H = V diag(w) V^T; the range-space steps below lose about 1e-16 |H^-1 g| to cancellation: keep
         # that below 1e-9 of the radius, else leave the QP to a solver that does not invert H
         w, v = np.linalg.eigh(0.5 * (hess + hess.T))
@@ -70,12 +76,16 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
         # the same bound on the cancellation, with |H^-1 g| itself instead of |g| / lambda_min(H)
         return None
     # all rows as G d >= h: the m constraint rows, then d_i >= -Delta, then -d_i >= -Delta
-    def row(k):
-        if k < m:
-            return rows[k]
-        e = np.zeros(n)
-        e[(k - m) % n] = 1.0 if k < m + n else -1.0
-        return e
+    def rows_of(work):
+        out = np.zeros((len(work), n))
+        mine = [i for i, k in enumerate(work) if k < m]
+        if mine:
+            picked = rows[[work[i] for i in mine]]
+            out[mine] = picked.toarray() if sparse.issparse(picked) else picked
+        for i, k in enumerate(work):
+            if k >= m:
+                out[i, (k - m) % n] = 1.0 if k < m + n else -1.0
+        return out
 
     def values(d):
         return np.concatenate([rows @ d - lower, d + radius, radius - d])
@@ -84,7 +94,7 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
     h_inv_g = solve(gradient)
     for _ in range(MAX_CHANGES):
         if work:
-            g_w = np.array([row(k) for k in work])
+            g_w = rows_of(work)
             h_w = np.array([lower[k] if k < m else -radius for k in work])
             h_inv_gt = solve(g_w.T)
             schur = g_w @ h_inv_gt
@@ -121,13 +131,23 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None):
 
 
 def bandwidth(matrix) -> int:
-    """The largest |i - j| with matrix[i, j] != 0 (0 for a diagonal or zero matrix)."""
-    i, j = np.nonzero(matrix)
-    return int(np.abs(i - j).max()) if i.size else 0
+    """The largest |i - j| with matrix[i, j] != 0 (0 for a diagonal or zero matrix).
+
+    From each row's first and last non-zero column (no index arrays of the non-zeros: a long mission's
+    H has millions of entries).
+    """
+    nz = np.asarray(matrix) != 0
+    has = nz.any(axis=1)
+    if not has.any():
+        return 0
+    i = np.arange(nz.shape[0])
+    first = nz.argmax(axis=1)
+    last = nz.shape[1] - 1 - nz[:, ::-1].argmax(axis=1)
+    return int(max((i - first)[has].max(), (last - i)[has].max()))
 
 
-def banded_solver(hess):
-    """The solve y -> H^-1 y by a banded Cholesky factorisation when H is large and banded, else None.
+def banded_solver(hess, shift: float = 0.0):
+    """The solve y -> (H + shift I)^-1 y by a banded Cholesky factorisation when H is large and banded, else None.
 
     The planning problems' H is block-banded: a grid node's quantities depend on the two points of its
     segment only, and x holds the points' entries in order, so H couples entries of neighbouring points
@@ -146,6 +166,7 @@ def banded_solver(hess):
     upper = np.zeros((b + 1, n))  # LAPACK's upper banded storage: upper[b + i - j, j] = H[i, j], i <= j
     for k in range(b + 1):
         upper[b - k, k:] = 0.5 * (np.diagonal(hess, k) + np.diagonal(hess, -k))
+    upper[b] += shift
     try:
         factor = cholesky_banded(upper, lower=False)
     except np.linalg.LinAlgError:

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.optimize import minimize, nnls
 
 from fpr.model.errors import PlannerArgumentError
-from planners.sqp import SqpOptions, kkt_residual, solve_sqp
+from planners.sqp import SqpOptions, kkt_residual, prepare, solve_sqp
 
 #: The NLP solvers :func:`solve_stage` knows.
 SOLVERS = ("sqp", "slsqp")
@@ -62,7 +62,8 @@ class StageReport:
         name: e.g. ``"step 1"``, ``"step 2, travel 3"``, ``"one-step"``.
         n_variables, n_constraints: size of the NLP.
         success: the solver's own verdict; message, status: its words and code.
-        iterations, evaluations, gradient_evaluations: the solver's counts.
+        iterations, evaluations, gradient_evaluations: the solver's counts (SQP: evaluations of the
+            problem, with derivatives or not, each point once; gradient_evaluations: those with).
         wall_time: [s].
         J_start, J_end: objective (on the optimisation grid) before and after.
         violation_end: largest scaled constraint violation on the grid at the end (0 = none).
@@ -122,7 +123,12 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
     Raises:
         PlannerArgumentError: an unknown solver.
     """
-    ev0 = problem.evaluate(x0)
+    settings = replace(sqp or SqpOptions(stop="progress", curvature="gauss-newton"),
+                       max_iterations=max_iterations, tolerance=tolerance)
+    if solver == "sqp":
+        prepare(problem, settings)
+    # the SQP's first evaluation (with derivatives: the problem's cache serves the SQP's first iteration)
+    ev0 = problem.evaluate(x0, solver == "sqp" and problem.n_x > 0)
     stage = StageReport(name, problem.n_x, ev0.constraints.size, J_start=ev0.J)
     if problem.n_x == 0:
         stage.success, stage.message, stage.status = True, "nothing to optimise", 0
@@ -131,8 +137,7 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
         stage.kkt_stationarity = stage.kkt_complementarity = 0.0
         return np.asarray(x0, dtype=float), stage
     if solver == "sqp":
-        settings = replace(sqp or SqpOptions(stop="progress", curvature="gauss-newton"),
-                           max_iterations=max_iterations, tolerance=tolerance)
+        del ev0  # not kept alive through the solve: with derivatives, a long mission's holds ~100 MB
         out = solve_sqp(problem, x0, settings, progress, name)
         stage.success, stage.message, stage.status = out.success, out.message, 0 if out.success else 1
         stage.iterations, stage.evaluations = out.iterations, out.evaluations + out.gradient_evaluations

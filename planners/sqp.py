@@ -118,6 +118,13 @@ class SqpOptions:
             along the step), it can save iterations (with the ``"smoothed"`` defaults it did not pay).
         power_width, majoriser_share: mu [W] and the majoriser's share of the ``"smoothed"`` curvature
             (:func:`planners.curvature.power_curvature`).
+        trial_derivatives: evaluate a trial point with its derivatives (unless the trial before was
+            rejected): an accepted trial is the next iterate, whose derivatives the next iteration needs,
+            so one evaluation serves both; a rejected one costs the derivatives in vain. The planning
+            problems accept nearly every step, and a value-only evaluation costs 2-22 % of one with
+            derivatives. The values of an evaluation with derivatives agree with the value-only ones to
+            round-off, so the iterates are the same either way unless an acceptance test falls within
+            round-off of its threshold (on the built-in missions they are the same bit for bit).
     """
 
     max_iterations: int = 100
@@ -134,6 +141,7 @@ class SqpOptions:
     extrapolate: bool = False
     power_width: float = POWER_WIDTH
     majoriser_share: float = MAJORISER_SHARE
+    trial_derivatives: bool = True
 
     def __post_init__(self):
         if self.stop not in STOPS:
@@ -174,6 +182,10 @@ class Kkt:
 class SqpOutcome:
     """What happened: x, success, message, counts, wall time, and the KKT residual.
 
+    ``evaluations`` counts the problem's evaluations without derivatives, ``gradient_evaluations`` those
+    with (each evaluation once: one after a rejected step is reused, one of a trial serves the next
+    iteration and the end).
+
     ``kkt`` is the KKT residual of the returned x with the multipliers of the last QP solved
     (``multipliers``: one per constraint, >= 0, in the units of the problem's constraints).
     """
@@ -198,6 +210,8 @@ def _violation(c) -> float:
 def row_norms(jacobian) -> np.ndarray:
     """max(1, |nabla c_i|_inf) of every constraint row: the scaling of c_hat (module docstring)."""
     if sparse.issparse(jacobian):
+        if jacobian.shape[0] == 0 or jacobian.shape[1] == 0:
+            return np.ones(jacobian.shape[0])
         return np.maximum(abs(jacobian).max(axis=1).toarray().reshape(-1), 1.0)
     a = np.asarray(jacobian)
     return np.maximum(np.abs(a).max(axis=1), 1.0) if a.size else np.ones(a.shape[0])
@@ -237,35 +251,42 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     thrust the roll rows reach 1e7 and the QP would crawl; the minimiser is unchanged. ProxQP's work
     is bounded: an inexact step is judged by the merit ratio anyway. ``hessian`` is the model's
     curvature (default the problem's Gauss-Newton matrix); the multipliers (m,) are >= 0, in the units
-    of the constraints, 0 for the rows left out.
+    of the constraints, 0 for the rows left out. With the Jacobian's sparse copy (a long mission: a few
+    per cent of its entries are non-zero) the kept rows stay a CSR matrix from the selection to the
+    solvers (the active set's row products, ProxQP's sparse backend): the same numbers as the dense rows,
+    without a dense copy of thousands of rows.
     """
     hess = ev.hessian if hessian is None else hessian
     n = ev.gradient.size
     c, a = ev.constraints, _jacobian(ev)
     if sparse.issparse(a):  # a long mission's (planners.problem.SPARSE_FROM): the same rows, fewer operations
         keep = np.flatnonzero(c - abs(a).sum(axis=1).A1 * radius <= 0.0)
-        a_keep = a[keep].toarray()
+        a_keep = a[keep]
     else:
         keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
         a_keep = a[keep]
-    norms = np.maximum(np.abs(a_keep).max(axis=1), 1.0)
-    c_k, a_k = c[keep] / norms, a_keep / norms[:, None]
+    norms = row_norms(a_keep)
+    c_k, a_k = c[keep] / norms, _rows_divided(a_keep, norms)
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
     if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.active_set)
-        regularised = hess + (1e-9 * max(np.trace(hess) / n, 1e-12)) * np.eye(n)
-        exact = solve_step_qp(regularised, ev.gradient, a_k, -c_k, radius)
+        exact = solve_step_qp(hess, ev.gradient, a_k, -c_k, radius, shift=_shift(hess))
         if exact is not None:
             d, lam = exact[0], np.zeros(c.size)
             lam[keep] = exact[1] / norms
             return d, -(ev.gradient @ d + 0.5 * d @ hess @ d), _violation(c + a @ d), lam
     scale = 1.0 / max(1.0, np.abs(hess).max())
     h = np.zeros((n + p, n + p))
-    h[:n, :n] = (hess + (1e-9 * max(np.trace(hess) / n, 1e-12)) * np.eye(n)) * scale
+    h[:n, :n] = _regularised(hess) * scale
     g = np.concatenate([ev.gradient * scale, penalty * norms[soft] * scale])  # slack in row-scaled units
-    slack = np.zeros((keep.size, p))
-    slack[soft, np.arange(p)] = 1.0
-    rows = np.vstack([np.hstack([a_k, slack]), np.eye(n + p)])
+    if sparse.issparse(a_k):  # the rows as they are: the sparse backend takes them (_proxqp), no dense copy
+        slack = sparse.csr_matrix((np.ones(p), (soft, np.arange(p))), shape=(keep.size, p))
+        rows = sparse.vstack([sparse.hstack([a_k, slack]), sparse.identity(n + p)], format="csc")
+        rows.eliminate_zeros()
+    else:
+        slack = np.zeros((keep.size, p))
+        slack[soft, np.arange(p)] = 1.0
+        rows = np.vstack([np.hstack([a_k, slack]), np.eye(n + p)])
     lower = np.concatenate([-c_k, np.full(n, -radius), np.zeros(p)])
     upper = np.concatenate([np.full(keep.size, np.inf), np.full(n, radius), np.full(p, np.inf)])
     res = _proxqp(h, g, rows, lower, upper)
@@ -289,9 +310,31 @@ def _proxqp(h, g, rows, lower, upper):
     measured with).
     """
     if h.shape[0] < BANDED_MIN_SIZE:
+        rows = rows.toarray() if sparse.issparse(rows) else rows
         return proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
     return proxsuite.proxqp.sparse.solve(sparse.csc_matrix(np.triu(h)), g, None, None, sparse.csc_matrix(rows),
                                          lower, upper, eps_abs=1e-9, max_iter=300)
+
+
+def _shift(hess) -> float:
+    """1e-9 mean(diag H) (at least 1e-21): what the step QP adds to H's diagonal to make it positive definite."""
+    return 1e-9 * max(np.trace(hess) / hess.shape[0], 1e-12)
+
+
+def _regularised(hess):
+    """H + :func:`_shift` (H) I: the step QP's curvature made positive definite."""
+    out = np.array(hess, dtype=float)
+    out[np.diag_indices_from(out)] += _shift(hess)
+    return out
+
+
+def _rows_divided(a, norms):
+    """The rows of ``a`` (an array or a CSR matrix) divided by ``norms``, in the same format (same numbers)."""
+    if not sparse.issparse(a):
+        return a / norms[:, None]
+    out = sparse.csr_matrix(a, copy=True)
+    out.data /= np.repeat(norms, np.diff(out.indptr))
+    return out
 
 
 def _smooth_abs(p):
@@ -330,7 +373,7 @@ def _composite_qp_step(ev, radius: float, penalty: float, hessian):
     scale = 1.0 / max(1.0, np.abs(hessian).max())
     size = n + q + p
     h = np.zeros((size, size))
-    h[:n, :n] = (hessian + (1e-9 * max(np.trace(hessian) / n, 1e-12)) * np.eye(n)) * scale
+    h[:n, :n] = _regularised(hessian) * scale
     g = np.concatenate([g_lin * scale, pw[near] * p_norms * scale, penalty * norms[soft] * scale])
     m_c = keep.size
     rows = np.zeros((m_c + 2 * q + size, size))
@@ -411,6 +454,18 @@ def damped_bfgs(b: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
     return b - np.outer(bs, bs) / sbs + np.outer(r, r) / float(s @ r)
 
 
+def prepare(problem, options: SqpOptions) -> None:
+    """Set ``problem`` up for ``options`` before its first evaluation.
+
+    The ``"composite"`` and ``"smoothed"`` curvatures need the powers and their derivatives with every
+    gradient (``problem.power_model``); an evaluation cached without them is dropped.
+    """
+    if options.curvature in ("composite", "smoothed") and hasattr(problem, "power_model") \
+            and not problem.power_model:
+        problem.power_model = True
+        problem._cache = None
+
+
 def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, name: str = "") -> SqpOutcome:
     """Minimise ``problem``'s J subject to its constraints >= 0, from x0.
 
@@ -424,10 +479,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     """
     opt = options or SqpOptions()
     start = time.perf_counter()
-    if opt.curvature in ("composite", "smoothed") and hasattr(problem, "power_model") \
-            and not problem.power_model:
-        problem.power_model = True  # the powers and their derivatives with every gradient
-        problem._cache = None  # an evaluation cached without them
+    prepare(problem, opt)
     x = np.asarray(x0, dtype=float).copy()
     radius, penalty = opt.radius, opt.penalty
     evaluations = gradients = 0
@@ -439,9 +491,13 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     pending = None  # (s, grad L at the point before, multipliers) of the last accepted step
     kkt = multipliers = xi = None
     composite = False
+    known = None  # the evaluation with derivatives at x, when one is at hand (x unchanged, or a trial's)
+    trial_derivatives = opt.trial_derivatives
     for it in range(1, opt.max_iterations + 1):
-        ev = problem.evaluate(x, True)
-        gradients += 1
+        if known is None:
+            known = problem.evaluate(x, True)
+            gradients += 1
+        ev = known
         composite = opt.curvature == "composite" and getattr(ev, "power", None) is not None
         hessian = None
         if opt.curvature == "composite":
@@ -481,8 +537,8 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
             message = f"converged: no decrease predicted (KKT residual {kkt.residual:.2g})" if success else \
                 "stopped at a point where the linearised constraints cannot be met (locally infeasible)"
             break
-        trial = problem.evaluate(x + d)
-        evaluations += 1
+        trial = problem.evaluate(x + d, trial_derivatives)
+        gradients, evaluations = (gradients + 1, evaluations) if trial_derivatives else (gradients, evaluations + 1)
         actual = merit - (trial.J + penalty * _violation(trial.constraints))
         ratio = actual / predicted
         if ratio <= 0.1 and opt.second_order and trial.violation > ev.violation:
@@ -508,9 +564,11 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                     break
                 d, trial = 2.0 * d, longer
             actual = merit - (trial.J + penalty * _violation(trial.constraints))
+        trial_derivatives = opt.trial_derivatives and accepted  # after a rejection, the next trial values only
         if accepted:
             pending = (d, objective_gradient - _jacobian(ev).T @ multipliers, multipliers, xi)
             x = x + d
+            known = trial if trial.gradient is not None else None  # (an extrapolated trial has no derivatives)
             if ratio > 0.75 and step_size > 0.9 * radius:
                 radius *= 2.0
         else:
@@ -545,11 +603,17 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                        "iterations (round-off)")
             break
         if radius < 1e-10:
-            viol = problem.evaluate(x).violation
+            if known is None:
+                known = problem.evaluate(x, True)
+                gradients += 1
+            viol = known.violation
             success = viol <= opt.feasibility
             message = "converged: trust region collapsed" if success else "trust region collapsed while infeasible"
             break
-    final = problem.evaluate(x, True)
+    if known is None:
+        known = problem.evaluate(x, True)
+        gradients += 1
+    final = known
     if kkt is None or final is not ev:
         # the returned x moved after the last QP: its KKT residual with the last multipliers
         kkt = kkt_residual(_model_gradient(final, xi, composite), final.constraints, _jacobian(final),

@@ -3,6 +3,8 @@ one and ProxQP, the scaling bench's fit and goals."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy import sparse
@@ -19,7 +21,7 @@ from planners.methods.way_points import WayPointTask
 from planners.missions_gen import LOOP_RADIUS, loop_mission, loop_way_points
 from planners.report import evaluate_motion
 from planners.solving import Grid
-from planners.sqp import _proxqp, kkt_residual
+from planners.sqp import _proxqp, _qp_step, kkt_residual
 
 proxqp = proxsuite_module().proxqp
 
@@ -75,6 +77,35 @@ def test_banded_solver_inverts_h():
     np.testing.assert_allclose(h @ solve(g), g, atol=1e-10)
     assert banded_solver(h[:100, :100]) is None  # small: the dense route
     assert banded_solver(np.ones((300, 300)) + np.eye(300)) is None  # dense H
+
+
+def test_bandwidth_is_the_largest_offset_of_a_non_zero():
+    """bandwidth (from each row's first and last non-zero) against the definition on the non-zeros' indices:
+    random banded, lopsided and mostly empty matrices."""
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        n = int(rng.integers(1, 60))
+        m = rng.normal(size=(n, n)) * (rng.random((n, n)) < 0.05)
+        m[rng.random(n) < 0.3] = 0.0  # empty rows
+        i, j = np.nonzero(m)
+        assert bandwidth(m) == (int(np.abs(i - j).max()) if i.size else 0)
+    assert bandwidth(np.zeros((5, 5))) == 0 and bandwidth(np.eye(4)) == 0
+
+
+@pytest.mark.parametrize("banded", [True, False])
+def test_shift_is_h_plus_shift_times_identity(banded, monkeypatch):
+    """solve_step_qp(H, ..., shift=s) is solve_step_qp(H + s I, ...) bit for bit, banded and dense routes."""
+    h, g, rows, lower = _banded_qp()
+    if not banded:
+        monkeypatch.setattr(active_set, "BANDED_MIN_SIZE", 10**9)
+    shift = 0.3
+    shifted = h.copy()
+    shifted[np.diag_indices_from(shifted)] += shift
+    mine, reference = solve_step_qp(h, g, rows, lower, 0.5, shift=shift), solve_step_qp(shifted, g, rows, lower, 0.5)
+    assert mine is not None and reference is not None
+    np.testing.assert_array_equal(mine[0], reference[0])
+    np.testing.assert_array_equal(mine[1], reference[1])
+    assert not np.array_equal(mine[0], solve_step_qp(h, g, rows, lower, 0.5)[0])  # the shift matters
 
 
 def test_banded_route_equals_the_dense_route(monkeypatch):
@@ -173,6 +204,40 @@ def test_sparse_proxqp_gives_the_dense_answer(long_qp):
 
 
 # ---------------------------------------------------------------------------------------------- the bench
+def test_active_set_on_sparse_rows_is_the_dense_one():
+    """solve_step_qp with its rows as a CSR matrix (a long mission's step QP) returns the dense rows' step,
+    multipliers and working set: the same numbers, the rows are only stored differently."""
+    h, g, rows, lower = _banded_qp()
+    dense = solve_step_qp(h, g, rows, lower, 0.5)
+    on_sparse = solve_step_qp(h, g, sparse.csr_matrix(rows), lower, 0.5)
+    assert dense is not None and on_sparse is not None and len(dense[2]) > 0  # some rows active
+    assert on_sparse[2] == dense[2]
+    np.testing.assert_allclose(on_sparse[0], dense[0], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(on_sparse[1], dense[1], rtol=0, atol=1e-12 * np.abs(dense[1]).max())
+
+
+@pytest.mark.parametrize("violated, radius", [(0, 0.5), (0, 3.0), (5, 0.5), (5, 3.0)])
+def test_step_qp_from_the_sparse_jacobian_is_the_dense_ones(long_evaluation, violated, radius):
+    """The SQP's step QP on a long mission from the Jacobian's sparse copy (rows kept sparse, scaled in
+    place; ProxQP gets them sparse) gives the dense Jacobian's step, predicted decrease and multipliers:
+    at the feasible start (the active set) and with ``violated`` rows made violated (the elastic QP,
+    ProxQP)."""
+    _, ev = long_evaluation
+    if violated:
+        c = ev.constraints.copy()
+        c[np.argsort(c)[:violated]] = -0.01
+        ev = dataclasses.replace(ev, constraints=c)
+    hess = smoothed_hessian(ev)
+    from_sparse = _qp_step(ev, radius, 10.0, hess)
+    from_dense = _qp_step(dataclasses.replace(ev, jacobian_sparse=None), radius, 10.0, hess)
+    assert np.abs(from_sparse[0]).max() > 0.1 * radius  # a real step
+    np.testing.assert_allclose(from_sparse[0], from_dense[0], rtol=0, atol=1e-12)
+    assert from_sparse[1] == pytest.approx(from_dense[1], rel=1e-12)
+    assert from_sparse[2] == pytest.approx(from_dense[2], abs=1e-15)
+    np.testing.assert_allclose(from_sparse[3], from_dense[3], rtol=0, atol=1e-12)
+    assert (np.count_nonzero(from_sparse[3]) > 0) == (violated > 0)  # violated rows carry multipliers
+
+
 def test_growth_exponent_is_the_log_log_slope_from_8_way_points():
     counts = [4, 8, 16, 32]
     times = [100.0, 2.0 * 8**1.3, 2.0 * 16**1.3, 2.0 * 32**1.3]  # 4 way points left out of the fit

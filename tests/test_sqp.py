@@ -184,3 +184,39 @@ def test_unknown_settings_are_refused_with_the_choices():
         SqpOptions(stop="optimal")
     with pytest.raises(PlannerArgumentError, match="gauss-newton, composite"):
         SqpOptions(curvature="newton")
+
+
+class CountingNlp:
+    """An NLP that records every evaluation asked of it: (x, with derivatives)."""
+
+    def __init__(self, inner):
+        self.inner, self.n_x, self.calls = inner, inner.n_x, []
+
+    def evaluate(self, x, derivatives=False):
+        self.calls.append((np.array(x, dtype=float), bool(derivatives)))
+        return self.inner.evaluate(x, derivatives)
+
+
+@pytest.mark.parametrize("second_order", [False, True])
+def test_each_point_is_evaluated_once_and_the_counts_are_the_evaluations_made(second_order):
+    # the curved problem above from a wide trust region: many steps are rejected (and with second_order,
+    # corrected). A trial evaluated with its derivatives (the default) serves the next iteration when
+    # accepted; after a rejection the evaluation at x is reused. Either way the iterates are those of
+    # value-only trials, derivatives are evaluated at most once per point, and the counts are the calls.
+    problem = SmallNlp(lambda x: x.sum(), lambda x: np.ones(2), lambda x: np.zeros((2, 2)),
+                       lambda x: 2 - x @ x, lambda x: [-2 * x])
+    options = SqpOptions(stop="kkt", kkt_tolerance=1e-5, max_iterations=300, second_order=second_order,
+                         radius=10.0)
+    lean, plain = CountingNlp(problem), CountingNlp(problem)
+    out = solve_sqp(lean, [0.3, -0.2], options)
+    ref = solve_sqp(plain, [0.3, -0.2], SqpOptions(**{**vars(options), "trial_derivatives": False}))
+    assert out.success and ref.success
+    np.testing.assert_array_equal(out.x, ref.x)
+    assert out.iterations == ref.iterations and out.J == ref.J
+    assert ref.gradient_evaluations < ref.iterations  # steps were rejected: x was kept, its derivatives too
+    for run, nlp in ((out, lean), (ref, plain)):
+        with_derivatives = [x.tobytes() for x, d in nlp.calls if d]
+        assert run.gradient_evaluations == len(with_derivatives)
+        assert run.evaluations == len(nlp.calls) - len(with_derivatives)
+        assert len(set(with_derivatives)) == len(with_derivatives)  # never twice at one point
+    assert len(lean.calls) <= len(plain.calls)

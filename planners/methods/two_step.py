@@ -77,7 +77,7 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
         # one travel: step 2 was the 1-step NLP already; no via points: step 1 was
         whole_differs = len(task.way_times) > 1 and task.n_via.sum() > 0
         if options.polish and whole_differs and all(st.violation_end <= GRID_FEASIBILITY for st in stages):
-            points = _polish(task, grid, points, stages, options)
+            points = _polish(task, grid, points, stages, options, normalisation)
         return PiecewisePolynomial(points, durations), stages
 
     trajectory, report, stages = solve_refining(
@@ -86,9 +86,12 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
     return task.result("two-step", trajectory, is_way, report, reference, stages)
 
 
-def _polish(task: WayPointTask, grid: Grid, points, stages: list, options: PlanOptions):
-    """The 1-step NLP solved from the 2-step ``points`` (appends its stage); the better points."""
-    whole = one_step_problem(task, grid)
+def _polish(task: WayPointTask, grid: Grid, points, stages: list, options: PlanOptions, normalisation):
+    """The 1-step NLP solved from the 2-step ``points`` (appends its stage); the better points.
+
+    ``normalisation``: the steps' (J_e0, J_phi0) on ``grid`` (:meth:`WayPointTask.normalisation`, not
+    computed again)."""
+    whole = one_step_problem(task, grid, normalisation)
     x0 = whole.x_of(points)
     before = whole.evaluate(x0)
     x, stage = solve_stage(whole, x0, "polish (one-step)" + grid.suffix, **options.solve_arguments)
