@@ -35,38 +35,23 @@ from fpr.model.jets import Jet
 
 
 class _Linear:
-    """x -> x @ K + k0 on the last axis for a constant, mostly zero K (and constant k0): only the features that
-    meet a non-zero entry and only the outputs that vary are computed. Takes arrays and Jets (k0 on the value)."""
+    """x -> x @ K + k0 on the last axis for a constant K (and constant k0). Takes arrays and Jets (k0 on the
+    value). Complex x (complex-step copies) multiply a complex copy of K (one BLAS call)."""
 
     def __init__(self, k, k0=None):
-        k = np.asarray(k, dtype=float)
-        self.size = k.shape[1]
-        self.k0 = np.zeros(self.size) if k0 is None else np.asarray(k0, dtype=float).reshape(-1)
-        self.rows = np.flatnonzero(np.any(k != 0, axis=1))
-        self.cols = np.flatnonzero(np.any(k != 0, axis=0))
-        self.k = np.ascontiguousarray(k[np.ix_(self.rows, self.cols)])
+        self.k = np.ascontiguousarray(k, dtype=float)
         self.k_complex = self.k.astype(complex)
-        self.dense = self.rows.size == k.shape[0] and self.cols.size == self.size
-
-    def _product(self, x):
-        if not self.dense:
-            x = x[..., self.rows]
-        return x @ (self.k_complex if np.iscomplexobj(x) else self.k)
+        self.k0 = np.zeros(self.k.shape[1]) if k0 is None else np.asarray(k0, dtype=float).reshape(-1)
+        self.size = self.k.shape[1]
 
     def __call__(self, x):
+        d = x.d if isinstance(x, Jet) else x
+        out = d @ (self.k_complex if np.iscomplexobj(d) else self.k)
         if isinstance(x, Jet):
-            d = x.d
-            out = np.zeros(d.shape[:-1] + (self.size,), np.result_type(d, float))
-            out[0] = self.k0
-        else:
-            d = x
-            out = np.empty(d.shape[:-1] + (self.size,), np.result_type(d, float))
-            out[...] = self.k0
-        if self.dense:
-            out += self._product(d)
-        else:
-            out[..., self.cols] += self._product(d)
-        return Jet(out) if isinstance(x, Jet) else out
+            out[0] += self.k0
+            return Jet(out)
+        out += self.k0
+        return out
 
 
 class StackedPoints:
