@@ -107,7 +107,7 @@ def _workspace(robot, s, crossing_sign=None) -> dict:
 
 
 def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossing_sign=None,
-                    min_thrust: float | None = None):
+                    min_thrust: float | None = None, workspace: dict | None = None):
     """Every constraint margin at every sample (>= 0 where satisfied).
 
     Args:
@@ -121,13 +121,17 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
             per sample +1 before the crossing, -1 after it, 0 at it (N,). The assembly-mode bounds
             3.46 are then replaced by ``crossing_side`` (sign * q2 >= 0) and ``crossing_range``.
         min_thrust: f_min [N] of the ``thrust_low`` rows (scaled by m_d g), or None for none.
+        workspace: the workspace margins {name: (N,)} if the caller has them (:meth:`MotionProblem._quantities`
+            takes the lower of each node's and a point between nodes), or None: the robot kind's of ``motion[0]``.
 
     Returns:
         (rows (N, R), names (R,) of the constraint each row belongs to, details (R,) e.g. "rotor 3").
     """
     lim = Limits.from_robot(robot)
     cols, names, details = [], [], []
-    for name, value in _workspace(robot, motion[0], crossing_sign).items():
+    if workspace is None:
+        workspace = _workspace(robot, motion[0], crossing_sign)
+    for name, value in workspace.items():
         cols.append(value)
         names.append(name)
         details.append("")
@@ -371,39 +375,33 @@ class MotionProblem:
         """Raw per-drone integrand pieces (N, 2 n_d): [F_i . r_i' ..., phi_i' ...], and the rows."""
         inputs = self._inputs(motion)
         power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)
-        sign = None
+        sign = workspace = None
         if self.crossing_sign is not None:  # motion may hold several perturbed copies of the nodes
             sign = np.tile(self.crossing_sign, motion.shape[1] // self.crossing_sign.size)
+        else:
+            workspace = self._between_nodes(motion)
         rows, names, _ = constraint_rows(self.robot, motion, inputs, scaled=True, crossing_sign=sign,
-                                         min_thrust=self.min_thrust)
-        if sign is None:
-            rows = self._between_nodes(motion, rows)
+                                         min_thrust=self.min_thrust, workspace=workspace)
         self._rows_names = names
         return np.concatenate([power, inputs.roll_rate], axis=-1), rows
 
-    def _between_nodes(self, motion, rows):
-        """The workspace rows (the first columns of ``rows``), the lower of a node's and half a spacing after it.
-
+    def _between_nodes(self, motion) -> dict:
+        """The workspace margins of the nodes, each the lower of a node's and half a spacing after it.
 
         The workspace margins depend on s alone, which is cheap to evaluate: s half a spacing h after a
         node is its Taylor polynomial there, sum_k s^(k) (h/2)^k / k! (the motion is C4 across knots).
         Near the optimum a motion pushes against its workspace bounds, and a degree-9 motion dips
         between nodes by about h^2 |s''| / 8 (2 mrad on the square's phi bound, more than the back-off):
         the midpoints catch it on the optimisation grid instead of the dense check (and its grid refinement).
+        Nodes and midpoints go through the robot kind's margins in one call.
         """
         copies = motion.shape[1] // self.t.size
         step = np.tile(0.5 * self.durations[self.segment] / (self.samples_per_segment - 1), copies)[:, None]
         mid = sum(motion[k] * step**k / np.prod(np.arange(1, k + 1)) for k in range(N_DERIVS))
         margins = self.robot.kind.workspace_margins(np.concatenate([motion[0], mid]))
-        if not margins:
-            return rows
-        cols = np.stack(list(margins.values()), axis=-1)
-        n, w = motion.shape[1], cols.shape[1]
-        # rows is this evaluation's own array (constraint_rows stacks it): updated in place
-        rows = rows if rows.dtype == cols.dtype else rows.astype(np.result_type(rows, cols))
+        n = motion.shape[1]
         # complex values (complex-step derivatives) compare by their real parts first
-        rows[:, :w] = np.where(cols[n:].real < cols[:n].real, cols[n:], cols[:n])
-        return rows
+        return {name: np.where(col[n:].real < col[:n].real, col[n:], col[:n]) for name, col in margins.items()}
 
     def _weights(self):
         return self.alpha / self.normalisation[0], (1.0 - self.alpha) / self.normalisation[1]
