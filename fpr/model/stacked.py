@@ -191,13 +191,12 @@ class StackedDynamics:
         keep = np.flatnonzero(np.any(k != 0, axis=1) & ((i != 0) | (j != 0)))
         self._pair_i, self._pair_j = i[keep], j[keep]
         self._mass = _Linear(k[keep], k[0])
-        # L_fe = sum_b m_b Y_bf^T z_be with z = -(position map) (the velocity product), gravity last: -Y^T g
+        # L_fe = sum_b m_b Y_bf^T z_be with z = -(position map) (the velocity product); gravity: -Y^T g
         z = -self.points.position_map[:, :nb]  # (2A, B, 2)
-        g = np.array([0.0, -model.gravity])
-        z = np.concatenate([z, np.broadcast_to(-g, (1, nb, 2))])  # (2A + 1, B, 2)
         lfe = np.einsum("b,fbin,ebi->fen", mass, y, z)
         self._bias_f, self._bias_e = np.nonzero(np.any(lfe != 0, axis=-1))
         self._bias = _Linear(lfe[self._bias_f, self._bias_e])
+        self._gravity = _Linear(-np.einsum("b,fbin,i->fn", mass, y, np.array([0.0, -model.gravity])))
         self._rows_t = np.ascontiguousarray(self.points.rows.T)
         self._n = n
 
@@ -208,18 +207,14 @@ class StackedDynamics:
 
     def bias_from(self, features, v):
         """c(q, q') from the features (..., F) and q' (..., n) (arrays, or Jets of one order), shape (..., n)."""
-        a = self.points.n_angles
         if isinstance(features, Jet):
             w = Jet(jets.inexact(v.d) @ self._rows_t)
             w2 = w * w
-            one = np.zeros(w2.d.shape[:-1] + (1,), w2.d.dtype)
-            one[0] = 1.0
-            psi = jets.concatenate([features[..., 1:1 + a] * w2, features[..., 1 + a:] * w2, Jet(one)], axis=-1)
+            psi = features[..., 1:] * Jet(np.concatenate([w2.d, w2.d], axis=-1))  # [cos, sin] omega^2
         else:
             w2 = (jets.inexact(v) @ self._rows_t) ** 2
-            psi = np.concatenate([features[..., 1:1 + a] * w2, features[..., 1 + a:] * w2,
-                                  np.ones(w2.shape[:-1] + (1,), w2.dtype)], axis=-1)
-        return self._bias(features[..., self._bias_f] * psi[..., self._bias_e])
+            psi = features[..., 1:] * np.concatenate([w2, w2], axis=-1)
+        return self._bias(features[..., self._bias_f] * psi[..., self._bias_e]) + self._gravity(features)
 
 
 __all__ = ["StackedDynamics", "StackedPoints"]
