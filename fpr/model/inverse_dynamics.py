@@ -163,16 +163,15 @@ def roll_torques(robot, q, v, thrust, roll_acceleration, external=None) -> np.nd
         tau_x of each drone, shape (N, n_d) [N m].
     """
     rigid = robot.planar("rigid")
-    m, c, centre_jacobians = rigid.mass_matrix_bias_and_centre_jacobians(q, v)
+    m, c, centre_jacobians = rigid.dynamics_and_centre_jacobians(q, v)  # (..., n_d, 2, n)
     sel = np.array(rigid.drone_angles)  # (n_d, n)
     gen = -c
     if external is not None:
         ext = external.value if isinstance(external, Jet) else np.asarray(external)
         gen = gen + np.concatenate([ext, np.zeros(ext.shape[:-1] + (gen.shape[-1] - ext.shape[-1],))], axis=-1)
-    for i, centre_jacobian in enumerate(centre_jacobians):
-        sin, cos = jets.sin_cos_value(q @ sel[i])
-        body_z = np.stack([-sin, cos], axis=-1)
-        gen = gen + np.einsum("...in,...i->...n", centre_jacobian, body_z) * thrust[..., i : i + 1]
+    sin, cos = jets.sin_cos_value(q @ sel.T)  # every drone at once
+    force = np.stack([-sin, cos], axis=-1) * thrust[..., None]  # thrust along each body z
+    gen = gen + np.einsum("...din,...di->...n", centre_jacobians, force)
     return _roll_rows(m, gen, sel, roll_acceleration)
 
 

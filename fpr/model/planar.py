@@ -272,11 +272,15 @@ class PlanarModel:
     def mass_matrix_bias_and_centre_jacobians(self, q, v) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
         """M(q), c(q, qdot) and the Jacobians (..., 2, n) of the :attr:`drone_centres`, from one table of sines
         and cosines."""
+        m, c, centres = self.dynamics_and_centre_jacobians(q, v)
+        return m, c, [centres[..., i, :, :] for i in range(centres.shape[-3])]
+
+    def dynamics_and_centre_jacobians(self, q, v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`mass_matrix_bias_and_centre_jacobians` with the centres' Jacobians as one array (..., n_d, 2, n)."""
         st = self.stacked
         features = st.points.features(q)
-        centres = st.points.jacobians_from(features, "centres")
         return (st.mass_matrix_from(features), st.bias_from(features, v),
-                [centres[..., i, :, :] for i in range(centres.shape[-3])])
+                st.points.jacobians_from(features, "centres"))
 
     def inverse_dynamics(self, q, v, a) -> np.ndarray:
         """Generalised force M a + c, shape (..., n)."""
