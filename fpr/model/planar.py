@@ -19,6 +19,10 @@ angle a^T q + b and a moment of inertia about x. Then
     c = \\sum_b m_b J_b^T (\\dot J_b \\dot q - g),\\qquad
     \\dot J_b \\dot q = -\\sum_k \\mathrm{Rot}(a_k^T q + b_k) v_k (a_k^T \\dot q)^2.
 
+The batched methods of :class:`PlanarModel` evaluate these sums as products of the features of the chain's
+distinct angles (:mod:`fpr.model.stacked`, one sine-cosine table per batch); :class:`PlanarPoint` keeps the
+per-point formulation, the reference the tests hold them to.
+
 Coordinates: FPR ``[y z phi q21 phi1 phi2]`` (rigid drones) or ``[y z phi q21]`` (point-mass or
 massless drones); prototype ``[q1 q2 phi1]`` or ``[q1 q2]``.
 """
