@@ -123,3 +123,17 @@ def test_sparse_linear_map_is_the_dense_product():
     ref = jet.d @ k
     ref[0] += k0
     _close(lin(jet).d, ref)
+
+
+def test_features_of_a_motion_are_cached_for_its_truncations(robot):
+    """The hinges' Jacobian after the inverse dynamics reuses the motion's features (truncated): same bits as
+    from a fresh Jet, and a fresh Jet does not see the cache."""
+    rng = np.random.default_rng(15)
+    point = robot.planar("point")
+    s = Jet(_complex_step(rng, (5, 20, point.n), scale=0.5))
+    points = point.stacked.points
+    full = points.features_jet(s)
+    assert points.features_jet(s.truncate(2)).d.tobytes() == full.d[:3].tobytes()
+    fresh = Jet(s.d[:3].copy())
+    assert not fresh.shared_cache()
+    assert point.hinge_jacobian_jet(s.truncate(2)).d.tobytes() == point.hinge_jacobian_jet(fresh).d.tobytes()

@@ -15,12 +15,14 @@ with constant Y. The mass matrix and the bias of the bodies are then quadratic f
 
 .. math::
     M = \\sum_{f \\le f'} \\varphi_f \\varphi_{f'} K_{ff'}, \\qquad
-    c = \\sum_{f, e} \\varphi_f \\psi_e L_{fe},\\quad \\psi = [\\cos\\theta_a \\omega_a^2, \\sin\\theta_a \\omega_a^2, 1],
+    c = \\sum_{f, e} \\varphi_f \\psi_e L_{fe} + \\sum_f \\varphi_f L^g_f,\\quad
+    \\psi = [\\cos\\theta_a \\omega_a^2, \\sin\\theta_a \\omega_a^2],
 
-K and L summed over the bodies once (the bodies' rotational inertia I_b a_b a_b^T is in K_00, gravity in the
-last column of L). A batch of samples is then one sine-cosine table and a few matrix products (BLAS) instead
-of a loop over bodies and angles: what the planner's complex-step derivatives (thousands of copies of every
-sample) spend their time on. Along a motion (:mod:`fpr.model.jets`) the same products take jets.
+K, L and L^g (gravity's) summed over the bodies once (the bodies' rotational inertia I_b a_b a_b^T is in
+K_00; only the products of features that meet a body are formed). A batch of samples is then one sine-cosine
+table and a few matrix products (BLAS) instead of a loop over bodies and angles: what the planner's
+complex-step derivatives (thousands of copies of every sample) spend their time on. Along a motion
+(:mod:`fpr.model.jets`) the same products take jets.
 
 The per-point formulation (:class:`~fpr.model.planar.PlanarPoint`) stays as the reference; the tests hold
 this one equal to it (and to Pinocchio's CRBA / RNEA) to round-off.
@@ -123,14 +125,15 @@ class StackedPoints:
         """The features along a motion (same order as q), kept in ``q.shared_cache()``: the bodies' dynamics and
         the hinges' Jacobian of one motion use the same ones."""
         cache, key = q.shared_cache(), ("stacked-features", id(self))
-        hit = cache.get(key)
-        if hit is None or hit.order < q.order:
+        owner, hit = cache.get(key, (None, None))
+        if owner is not self or hit.order < q.order:
             d = q.d @ self.rows.T
             d[0] = d[0] + self.offsets
             sin, cos = jets.sincos(Jet(d))
             one = np.zeros(sin.d.shape[:-1] + (1,), sin.d.dtype)
             one[0] = 1.0
-            hit = cache[key] = Jet(np.concatenate([one, cos.d, sin.d], axis=-1))
+            hit = Jet(np.concatenate([one, cos.d, sin.d], axis=-1))
+            cache[key] = (self, hit)
         return hit if hit.order == q.order else hit.truncate(q.order)
 
     def jacobians_from(self, features, group: str = "all"):
