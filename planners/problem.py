@@ -442,12 +442,12 @@ class MotionProblem:
             g_points = np.bincount(index.reshape(-1), g_local.reshape(-1), minlength=size)
             free = np.flatnonzero(self.free.reshape(-1))
             grad = g_points[free] * self.scale
-            hess = self._assemble(curv, local, free)
+            hess = self._assemble(curv, local)
             if self.power_model:
                 # J_phi's part alone (the composite SQP models J_e's |P| piecewise linearly instead)
                 rate_local = local[:, n_d:]
                 rate_hess = self._assemble((2 * a_phi * self.weights)[:, None] * np.ones(rate_local.shape[1]),
-                                           rate_local, free)
+                                           rate_local)
                 # the powers' derivatives with respect to x: (N n_d, n_x)
                 p_jac = self._scatter(np.repeat(index, n_d, axis=0), local[:, :n_d].reshape(n_s * n_d, -1))
                 p_weight = np.repeat(a_e * self.weights, n_d)
@@ -490,15 +490,20 @@ class MotionProblem:
         cols = self._column[entries]
         hit = cols >= 0
         out = np.zeros((entries.shape[0], self.n_x))
-        row, col, value = np.nonzero(hit)[0], cols[hit], values[hit] * self.scale[cols[hit]]
+        row, col = np.nonzero(hit)
+        col = cols[row, col]
+        value = values[hit] * self.scale[col]
         out[row, col] = value
         if not with_sparse:
             return out
         if self.n_x < SPARSE_FROM:
             return out, None
-        return out, sparse.csr_matrix((value, (row, col)), shape=out.shape)
+        # row by row, columns increasing (a row's entries are its segment's, in the points' order): the CSR
+        # arrays directly, without scipy's conversion from coordinates
+        indptr = np.concatenate([[0], np.cumsum(hit.sum(axis=1))])
+        return out, sparse.csr_matrix((value, col, indptr), shape=out.shape)
 
-    def _assemble(self, curvature, local, free) -> np.ndarray:
+    def _assemble(self, curvature, local) -> np.ndarray:
         """Sum over nodes i and quantities q of c_iq grad q_i grad q_i^T, for the free entries in x's scaling.
 
         ``curvature`` c (N, Q) >= 0 and ``local`` (N, Q, 10 n): the derivatives of node i's quantities
@@ -510,11 +515,19 @@ class MotionProblem:
         width = local.shape[-1]
         rows = (np.sqrt(curvature)[..., None] * local).reshape(m, -1, width)
         blocks = np.matmul(rows.transpose(0, 2, 1), rows)  # (m, 10 n, 10 n)
-        half = width // 2
-        h_points = np.zeros((self.points.size, self.points.size))
-        for s in range(m):
-            h_points[s * half:s * half + width, s * half:s * half + width] += blocks[s]
-        return h_points[np.ix_(free, free)] * np.outer(self.scale, self.scale)
+        # each block's entries added at their x indices (fixed entries dropped): one bincount
+        cols = self._segment_columns  # (m, 10 n), -1 where fixed
+        hit = (cols[:, :, None] >= 0) & (cols[:, None, :] >= 0)
+        flat = (cols[:, :, None] * self.n_x + cols[:, None, :])[hit]
+        h = np.bincount(flat, blocks[hit], minlength=self.n_x * self.n_x).reshape(self.n_x, self.n_x)
+        return h * np.outer(self.scale, self.scale)
+
+    @functools.cached_property
+    def _segment_columns(self) -> np.ndarray:
+        """The x index of each entry of each segment's two points (m, 10 n), -1 where fixed."""
+        half = N_DERIVS * self.points.shape[2]
+        start = np.arange(self.durations.size)[:, None] * half
+        return self._column[start + np.arange(2 * half)]
 
     def objective_terms(self, points) -> np.ndarray:
         """[J_e, J_phi] of given points on the grid (smoothed |.|, as the optimiser sees them)."""
