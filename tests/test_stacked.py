@@ -105,6 +105,9 @@ def test_roll_torques_partition_equals_the_full_formula(robot):
     a_tau = sel @ minv @ sel.T
     full = np.linalg.solve(a_tau, (acc - np.einsum("ij,...jk,...k->...i", sel, minv, gen))[..., None])[..., 0]
     _close(tau, full)
+    # the rolls first (a partition by index arrays, not slices): the same torques
+    perm = np.concatenate([np.flatnonzero(sel.any(0)), np.flatnonzero(~sel.any(0))])
+    _close(_roll_rows(m[..., perm[:, None], perm], gen[..., perm], sel[:, perm], acc), tau)
     # a selection the partition does not recognise (S' = 2 S) takes the formula as written
     scaled = _roll_rows(m, gen, 2.0 * sel, 2.0 * acc)  # S' = 2 S: tau' = tau / 2 for phi'' = S' a
     _close(2.0 * scaled, tau)

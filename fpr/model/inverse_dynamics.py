@@ -191,8 +191,12 @@ def _roll_rows(m, gen, sel, roll_acceleration):
         a_tau = np.einsum("ij,...jk->...ik", sel, sol[..., 1:])
         return np.linalg.solve(a_tau, (roll_acceleration - sol[..., 0] @ sel.T)[..., None])[..., 0]
     chain = np.setdiff1d(np.arange(m.shape[-1]), rolls)
-    m_cc, m_cr = m[..., chain[:, None], chain], m[..., chain[:, None], rolls]
-    m_rc, m_rr = m[..., rolls[:, None], chain], m[..., rolls[:, None], rolls]
+    if np.array_equal(rolls, np.arange(len(chain), m.shape[-1])):  # [chain..., rolls...]: views, no copies
+        chain, rolls = slice(0, len(chain)), slice(len(chain), None)
+        m_cc, m_cr, m_rc, m_rr = m[..., chain, chain], m[..., chain, rolls], m[..., rolls, chain], m[..., rolls, rolls]
+    else:
+        m_cc, m_cr = m[..., chain[:, None], chain], m[..., chain[:, None], rolls]
+        m_rc, m_rr = m[..., rolls[:, None], chain], m[..., rolls[:, None], rolls]
     rhs = gen[..., chain] - np.einsum("...ij,...j->...i", m_cr, roll_acceleration)
     a_chain = np.linalg.solve(m_cc, rhs[..., None])[..., 0]
     return (np.einsum("...ij,...j->...i", m_rr, roll_acceleration) + np.einsum("...ij,...j->...i", m_rc, a_chain)
