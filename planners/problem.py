@@ -107,7 +107,7 @@ def _workspace(robot, s, crossing_sign=None) -> dict:
 
 
 def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossing_sign=None,
-                    min_thrust: float | None = None):
+                    min_thrust: float | None = None, workspace: dict | None = None):
     """Every constraint margin at every sample (>= 0 where satisfied).
 
     Args:
@@ -121,13 +121,17 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
             per sample +1 before the crossing, -1 after it, 0 at it (N,). The assembly-mode bounds
             3.46 are then replaced by ``crossing_side`` (sign * q2 >= 0) and ``crossing_range``.
         min_thrust: f_min [N] of the ``thrust_low`` rows (scaled by m_d g), or None for none.
+        workspace: the workspace margins {name: (N,)} if the caller has them (:meth:`MotionProblem._quantities`
+            takes the lower of each node's and a point between nodes), or None: the robot kind's of ``motion[0]``.
 
     Returns:
         (rows (N, R), names (R,) of the constraint each row belongs to, details (R,) e.g. "rotor 3").
     """
     lim = Limits.from_robot(robot)
     cols, names, details = [], [], []
-    for name, value in _workspace(robot, motion[0], crossing_sign).items():
+    if workspace is None:
+        workspace = _workspace(robot, motion[0], crossing_sign)
+    for name, value in workspace.items():
         cols.append(value)
         names.append(name)
         details.append("")
@@ -371,39 +375,33 @@ class MotionProblem:
         """Raw per-drone integrand pieces (N, 2 n_d): [F_i . r_i' ..., phi_i' ...], and the rows."""
         inputs = self._inputs(motion)
         power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)
-        sign = None
+        sign = workspace = None
         if self.crossing_sign is not None:  # motion may hold several perturbed copies of the nodes
             sign = np.tile(self.crossing_sign, motion.shape[1] // self.crossing_sign.size)
+        else:
+            workspace = self._between_nodes(motion)
         rows, names, _ = constraint_rows(self.robot, motion, inputs, scaled=True, crossing_sign=sign,
-                                         min_thrust=self.min_thrust)
-        if sign is None:
-            rows = self._between_nodes(motion, rows)
+                                         min_thrust=self.min_thrust, workspace=workspace)
         self._rows_names = names
         return np.concatenate([power, inputs.roll_rate], axis=-1), rows
 
-    def _between_nodes(self, motion, rows):
-        """The workspace rows (the first columns of ``rows``), the lower of a node's and half a spacing after it.
-
+    def _between_nodes(self, motion) -> dict:
+        """The workspace margins of the nodes, each the lower of a node's and half a spacing after it.
 
         The workspace margins depend on s alone, which is cheap to evaluate: s half a spacing h after a
         node is its Taylor polynomial there, sum_k s^(k) (h/2)^k / k! (the motion is C4 across knots).
         Near the optimum a motion pushes against its workspace bounds, and a degree-9 motion dips
         between nodes by about h^2 |s''| / 8 (2 mrad on the square's phi bound, more than the back-off):
         the midpoints catch it on the optimisation grid instead of the dense check (and its grid refinement).
+        Nodes and midpoints go through the robot kind's margins in one call.
         """
         copies = motion.shape[1] // self.t.size
         step = np.tile(0.5 * self.durations[self.segment] / (self.samples_per_segment - 1), copies)[:, None]
         mid = sum(motion[k] * step**k / np.prod(np.arange(1, k + 1)) for k in range(N_DERIVS))
         margins = self.robot.kind.workspace_margins(np.concatenate([motion[0], mid]))
-        if not margins:
-            return rows
-        cols = np.stack(list(margins.values()), axis=-1)
-        n, w = motion.shape[1], cols.shape[1]
-        # rows is this evaluation's own array (constraint_rows stacks it): updated in place
-        rows = rows if rows.dtype == cols.dtype else rows.astype(np.result_type(rows, cols))
+        n = motion.shape[1]
         # complex values (complex-step derivatives) compare by their real parts first
-        rows[:, :w] = np.where(cols[n:].real < cols[:n].real, cols[n:], cols[:n])
-        return rows
+        return {name: np.where(col[n:].real < col[:n].real, col[n:], col[:n]) for name, col in margins.items()}
 
     def _weights(self):
         return self.alpha / self.normalisation[0], (1.0 - self.alpha) / self.normalisation[1]
@@ -444,12 +442,12 @@ class MotionProblem:
             g_points = np.bincount(index.reshape(-1), g_local.reshape(-1), minlength=size)
             free = np.flatnonzero(self.free.reshape(-1))
             grad = g_points[free] * self.scale
-            hess = self._assemble(curv, local, free)
+            hess = self._assemble(curv, local)
             if self.power_model:
                 # J_phi's part alone (the composite SQP models J_e's |P| piecewise linearly instead)
                 rate_local = local[:, n_d:]
                 rate_hess = self._assemble((2 * a_phi * self.weights)[:, None] * np.ones(rate_local.shape[1]),
-                                           rate_local, free)
+                                           rate_local)
                 # the powers' derivatives with respect to x: (N n_d, n_x)
                 p_jac = self._scatter(np.repeat(index, n_d, axis=0), local[:, :n_d].reshape(n_s * n_d, -1))
                 p_weight = np.repeat(a_e * self.weights, n_d)
@@ -492,15 +490,20 @@ class MotionProblem:
         cols = self._column[entries]
         hit = cols >= 0
         out = np.zeros((entries.shape[0], self.n_x))
-        row, col, value = np.nonzero(hit)[0], cols[hit], values[hit] * self.scale[cols[hit]]
+        row, col = np.nonzero(hit)
+        col = cols[row, col]
+        value = values[hit] * self.scale[col]
         out[row, col] = value
         if not with_sparse:
             return out
         if self.n_x < SPARSE_FROM:
             return out, None
-        return out, sparse.csr_matrix((value, (row, col)), shape=out.shape)
+        # row by row, columns increasing (a row's entries are its segment's, in the points' order): the CSR
+        # arrays directly, without scipy's conversion from coordinates
+        indptr = np.concatenate([[0], np.cumsum(hit.sum(axis=1))])
+        return out, sparse.csr_matrix((value, col, indptr), shape=out.shape)
 
-    def _assemble(self, curvature, local, free) -> np.ndarray:
+    def _assemble(self, curvature, local) -> np.ndarray:
         """Sum over nodes i and quantities q of c_iq grad q_i grad q_i^T, for the free entries in x's scaling.
 
         ``curvature`` c (N, Q) >= 0 and ``local`` (N, Q, 10 n): the derivatives of node i's quantities
@@ -512,11 +515,19 @@ class MotionProblem:
         width = local.shape[-1]
         rows = (np.sqrt(curvature)[..., None] * local).reshape(m, -1, width)
         blocks = np.matmul(rows.transpose(0, 2, 1), rows)  # (m, 10 n, 10 n)
-        half = width // 2
-        h_points = np.zeros((self.points.size, self.points.size))
-        for s in range(m):
-            h_points[s * half:s * half + width, s * half:s * half + width] += blocks[s]
-        return h_points[np.ix_(free, free)] * np.outer(self.scale, self.scale)
+        # each block's entries added at their x indices (fixed entries dropped): one bincount
+        cols = self._segment_columns  # (m, 10 n), -1 where fixed
+        hit = (cols[:, :, None] >= 0) & (cols[:, None, :] >= 0)
+        flat = (cols[:, :, None] * self.n_x + cols[:, None, :])[hit]
+        h = np.bincount(flat, blocks[hit], minlength=self.n_x * self.n_x).reshape(self.n_x, self.n_x)
+        return h * np.outer(self.scale, self.scale)
+
+    @functools.cached_property
+    def _segment_columns(self) -> np.ndarray:
+        """The x index of each entry of each segment's two points (m, 10 n), -1 where fixed."""
+        half = N_DERIVS * self.points.shape[2]
+        start = np.arange(self.durations.size)[:, None] * half
+        return self._column[start + np.arange(2 * half)]
 
     def objective_terms(self, points) -> np.ndarray:
         """[J_e, J_phi] of given points on the grid (smoothed |.|, as the optimiser sees them)."""

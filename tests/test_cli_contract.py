@@ -309,7 +309,10 @@ def test_ctrl_c_prints_one_line_and_exits_130(tmp_path, signum):
     out = tmp_path / "out"
     out.mkdir()
     (out / "manifest.json").write_text("{}")  # a previous run
-    proc = subprocess.Popen([sys.executable, "-m", "fpr.plan", "--mission", "square", "--no-plots", "--out", str(out)],
+    # a mission that plans for seconds: the signal must reach the work, not the end of a fast plan (the square
+    # plans in about 0.4 s here, close to the half second this test waits)
+    proc = subprocess.Popen([sys.executable, "-m", "fpr.plan", "--mission", "cross-singularity", "--no-plots",
+                             "--out", str(out)],
                             cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while not _leftovers(tmp_path) and time.monotonic() < deadline and proc.poll() is None:

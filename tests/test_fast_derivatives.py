@@ -60,19 +60,6 @@ def test_truncations_share_the_cache_and_a_cached_result_serves_lower_orders(rob
         assert cached.order == 2
 
 
-def test_drone_centre_jacobians_are_the_centres(robot):
-    rng = np.random.default_rng(6)
-    rigid = robot.planar("rigid")
-    q = _complex_step(rng, (30, rigid.n), scale=1.0)
-    v = _complex_step(rng, (30, rigid.n), scale=1.0)
-    m, c, centres = rigid.mass_matrix_bias_and_centre_jacobians(q, v)
-    assert any(k is not None for k in rigid._centre_bodies)  # the shortcut is taken on these robots
-    for centre, jac in zip(rigid.drone_centres, centres):
-        assert jac.tobytes() == centre.jacobian(q).tobytes()
-    assert m.tobytes() == rigid.mass_matrix(q).tobytes()
-    assert c.tobytes() == rigid.bias(q, v).tobytes()
-
-
 def test_signed_rotor_speeds_carry_a_complex_step_derivative_and_keep_their_real_bits():
     """sign(w^2) sqrt(|w^2|): the same bits as before for real input (both signs and 0), and Im(f(w2 + ih))/h
     equal to the analytic derivative 1 / (2 sqrt(|w^2|)) (numpy's complex sign/abs would lose it)."""

@@ -163,21 +163,44 @@ def roll_torques(robot, q, v, thrust, roll_acceleration, external=None) -> np.nd
         tau_x of each drone, shape (N, n_d) [N m].
     """
     rigid = robot.planar("rigid")
-    m, c, centre_jacobians = rigid.mass_matrix_bias_and_centre_jacobians(q, v)
+    m, c, centre_jacobians = rigid.dynamics_and_centre_jacobians(q, v)  # (..., n_d, 2, n)
     sel = np.array(rigid.drone_angles)  # (n_d, n)
     gen = -c
     if external is not None:
         ext = external.value if isinstance(external, Jet) else np.asarray(external)
         gen = gen + np.concatenate([ext, np.zeros(ext.shape[:-1] + (gen.shape[-1] - ext.shape[-1],))], axis=-1)
-    for i, centre_jacobian in enumerate(centre_jacobians):
-        sin, cos = jets.sin_cos_value(q @ sel[i])
-        body_z = np.stack([-sin, cos], axis=-1)
-        gen = gen + np.einsum("...in,...i->...n", centre_jacobian, body_z) * thrust[..., i : i + 1]
-    rhs = np.concatenate([gen[..., None], np.broadcast_to(sel.T, m.shape[:-2] + sel.T.shape)], axis=-1)
-    sol = np.linalg.solve(m, rhs)  # M^-1 [B_f f - c, S^T]
-    drift = sol[..., 0] @ sel.T
-    a_tau = np.einsum("ij,...jk->...ik", sel, sol[..., 1:])
-    return np.linalg.solve(a_tau, (roll_acceleration - drift)[..., None])[..., 0]
+    sin, cos = jets.sin_cos_value(q @ sel.T)  # every drone at once
+    force = np.stack([-sin, cos], axis=-1) * thrust[..., None]  # thrust along each body z
+    gen = gen + np.einsum("...din,...di->...n", centre_jacobians, force)
+    return _roll_rows(m, gen, sel, roll_acceleration)
+
+
+def _roll_rows(m, gen, sel, roll_acceleration):
+    """tau = (S M^-1 S^T)^-1 (phi'' - S M^-1 g) by the partition of M into the chain (c) and the rolls (r).
+
+    With the rolls the coordinates S selects, (S M^-1 S^T)^-1 is the Schur complement M_rr - M_rc M_cc^-1 M_cr
+    and the formula is the roll rows of M a = g + S^T tau with the rolls' accelerations given: the chain's
+    acceleration is a_c = M_cc^-1 (g_c - M_cr phi''), and tau = M_rr phi'' + M_rc a_c - g_r (one solve of the
+    chain's size, one right-hand side). S is a selection of coordinates on the robots of this package; another
+    S falls back on the formula as written.
+    """
+    rolls = np.flatnonzero(np.any(sel != 0, axis=0))
+    if not (len(rolls) == len(sel) and np.array_equal(sel[:, rolls], np.eye(len(sel)))):
+        rhs = np.concatenate([gen[..., None], np.broadcast_to(sel.T, m.shape[:-2] + sel.T.shape)], axis=-1)
+        sol = np.linalg.solve(m, rhs)  # M^-1 [g, S^T]
+        a_tau = np.einsum("ij,...jk->...ik", sel, sol[..., 1:])
+        return np.linalg.solve(a_tau, (roll_acceleration - sol[..., 0] @ sel.T)[..., None])[..., 0]
+    chain = np.setdiff1d(np.arange(m.shape[-1]), rolls)
+    if np.array_equal(rolls, np.arange(len(chain), m.shape[-1])):  # [chain..., rolls...]: views, no copies
+        chain, rolls = slice(0, len(chain)), slice(len(chain), None)
+        m_cc, m_cr, m_rc, m_rr = m[..., chain, chain], m[..., chain, rolls], m[..., rolls, chain], m[..., rolls, rolls]
+    else:
+        m_cc, m_cr = m[..., chain[:, None], chain], m[..., chain[:, None], rolls]
+        m_rc, m_rr = m[..., rolls[:, None], chain], m[..., rolls[:, None], rolls]
+    rhs = gen[..., chain] - np.einsum("...ij,...j->...i", m_cr, roll_acceleration)
+    a_chain = np.linalg.solve(m_cc, rhs[..., None])[..., 0]
+    return (np.einsum("...ij,...j->...i", m_rr, roll_acceleration) + np.einsum("...ij,...j->...i", m_rc, a_chain)
+            - gen[..., rolls])
 
 
 def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
@@ -207,7 +230,7 @@ def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
     roll = jets.atan2(-fy, fz)
 
     point = robot.planar("point")
-    hinges = jets.stack([h.position_jet(s.truncate(2)) for h in point.hinges], axis=-2)  # (N, n_d, 2)
+    hinges = point.hinge_positions_jet(s.truncate(2))  # (N, n_d, 2)
     chain_force = force.value - robot.drone_masses[:, None] * (hinges.d[2] - np.array([0.0, -point.gravity]))
 
     q = np.concatenate([m[0], roll.value], axis=-1)

@@ -86,8 +86,22 @@ def sin_cos_value(a):
 
 
 def _leibniz(da, db, K, op=np.multiply):
-    """Derivatives of ``op(a, b)`` for a bilinear ``op``: sum_k C(n,k) op(a^(k), b^(n-k))."""
-    return np.stack([_wsum(_B[n, :n + 1], op(da[:n + 1], db[n::-1])) for n in range(K + 1)])
+    """Derivatives of ``op(a, b)`` for a bilinear ``op``: sum_k C(n,k) op(a^(k), b^(n-k)).
+
+    Elementwise products (the usual case) accumulate term by term into one preallocated array (no stacked
+    temporaries: the planner's complex-step batches are large); other ``op`` stack and weight."""
+    if op is not np.multiply:
+        return np.stack([_wsum(_B[n, :n + 1], op(da[:n + 1], db[n::-1])) for n in range(K + 1)])
+    out = np.empty((K + 1,) + np.broadcast_shapes(da.shape[1:], db.shape[1:]), np.result_type(da, db))
+    tmp = np.empty(out.shape[1:], out.dtype) if K else None
+    for n in range(K + 1):
+        np.multiply(da[0], db[n], out=out[n])
+        for k in range(1, n + 1):
+            np.multiply(da[k], db[n - k], out=tmp)
+            if _B[n, k] != 1:
+                tmp *= _B[n, k]
+            out[n] += tmp
+    return out
 
 
 def _add_const(d, c):

@@ -19,6 +19,10 @@ angle a^T q + b and a moment of inertia about x. Then
     c = \\sum_b m_b J_b^T (\\dot J_b \\dot q - g),\\qquad
     \\dot J_b \\dot q = -\\sum_k \\mathrm{Rot}(a_k^T q + b_k) v_k (a_k^T \\dot q)^2.
 
+The batched methods of :class:`PlanarModel` evaluate these sums as products of the features of the chain's
+distinct angles (:mod:`fpr.model.stacked`, one sine-cosine table per batch); :class:`PlanarPoint` keeps the
+per-point formulation, the reference the tests hold them to.
+
 Coordinates: FPR ``[y z phi q21 phi1 phi2]`` (rigid drones) or ``[y z phi q21]`` (point-mass or
 massless drones); prototype ``[q1 q2 phi1]`` or ``[q1 q2]``.
 """
@@ -33,6 +37,7 @@ import numpy as np
 from fpr.model import jets
 from fpr.model.errors import RobotDefinitionError
 from fpr.model.jets import Jet
+from fpr.model.stacked import StackedDynamics
 
 
 def _rotate(c, s, v):
@@ -249,52 +254,37 @@ class PlanarModel:
         return cls(names, bodies, hinges, centres, angles, float(-model.gravity.linear[2]))
 
     # ------------------------------------------------------------------ pointwise (batched) model
-    def _com_jacobians(self, q) -> list[np.ndarray]:
-        return [b.com.jacobian(q) for b in self.bodies]
-
-    def _mass_matrix(self, jacobians) -> np.ndarray:
-        m = np.zeros(jacobians[0].shape[:-2] + (self.n, self.n), jacobians[0].dtype)
-        for b, jac in zip(self.bodies, jacobians):
-            m += b.mass * np.swapaxes(jac, -1, -2) @ jac + b.inertia * np.outer(b.angle_row, b.angle_row)
-        return m
-
-    def _bias(self, q, v, jacobians) -> np.ndarray:
-        c = np.zeros(jacobians[0].shape[:-2] + (self.n,), np.result_type(jacobians[0], jets.inexact(v)))
-        for b, jac in zip(self.bodies, jacobians):
-            c += b.mass * np.einsum("...in,...i->...n", jac, b.com.bias(q, v) - self._g)
-        return c
+    @functools.cached_property
+    def stacked(self) -> StackedDynamics:
+        """The bodies, drone centres and hinges as one :class:`~fpr.model.stacked.StackedDynamics` (one table
+        of sines and cosines per batch, M and c as matrix products): what the methods below evaluate."""
+        return StackedDynamics(self)
 
     def mass_matrix(self, q) -> np.ndarray:
         """M(q), shape (..., n, n)."""
-        return self._mass_matrix(self._com_jacobians(q))
+        return self.stacked.mass_matrix_from(self.stacked.points.features(q))
 
     def bias(self, q, v) -> np.ndarray:
         """c(q, qdot): Coriolis, centrifugal and gravity terms, shape (..., n)."""
-        return self._bias(q, v, self._com_jacobians(q))
+        return self.stacked.bias_from(self.stacked.points.features(q), v)
 
     def mass_matrix_and_bias(self, q, v) -> tuple[np.ndarray, np.ndarray]:
-        """M(q) and c(q, qdot) together, the body Jacobians computed once."""
-        return self.mass_matrix_bias_and_centre_jacobians(q, v)[:2]
+        """M(q) and c(q, qdot) together, from one table of sines and cosines."""
+        features = self.stacked.points.features(q)
+        return self.stacked.mass_matrix_from(features), self.stacked.bias_from(features, v)
 
     def mass_matrix_bias_and_centre_jacobians(self, q, v) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
-        """M(q), c(q, qdot) and the Jacobians (..., 2, n) of the :attr:`drone_centres`, each point's
-        rotations evaluated once (a drone's centre is usually also a body's centre of mass)."""
-        both = [b.com.jacobian_and_bias(q, v) for b in self.bodies]
-        jacobians = [jac for jac, _ in both]
-        c = np.zeros(jacobians[0].shape[:-2] + (self.n,), np.result_type(jacobians[0], jets.inexact(v)))
-        for b, (jac, bias) in zip(self.bodies, both):
-            c += b.mass * np.einsum("...in,...i->...n", jac, bias - self._g)
-        centres = [centre.jacobian(q) if k is None else jacobians[k] for centre, k in zip(self.drone_centres,
-                                                                                           self._centre_bodies)]
-        return self._mass_matrix(jacobians), c, centres
+        """M(q), c(q, qdot) and the Jacobians (..., 2, n) of the :attr:`drone_centres`, from one table of sines
+        and cosines."""
+        m, c, centres = self.dynamics_and_centre_jacobians(q, v)
+        return m, c, [centres[..., i, :, :] for i in range(centres.shape[-3])]
 
-    @functools.cached_property
-    def _centre_bodies(self) -> list[int | None]:
-        """For each drone centre, the index of a body whose centre of mass is the same point (or None)."""
-        def same(a, b):
-            return all(np.array_equal(getattr(a, f), getattr(b, f)) for f in ("selector", "rows", "offsets", "vectors"))
-        return [next((k for k, b in enumerate(self.bodies) if same(centre, b.com)), None)
-                for centre in self.drone_centres]
+    def dynamics_and_centre_jacobians(self, q, v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`mass_matrix_bias_and_centre_jacobians` with the centres' Jacobians as one array (..., n_d, 2, n)."""
+        st = self.stacked
+        features = st.points.features(q)
+        return (st.mass_matrix_from(features), st.bias_from(features, v),
+                st.points.jacobians_from(features, "centres"))
 
     def inverse_dynamics(self, q, v, a) -> np.ndarray:
         """Generalised force M a + c, shape (..., n)."""
@@ -323,20 +313,21 @@ class PlanarModel:
             a Jet of order K - 2 and shape (..., n).
         """
         k = q.order - 2
-        qdd = q.derivative().derivative()
-        out = None
-        for b in self.bodies:
-            position, jac = b.com.position_and_jacobian_jet(q, k)
-            acc = position.derivative().derivative() - self._g
-            term = jets.matmul(jac.mT, acc[..., None])[..., 0] * b.mass
-            if b.inertia != 0:  # point masses (the planning model's drones) have none
-                term = term + Jet(np.multiply.outer(qdd.d @ b.angle_row, b.angle_row)) * b.inertia
-            out = term if out is None else out + term
-        return out
+        st = self.stacked
+        features = st.points.features_jet(q.truncate(k))
+        inertial = jets.matmul(st.mass_matrix_from(features), Jet(q.d[2:, ..., None]))[..., 0]
+        return inertial + st.bias_from(features, Jet(q.d[1:k + 2]))
 
     def hinge_jacobian_jet(self, q: Jet) -> Jet:
         """The hinge Jacobian along a motion, Jet of shape (..., 2 n_d, n)."""
-        return jets.concatenate([h.jacobian_jet(q) for h in self.hinges], axis=-2)
+        st = self.stacked
+        jac = st.points.jacobians_from(st.points.features_jet(q), "hinges")
+        return jac.reshape(jac.shape[:-3] + (-1, self.n))
+
+    def hinge_positions_jet(self, q: Jet) -> Jet:
+        """The hinges' positions along a motion, Jet of shape (..., n_d, 2) (same order as q)."""
+        st = self.stacked
+        return st.points.positions_from(q, st.points.features_jet(q), "hinges")
 
 
 def planar_configuration(robot, q) -> np.ndarray:
