@@ -1,8 +1,9 @@
 """Build of the optional C extensions of the closed loop's tick (issue 13): ``controllers._alloc`` (the
-allocation tick) and ``fpr.model._attitude`` (the numpy part of ``Robot.attitude_model``); everything else is
-in pyproject.toml. ``optional=True``: without a C compiler ``pip install`` still succeeds and
-:class:`controllers.allocation.Allocator` and :meth:`fpr.model.robot.Robot.attitude_model` use their Python
-paths. After changing a C source: ``python setup.py build_ext --inplace``."""
+allocation tick), ``fpr.model._attitude`` (the numpy part of ``Robot.attitude_model``) and ``fpr.sim._watch``
+(the watch's screen); everything else is in pyproject.toml. ``optional=True``: without a C compiler ``pip
+install`` still succeeds and :class:`controllers.allocation.Allocator`,
+:meth:`fpr.model.robot.Robot.attitude_model` and :class:`fpr.sim.watch.Watch` use their Python paths. After
+changing a C source: ``python setup.py build_ext --inplace``."""
 
 import numpy
 from setuptools import Extension, setup
@@ -10,4 +11,5 @@ from setuptools import Extension, setup
 setup(ext_modules=[Extension(name, [source], include_dirs=[numpy.get_include()], extra_compile_args=["-O2"],
                              optional=True)
                    for name, source in (("controllers._alloc", "controllers/_alloc.c"),
-                                        ("fpr.model._attitude", "fpr/model/_attitude.c"))])
+                                        ("fpr.model._attitude", "fpr/model/_attitude.c"),
+                                        ("fpr.sim._watch", "fpr/sim/_watch.c"))])
