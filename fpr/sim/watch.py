@@ -124,7 +124,8 @@ class Watch:
         if not closure_error <= closure:
             return True
         for (a, b, c), (d, e, f) in zip(linear, angular, strict=True):
-            if vc[a] ** 2 + vc[b] ** 2 + vc[c] ** 2 > speed or vc[d] ** 2 + vc[e] ** 2 + vc[f] ** 2 > rate:
+            if vc[a] * vc[a] + vc[b] * vc[b] + vc[c] * vc[c] > speed \
+                    or vc[d] * vc[d] + vc[e] * vc[e] + vc[f] * vc[f] > rate:  # x * x, as the C screen
                 return True
         if not math.isnan(lowest):  # the cosine of the tilt: third row of the drone's rotation . its axis
             for i, j, k, m, (ax, ay, az) in quaternions:
