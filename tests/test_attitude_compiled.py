@@ -9,12 +9,15 @@ definite, and the switch ``compiled_attitude`` selects, forbids or demands the c
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pinocchio as pin
 import pytest
 
 import fpr
 from fpr.model import robot as robot_module
+from fpr.model.robot import AttitudeModel
 from fpr.sim.plant import hover_configuration
 
 FIELDS = ("m_inv_a", "j_tau", "j_f", "a_tau", "c")
@@ -64,6 +67,22 @@ def test_compiled_attitude_model_is_the_python_path(name, spread):
         tol = 1e-15 * scale * np.abs(reference.m_inv_a).max() * np.abs(force).sum()
         np.testing.assert_allclose(compiled.attitude_acceleration(f, tau), reference.attitude_acceleration(f, tau),
                                    rtol=0, atol=tol)
+
+
+@needs_kernel
+def test_compiled_result_is_a_whole_attitude_model():
+    """Built without the dataclass' __init__: the same fields, frozen, and dataclasses.replace works on it (the
+    controller's wind term replaces c)."""
+    assert tuple(f.name for f in dataclasses.fields(AttitudeModel)) == robot_module._ATTITUDE_FIELDS
+    robot = fpr.load("fpr")
+    q, v = _states(robot, np.random.default_rng(9), 1, 0.1)[0]
+    model = robot.attitude_model(q, v)
+    assert type(model) is AttitudeModel and set(vars(model)) == set(robot_module._ATTITUDE_FIELDS)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        model.c = model.c
+    other = dataclasses.replace(model, c=model.c + 1.0)
+    np.testing.assert_array_equal(other.c, model.c + 1.0)
+    np.testing.assert_array_equal(other.a_tau, model.a_tau)
 
 
 @needs_kernel

@@ -115,6 +115,9 @@ class AttitudeModel:
         return self.m_inv_a.dot(self.j_tau.T.dot(tau) + self.j_f.T.dot(np.asarray(thrust, dtype=float)) - self.c)
 
 
+_ATTITUDE_FIELDS = ("m_inv_a", "j_tau", "j_f", "a_tau", "c")  # AttitudeModel's fields, in order
+
+
 class Robot:
     """A robot's Pinocchio model, used in the thesis' coordinates.
 
@@ -407,12 +410,16 @@ class Robot:
         nle = pin.nonLinearEffects(model, data, qp, vp)
         pin.computeJointJacobians(model, data, qp)
         pin.updateFramePlacements(model, data)
-        jacobians = tuple(pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in self.drone_frame_ids)
+        jacobians = tuple([pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in self.drone_frame_ids])
         if self.compiled_attitude is not False:
             if _attitude_kernel is not None and constants[-1] is not None:
                 out = _attitude_kernel.post(m, nle, jacobians, constants[-1])
                 if out is not None:  # else (M_p not positive definite: never) the Python path decides
-                    return AttitudeModel(*out)
+                    # the frozen dataclass without its __init__ (one object.__setattr__ per field): the same
+                    # object, about half the cost
+                    result = object.__new__(AttitudeModel)
+                    result.__dict__.update(zip(_ATTITUDE_FIELDS, out))
+                    return result
             elif self.compiled_attitude:
                 raise RuntimeError("Robot.compiled_attitude = True: the compiled attitude model "
                                    "(fpr/model/_attitude.c) is not built or does not fit this robot; build it "
