@@ -9,8 +9,8 @@ that the C code rounds as its Python reference does, operation by operation."""
 import numpy
 from setuptools import Extension, setup
 
-setup(ext_modules=[Extension(name, [source], include_dirs=[numpy.get_include()], extra_compile_args=["-O2", "-ffp-contract=off"],
-                             optional=True)
+setup(ext_modules=[Extension(name, [source], include_dirs=[numpy.get_include(), "."], depends=["fpr/model/_dense.h"],
+                             extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)
                    for name, source in (("controllers._alloc", "controllers/_alloc.c"),
                                         ("fpr.model._attitude", "fpr/model/_attitude.c"),
                                         ("fpr.sim._watch", "fpr/sim/_watch.c"))])

@@ -33,6 +33,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "fpr/model/_dense.h"  /* cholesky, cholesky_solve */
+
 #define MAX_N 32    /* rotor variables (8 drones) */
 #define MAX_A 24    /* attitude rows */
 #define MAX_V 64    /* coordinates */
@@ -73,40 +75,6 @@ static int view(PyObject *obj, int ndim, View *v)
 }
 
 #define AT(v, i, j) (*(const double *)((v).data + (i) * (v).s0 + (j) * (v).s1))
-
-/* Cholesky A = R^T R of the k x k matrix a (leading dimension lda), its upper triangle read as LAPACK's posv;
- * R's upper triangle into r (leading dimension k). 0 when not positive definite. */
-static int cholesky(const double *a, int lda, int k, double *r)
-{
-    for (int j = 0; j < k; j++) {
-        double d = a[j * lda + j];
-        for (int p = 0; p < j; p++) d -= r[p * k + j] * r[p * k + j];
-        if (!(d > 0.0)) return 0;
-        double rjj = sqrt(d);
-        r[j * k + j] = rjj;
-        for (int i = j + 1; i < k; i++) {
-            double s = a[j * lda + i];
-            for (int p = 0; p < j; p++) s -= r[p * k + j] * r[p * k + i];
-            r[j * k + i] = s / rjj;
-        }
-    }
-    return 1;
-}
-
-/* x (in place) := (R^T R)^-1 x, R from cholesky (k x k). */
-static void cholesky_solve(const double *r, int k, double *x)
-{
-    for (int i = 0; i < k; i++) {
-        double s = x[i];
-        for (int p = 0; p < i; p++) s -= r[p * k + i] * x[p];
-        x[i] = s / r[i * k + i];
-    }
-    for (int i = k - 1; i >= 0; i--) {
-        double s = x[i];
-        for (int p = i + 1; p < k; p++) s -= r[i * k + p] * x[p];
-        x[i] = s / r[i * k + i];
-    }
-}
 
 /* box_qp.solve_box_qp_state: min 0.5 x^T H x + g^T x over [0, 1]^n (H n x n, row-major, symmetric), from
  * the guess `state` (updated in place on success). Returns the iterations, 0 when the guesses cycled or a

@@ -20,6 +20,8 @@
 #include <numpy/arrayobject.h>
 #include <math.h>
 
+#include "fpr/model/_dense.h"  /* cholesky, cholesky_solve */
+
 #define MAX_V 64     /* coordinates */
 #define MAX_D 16     /* drones */
 #define HEADER 3
@@ -87,23 +89,14 @@ static PyObject *post(PyObject *self, PyObject *args)
     for (int d = 0; d < nd; d++)
         if (!view(PyTuple_GET_ITEM(o_j, d), 6, n, &jv[d])) goto done;
 
-    /* Cholesky M_p = R^T R (R upper, row-major), M_p's upper triangle read */
-    double r[MAX_V * MAX_V];
-    for (int j = 0; j < n; j++) {
-        double s = AT(mv, j, j);
-        for (int p = 0; p < j; p++) s -= r[p * n + j] * r[p * n + j];
-        if (!(s > 0.0)) {  /* not positive definite, or not finite: the Python path decides */
-            result = Py_None;
-            Py_INCREF(result);
-            goto done;
-        }
-        const double rjj = sqrt(s);
-        r[j * n + j] = rjj;
-        for (int i = j + 1; i < n; i++) {
-            double u = AT(mv, j, i);
-            for (int p = 0; p < j; p++) u -= r[p * n + j] * r[p * n + i];
-            r[j * n + i] = u / rjj;
-        }
+    /* Cholesky M_p = R^T R (R upper, row-major), M_p's upper triangle read (copied contiguous) */
+    double mp[MAX_V * MAX_V], r[MAX_V * MAX_V];
+    for (int i = 0; i < n; i++)
+        for (int j = i; j < n; j++) mp[i * n + j] = AT(mv, i, j);
+    if (!cholesky(mp, n, n, r)) {  /* not positive definite, or not finite: the Python path decides */
+        result = Py_None;
+        Py_INCREF(result);
+        goto done;
     }
     double *mi, *jt, *jf, *at, *cc;
     if ((o_mi = new_array(na, n, &mi)) == NULL || (o_jt = new_array(nt, n, &jt)) == NULL
@@ -130,16 +123,8 @@ static PyObject *post(PyObject *self, PyObject *args)
     for (int a = 0; a < na; a++) {
         double x[MAX_V];
         const double *rhs = t_inv + (int)idx[a] * n;
-        for (int i = 0; i < n; i++) {
-            double s = rhs[i];
-            for (int p = 0; p < i; p++) s -= r[p * n + i] * x[p];
-            x[i] = s / r[i * n + i];
-        }
-        for (int i = n - 1; i >= 0; i--) {
-            double s = x[i];
-            for (int p = i + 1; p < n; p++) s -= r[i * n + p] * x[p];
-            x[i] = s / r[i * n + i];
-        }
+        for (int i = 0; i < n; i++) x[i] = rhs[i];
+        cholesky_solve(r, n, x);
         for (int i = 0; i < n; i++) {
             double s = 0.0;
             for (int j = 0; j < n; j++) s += t_inv[i * n + j] * x[j];
