@@ -33,7 +33,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "fpr/model/_dense.h"  /* cholesky, cholesky_solve */
+#include "fpr/model/_dense.h"  /* View, view, AT, cholesky, cholesky_solve */
 
 #define MAX_N 32    /* rotor variables (8 drones) */
 #define MAX_A 24    /* attitude rows */
@@ -43,38 +43,6 @@
 #define AT_UPPER 2
 #define HEADER 6
 
-typedef struct {
-    PyArrayObject *array;
-    const char *data;
-    npy_intp rows, cols, s0, s1;
-} View;
-
-/* A float64 view of obj with `ndim` dimensions (1: a row vector of `cols`); 0 on a wrong type or shape. */
-static int view(PyObject *obj, int ndim, View *v)
-{
-    v->array = (PyArrayObject *)PyArray_FROM_OTF(obj, NPY_DOUBLE, NPY_ARRAY_ALIGNED);
-    if (v->array == NULL) return 0;
-    if (PyArray_NDIM(v->array) != ndim) {
-        PyErr_Format(PyExc_ValueError, "expected a %d-d array", ndim);
-        Py_CLEAR(v->array);
-        return 0;
-    }
-    v->data = PyArray_BYTES(v->array);
-    if (ndim == 2) {
-        v->rows = PyArray_DIM(v->array, 0);
-        v->cols = PyArray_DIM(v->array, 1);
-        v->s0 = PyArray_STRIDE(v->array, 0);
-        v->s1 = PyArray_STRIDE(v->array, 1);
-    } else {
-        v->rows = 1;
-        v->cols = PyArray_DIM(v->array, 0);
-        v->s0 = 0;
-        v->s1 = PyArray_STRIDE(v->array, 0);
-    }
-    return 1;
-}
-
-#define AT(v, i, j) (*(const double *)((v).data + (i) * (v).s0 + (j) * (v).s1))
 
 /* box_qp.solve_box_qp_state: min 0.5 x^T H x + g^T x over [0, 1]^n (H n x n, row-major, symmetric), from
  * the guess `state` (updated in place on success). Returns the iterations, 0 when the guesses cycled or a

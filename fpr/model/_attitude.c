@@ -20,40 +20,26 @@
 #include <numpy/arrayobject.h>
 #include <math.h>
 
-#include "fpr/model/_dense.h"  /* cholesky, cholesky_solve */
+#include "fpr/model/_dense.h"  /* View, view, AT, cholesky, cholesky_solve */
 
 #define MAX_V 64     /* coordinates */
 #define MAX_D 16     /* drones */
 #define HEADER 3
 
-typedef struct {
-    PyArrayObject *array;
-    const char *data;
-    npy_intp rows, cols, s0, s1;
-} View;
-
-/* A float64 view of obj of shape (rows, cols) (cols 0: a vector of `rows`); 0 on a wrong type or shape. */
-static int view(PyObject *obj, npy_intp rows, npy_intp cols, View *v)
+/* A float64 view (any strides) of obj of shape (rows, cols) (cols 0: a vector of `rows`); 0 on a wrong type or
+ * shape. Vectors are read as AT(v, 0, j) (_dense.h's row vectors). */
+static int shaped_view(PyObject *obj, npy_intp rows, npy_intp cols, View *v)
 {
-    v->array = (PyArrayObject *)PyArray_FROM_OTF(obj, NPY_DOUBLE, NPY_ARRAY_ALIGNED);
-    if (v->array == NULL) return 0;
-    const int ndim = cols ? 2 : 1;
-    if (PyArray_NDIM(v->array) != ndim || PyArray_DIM(v->array, 0) != rows
-        || (ndim == 2 && PyArray_DIM(v->array, 1) != cols)) {
+    if (!view(obj, cols ? 2 : 1, v)) return 0;
+    if (cols ? (v->rows != rows || v->cols != cols) : v->cols != rows) {
         PyErr_Format(PyExc_ValueError, "post: expected an array of shape (%zd, %zd)", (Py_ssize_t)rows,
                      (Py_ssize_t)cols);
         Py_CLEAR(v->array);
         return 0;
     }
-    v->data = PyArray_BYTES(v->array);
-    v->rows = rows;
-    v->cols = cols;
-    v->s0 = PyArray_STRIDE(v->array, 0);
-    v->s1 = ndim == 2 ? PyArray_STRIDE(v->array, 1) : 0;
     return 1;
 }
 
-#define AT(v, i, j) (*(const double *)((v).data + (i) * (v).s0 + (j) * (v).s1))
 
 static PyObject *new_array(int rows, int cols, double **data)
 {
@@ -85,9 +71,9 @@ static PyObject *post(PyObject *self, PyObject *args)
 
     View mv = {0}, cv = {0}, jv[MAX_D] = {{0}};
     PyObject *result = NULL, *o_mi = NULL, *o_jt = NULL, *o_jf = NULL, *o_at = NULL, *o_cc = NULL;
-    if (!view(o_m, n, n, &mv) || !view(o_c, n, 0, &cv)) goto done;
+    if (!shaped_view(o_m, n, n, &mv) || !shaped_view(o_c, n, 0, &cv)) goto done;
     for (int d = 0; d < nd; d++)
-        if (!view(PyTuple_GET_ITEM(o_j, d), 6, n, &jv[d])) goto done;
+        if (!shaped_view(PyTuple_GET_ITEM(o_j, d), 6, n, &jv[d])) goto done;
 
     /* Cholesky M_p = R^T R (R upper, row-major), M_p's upper triangle read (copied contiguous) */
     double mp[MAX_V * MAX_V], r[MAX_V * MAX_V];
@@ -106,7 +92,7 @@ static PyObject *post(PyObject *self, PyObject *args)
     /* c = T^T nle_p */
     for (int i = 0; i < n; i++) {
         double s = 0.0;
-        for (int j = 0; j < n; j++) s += t[j * n + i] * AT(cv, j, 0);
+        for (int j = 0; j < n; j++) s += t[j * n + i] * AT(cv, 0, j);
         cc[i] = s;
     }
     /* each drone's rows of J T: thrust (row 2), torques (rows 3-5) */
