@@ -13,6 +13,13 @@
  *   singular block, an input not finite): the caller then runs the Python path (its pinv builder, ProxQP).
  * box_qp(h, g, state, max_iterations, tolerance): solve_box_qp_state alone (for the tests):
  *   (x list, state tuple, iterations) or None.
+ * inner(q, v, force, roll_rate, roll_acceleration, constants): the float part of controllers/ctc.py's inner
+ *   loop (CascadedController._inner_python, the same operations in the same order): the desired rolls
+ *   atan2(-F_y, F_z), the thrusts b_z(phi_i) . F_i - m_i d_i phi_i'^2, the pitch reference of the lateral loop
+ *   and u_a; returns (thrust (n_d,), u_a (n_a,), roll_desired (n_d,), pitch). `constants`
+ *   (CascadedController._inner_constants): n_d, lateral flag, x index, K_p and K_d of the lateral loop, its
+ *   sensitivity, max pitch, then the rolls' indices (n_d), the attitude indices (n_a = 2 + n_d), m_i d_i
+ *   (n_d), K_pa (n_a), K_da (n_a).
  *
  * `constants` (Allocator._kernel_constants, one float64 vector): n_d, n_a, w_max^2, saturation tolerance,
  * epsilon, unit-weight flag, then W_a (n_a), R_f^-1's thrust columns (n, n_d) and torque columns (n, 3 n_d),
@@ -26,6 +33,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "fpr/model/_dense.h"  /* View, view, AT, cholesky, cholesky_solve */
+
 #define MAX_N 32    /* rotor variables (8 drones) */
 #define MAX_A 24    /* attitude rows */
 #define MAX_V 64    /* coordinates */
@@ -34,72 +43,6 @@
 #define AT_UPPER 2
 #define HEADER 6
 
-typedef struct {
-    PyArrayObject *array;
-    const char *data;
-    npy_intp rows, cols, s0, s1;
-} View;
-
-/* A float64 view of obj with `ndim` dimensions (1: a row vector of `cols`); 0 on a wrong type or shape. */
-static int view(PyObject *obj, int ndim, View *v)
-{
-    v->array = (PyArrayObject *)PyArray_FROM_OTF(obj, NPY_DOUBLE, NPY_ARRAY_ALIGNED);
-    if (v->array == NULL) return 0;
-    if (PyArray_NDIM(v->array) != ndim) {
-        PyErr_Format(PyExc_ValueError, "expected a %d-d array", ndim);
-        Py_CLEAR(v->array);
-        return 0;
-    }
-    v->data = PyArray_BYTES(v->array);
-    if (ndim == 2) {
-        v->rows = PyArray_DIM(v->array, 0);
-        v->cols = PyArray_DIM(v->array, 1);
-        v->s0 = PyArray_STRIDE(v->array, 0);
-        v->s1 = PyArray_STRIDE(v->array, 1);
-    } else {
-        v->rows = 1;
-        v->cols = PyArray_DIM(v->array, 0);
-        v->s0 = 0;
-        v->s1 = PyArray_STRIDE(v->array, 0);
-    }
-    return 1;
-}
-
-#define AT(v, i, j) (*(const double *)((v).data + (i) * (v).s0 + (j) * (v).s1))
-
-/* Cholesky A = R^T R of the k x k matrix a (leading dimension lda), its upper triangle read as LAPACK's posv;
- * R's upper triangle into r (leading dimension k). 0 when not positive definite. */
-static int cholesky(const double *a, int lda, int k, double *r)
-{
-    for (int j = 0; j < k; j++) {
-        double d = a[j * lda + j];
-        for (int p = 0; p < j; p++) d -= r[p * k + j] * r[p * k + j];
-        if (!(d > 0.0)) return 0;
-        double rjj = sqrt(d);
-        r[j * k + j] = rjj;
-        for (int i = j + 1; i < k; i++) {
-            double s = a[j * lda + i];
-            for (int p = 0; p < j; p++) s -= r[p * k + j] * r[p * k + i];
-            r[j * k + i] = s / rjj;
-        }
-    }
-    return 1;
-}
-
-/* x (in place) := (R^T R)^-1 x, R from cholesky (k x k). */
-static void cholesky_solve(const double *r, int k, double *x)
-{
-    for (int i = 0; i < k; i++) {
-        double s = x[i];
-        for (int p = 0; p < i; p++) s -= r[p * k + i] * x[p];
-        x[i] = s / r[i * k + i];
-    }
-    for (int i = k - 1; i >= 0; i--) {
-        double s = x[i];
-        for (int p = i + 1; p < k; p++) s -= r[i * k + p] * x[p];
-        x[i] = s / r[i * k + i];
-    }
-}
 
 /* box_qp.solve_box_qp_state: min 0.5 x^T H x + g^T x over [0, 1]^n (H n x n, row-major, symmetric), from
  * the guess `state` (updated in place on success). Returns the iterations, 0 when the guesses cycled or a
@@ -414,10 +357,90 @@ done:
     return result;
 }
 
+#define INNER_HEADER 7
+
+/* sin, cos and x ** 2 called as Python calls them: through pointers the compiler cannot see through, so that
+ * it does not fuse sin and cos into one sincos call nor turn pow(x, 2) into x * x, each of which may round
+ * differently in the last bit (Python's x ** 2 is libm's pow) */
+static double (*volatile libm_sin)(double) = sin;
+static double (*volatile libm_cos)(double) = cos;
+static double (*volatile libm_pow)(double, double) = pow;
+
+static PyObject *inner(PyObject *self, PyObject *args)
+{
+    PyObject *o[5], *o_k;
+    if (!PyArg_UnpackTuple(args, "inner", 6, 6, &o[0], &o[1], &o[2], &o[3], &o[4], &o_k)) return NULL;
+    if (!PyArray_Check(o_k) || PyArray_TYPE((PyArrayObject *)o_k) != NPY_DOUBLE
+        || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o_k) || PyArray_SIZE((PyArrayObject *)o_k) < INNER_HEADER) {
+        PyErr_SetString(PyExc_TypeError, "inner: constants must be a contiguous float64 vector");
+        return NULL;
+    }
+    const double *k = (const double *)PyArray_DATA((PyArrayObject *)o_k);
+    const int nd = (int)k[0], na = nd + 2, lateral = k[1] != 0.0, ix = (int)k[2];
+    const double kp_lat = k[3], kd_lat = k[4], pitch_gain = k[5], max_pitch = k[6];
+    View qv = {0}, vv = {0}, fv = {0}, rv = {0}, av = {0};
+    PyObject *result = NULL;
+    if (nd < 1 || nd > MAX_A - 2 || PyArray_SIZE((PyArrayObject *)o_k) != INNER_HEADER + nd + na + nd + 2 * na) {
+        PyErr_SetString(PyExc_ValueError, "inner: the constants vector does not fit its header");
+        return NULL;
+    }
+    const double *rolls = k + INNER_HEADER, *att = rolls + nd, *md = att + na, *kp = md + nd, *kd = kp + na;
+    if (!view(o[0], 1, &qv) || !view(o[1], 1, &vv) || !view(o[2], 2, &fv) || !view(o[3], 1, &rv)
+        || !view(o[4], 1, &av))
+        goto done;
+    const npy_intp n = qv.cols;
+    int ok = vv.cols == n && fv.rows == nd && fv.cols == 2 && rv.cols == nd && av.cols == nd
+             && (!lateral || (ix >= 0 && ix < n));
+    for (int i = 0; i < nd; i++) ok = ok && rolls[i] >= 0 && rolls[i] < n;
+    for (int i = 0; i < na; i++) ok = ok && att[i] >= 0 && att[i] < n;
+    if (!ok) {
+        PyErr_SetString(PyExc_ValueError, "inner: q, v, force, roll_rate or roll_acceleration do not fit");
+        goto done;
+    }
+    double thrust[MAX_A], u_a[MAX_A], target[MAX_A], rate[MAX_A], acc[MAX_A];
+    for (int i = 0; i < nd; i++) {
+        const double fy = AT(fv, i, 0), fz = AT(fv, i, 1), phi = AT(qv, 0, (npy_intp)rolls[i]),
+                     dphi = AT(vv, 0, (npy_intp)rolls[i]);
+        target[2 + i] = atan2(-fy, fz);  /* (2.20) */
+        thrust[i] = -libm_sin(phi) * fy + libm_cos(phi) * fz - md[i] * libm_pow(dphi, 2.0);
+        rate[2 + i] = AT(rv, 0, i);
+        acc[2 + i] = AT(av, 0, i);
+    }
+    double pitch = 0.0;
+    if (lateral) {
+        pitch = (-kp_lat * AT(qv, 0, ix) - kd_lat * AT(vv, 0, ix)) / pitch_gain;
+        if (-max_pitch > pitch) pitch = -max_pitch;  /* min(max(pitch, -max_pitch), max_pitch), as Python's */
+        if (max_pitch < pitch) pitch = max_pitch;
+    }
+    target[0] = 0.0, target[1] = pitch, rate[0] = rate[1] = acc[0] = acc[1] = 0.0;
+    for (int a = 0; a < na; a++) {
+        const npy_intp i = (npy_intp)att[a];
+        double error = AT(qv, 0, i) - target[a];
+        if (a >= 2) error = remainder(error, 2 * M_PI);  /* rolls: the shortest angle */
+        u_a[a] = acc[a] - kp[a] * error - kd[a] * (AT(vv, 0, i) - rate[a]);
+    }
+    PyObject *o_t = new_array(nd, 0, thrust, 1.0), *o_u = new_array(na, 0, u_a, 1.0),
+             *o_r = new_array(nd, 0, target + 2, 1.0);
+    if (o_t != NULL && o_u != NULL && o_r != NULL) result = Py_BuildValue("NNNd", o_t, o_u, o_r, pitch);
+    else {
+        Py_XDECREF(o_t);
+        Py_XDECREF(o_u);
+        Py_XDECREF(o_r);
+    }
+done:
+    Py_XDECREF(qv.array);
+    Py_XDECREF(vv.array);
+    Py_XDECREF(fv.array);
+    Py_XDECREF(rv.array);
+    Py_XDECREF(av.array);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"tick", tick, METH_VARARGS, "One allocation tick (see the module's C source): a tuple or None."},
     {"box_qp", box_qp, METH_VARARGS, "box_qp(h, g, state, max_iterations=12, tolerance=1e-12): "
                                      "controllers.box_qp.solve_box_qp_state in C."},
+    {"inner", inner, METH_VARARGS, "The inner loop's float part (see the module's C source): a tuple."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "controllers._alloc",

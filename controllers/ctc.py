@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from controllers.allocation import AllocationResult, Allocator
+from controllers.allocation import AllocationResult, Allocator, _load_kernel
 from fpr.model.inverse_dynamics import inverse_dynamics
 
 
@@ -287,28 +287,35 @@ class CascadedController:
         return dataclasses.replace(attitude, c=attitude.c - q_ext)
 
     def _attitude_gains(self) -> tuple[np.ndarray, np.ndarray]:
-        """K_pa, K_da of q_a = [psi, theta, rolls...], rebuilt only when the settings change."""
+        """K_pa, K_da of q_a = [psi, theta, rolls...], rebuilt only when the settings change; with them the
+        compiled inner loop's constants (``controllers/_alloc.c``'s ``inner``: n_d, the lateral loop, the
+        indices, m_i d_i, K_pa, K_da), as ``self._gains = (key, kp, kd, kp list, kd list, constants)``."""
         st = self.settings
-        key = (st.orientation_frequency, st.orientation_damping, st.attitude_frequency, st.attitude_damping)
+        key = (st.orientation_frequency, st.orientation_damping, st.attitude_frequency, st.attitude_damping,
+               st.lateral_frequency, st.lateral_damping, st.max_pitch)
         if self._gains is None or self._gains[0] != key:
             n = len(self.rolls)
             kp = np.array([st.orientation_frequency**2] * 2 + [st.attitude_frequency**2] * n)
             kd = np.array([2 * st.orientation_damping * st.orientation_frequency] * 2
                           + [2 * st.attitude_damping * st.attitude_frequency] * n)
-            self._gains = (key, kp, kd, kp.tolist(), kd.tolist())  # the lists for update's loop on floats
+            constants = np.concatenate([
+                [n, float(self.lateral), self._x if self.lateral else -1, st.lateral_frequency**2,
+                 2 * st.lateral_damping * st.lateral_frequency, self._pitch_gain, st.max_pitch],
+                self.rolls, self.attitude, self._mass_offset, kp, kd]).astype(float)
+            self._gains = (key, kp, kd, kp.tolist(), kd.tolist(), constants)  # lists: _inner_python's loop
         return self._gains[1], self._gains[2]
 
-    def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
-        """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""
+    #: the inner loop's float part compiled (``controllers/_alloc.c``'s ``inner``): None (default) when the
+    #: extension is built, else :meth:`_inner_python`; False: always the Python part (the reference); True: the
+    #: compiled part, an error when it is not built. Set it on a controller or on the class.
+    compiled_inner = None
+
+    def _inner_python(self, q, v, reference: Reference):
+        """The inner loop's float part in Python: (thrust f_i (n_d,), u_a (n_a,), roll_desired (n_d,), pitch
+        reference) from the measured state, the held outer-loop force and the reference's roll feed-forward.
+        The reference of the compiled part (the same operations in the same order: the same bits)."""
         st = self.settings
-        if self._force is None or t - self._last_outer >= 1.0 / st.outer_rate - 1e-9:
-            if np.isfinite(self._last_outer):
-                error = q[self.chain] - reference.motion[0]
-                self._integral = np.minimum(np.maximum(self._integral + error * (t - self._last_outer),
-                                                    -st.integral_limit), st.integral_limit)  # np.clip
-            self._force = self.outer(q, v, reference)
-            self._last_outer = t
-        # The inner loop on floats: a few numbers each, where every numpy call costs a microsecond or more.
+        # on floats: a few numbers each, where every numpy call costs a microsecond or more
         ql, vl = q.tolist(), v.tolist()
         rolls, attitude = self._roll_list, self._attitude_list
         force = self._force.tolist()
@@ -334,14 +341,47 @@ class CascadedController:
             if k >= 2:  # rolls: the shortest angle
                 error = math.remainder(error, _TWO_PI)
             u_a.append(acc_k - kp_k * error - kd_k * (vl[i] - rate_k))
-        u_a = np.array(u_a)
-        thrust = np.array(thrust)
+        return np.array(thrust), np.array(u_a), np.array(roll_desired), pitch
+
+    def _inner_kernel(self):
+        """The compiled inner loop's function, or None for :meth:`_inner_python` (``compiled_inner``)."""
+        if self.compiled_inner is not False:
+            module = _load_kernel()
+            kernel = getattr(module, "inner", None)
+            if kernel is not None and len(self.attitude) <= module.MAX_ATTITUDE:
+                return kernel
+            if self.compiled_inner:
+                raise RuntimeError("CascadedController.compiled_inner = True: the compiled inner loop "
+                                   "(controllers/_alloc.c) is not built or does not fit this robot; build it with "
+                                   "`pip install -e .` (a C compiler is needed) or `python setup.py build_ext "
+                                   "--inplace`")
+        return None
+
+    def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
+        """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""
+        st = self.settings
+        if self._force is None or t - self._last_outer >= 1.0 / st.outer_rate - 1e-9:
+            if np.isfinite(self._last_outer):
+                error = q[self.chain] - reference.motion[0]
+                self._integral = np.minimum(np.maximum(self._integral + error * (t - self._last_outer),
+                                                    -st.integral_limit), st.integral_limit)  # np.clip
+            self._force = self.outer(q, v, reference)
+            self._last_outer = t
+        kernel = self.__dict__.get("_inner")
+        if kernel is None or kernel[0] != self.compiled_inner:
+            kernel = self._inner = (self.compiled_inner, self._inner_kernel())
+        if kernel[1] is not None:  # in C: the same bits as _inner_python
+            self._attitude_gains()  # its constants up to date, in self._gains
+            thrust, u_a, roll_desired, pitch = kernel[1](q, v, self._force, reference.roll_rate,
+                                                         reference.roll_acceleration, self._gains[5])
+        else:
+            thrust, u_a, roll_desired, pitch = self._inner_python(q, v, reference)
         attitude = self.robot.attitude_model(q, v)
         if reference.task_force is not None or reference.drone_forces is not None:  # the known wind (2.12)
             attitude = self._attitude_in_wind(attitude, reference.task_force, reference.drone_forces)
         allocation = self.allocator.solve(attitude, thrust, u_a)
         speeds = np.sqrt(np.maximum(allocation.speeds_squared, 0.0))
-        return ControlOutput(speeds, allocation, self._force, np.array(roll_desired), thrust, u_a, pitch)
+        return ControlOutput(speeds, allocation, self._force, roll_desired, thrust, u_a, pitch)
 
 
 _TWO_PI = 2 * math.pi

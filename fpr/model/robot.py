@@ -44,6 +44,11 @@ logger = logging.getLogger(__name__)
 
 _posv = lapack.dposv
 
+try:  # the numpy part of Robot.attitude_model in C (setup.py builds it when a compiler is there)
+    from fpr.model import _attitude as _attitude_kernel
+except ImportError:
+    _attitude_kernel = None
+
 
 @dataclass(frozen=True)
 class Layout:
@@ -108,6 +113,9 @@ class AttitudeModel:
         """qddot_a for thrusts f (n_d,) [N] and torques tau (n_d, 3) [N m] (seed 2.12)."""
         tau = np.asarray(torque, dtype=float).reshape(-1)
         return self.m_inv_a.dot(self.j_tau.T.dot(tau) + self.j_f.T.dot(np.asarray(thrust, dtype=float)) - self.c)
+
+
+_ATTITUDE_FIELDS = ("m_inv_a", "j_tau", "j_f", "a_tau", "c")  # AttitudeModel's fields, in order
 
 
 class Robot:
@@ -382,28 +390,71 @@ class Robot:
         """Gravitational potential energy, zero at z = 0 [J]."""
         return float(pin.computePotentialEnergy(self.model, self.data, self._q(q)))
 
+    #: the numpy part of :meth:`attitude_model` compiled (``fpr/model/_attitude.c``): None (default) when the
+    #: extension is built, else the Python path; False: always the Python path (the reference); True: the
+    #: compiled part, an error when it is not built. Set it on a robot or on the class.
+    compiled_attitude: bool | None = None
+
     def attitude_model(self, q, v) -> AttitudeModel:
         """The attitude model of seed 2.12-2.13 at (q, qdot)."""
         # Speed (the controller calls this at every inner-loop tick; each numpy call costs a microsecond or
         # more on these small arrays): the same quantities as mass_matrix, nonlinear_effects and
-        # drone_jacobians with fewer calls. Only the n_a needed rows of M^-1, from Pinocchio's M_p (upper
-        # triangle, as CRBA fills it and as LAPACK's posv reads it) without forming M = T^T M_p T:
-        # M^-1 = T^-1 M_p^-1 T^-T, so the rows a of M^-1 are (T^-1 X)^T with M_p X = (T^-1)[a]^T.
-        # Same values to round-off (4e-16 relative on m_inv_a).
-        cached = self.__dict__.get("_attitude_constants")
-        if cached is None:  # built once: (T^-1)[a]^T, the drones' frames, the Jacobian rows of f and tau
-            rows = np.arange(6 * self.n_drones).reshape(self.n_drones, 6)
-            cached = self.__dict__["_attitude_constants"] = (
-                np.ascontiguousarray(self.T_inv[self.indices(self.layout.attitude)].T), self.drone_frame_ids,
-                rows[:, 2].copy(), rows[:, 3:].reshape(-1).copy())
-        rhs, frames, f_rows, tau_rows = cached
+        # drone_jacobians with fewer calls, from one Pinocchio pass (CRBA, RNEA, the joint Jacobians; the
+        # pass leaves its Jacobians in ``data`` for the controller's wind term). The rest, from Pinocchio's
+        # outputs, in C when built (fpr/model/_attitude.c, about 3 times cheaper than the numpy calls of
+        # _attitude_python, its reference, equal to round-off: tests/test_fast_paths.py).
+        constants = self.__dict__.get("_attitude_constants") or self._build_attitude_constants()
         t, model, data = self.T, self.model, self.data
         qp, vp = t.dot(check_shape("q", q, (self.nq,))), t.dot(check_shape("v", v, (self.nq,)))
         m = pin.crba(model, data, qp)
-        c = t.T.dot(pin.nonLinearEffects(model, data, qp, vp))
+        nle = pin.nonLinearEffects(model, data, qp, vp)
         pin.computeJointJacobians(model, data, qp)
         pin.updateFramePlacements(model, data)
-        jac = np.vstack([pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in frames]).dot(t)
+        jacobians = tuple([pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in self.drone_frame_ids])
+        if self.compiled_attitude is not False:
+            if _attitude_kernel is not None and constants[-1] is not None:
+                out = _attitude_kernel.post(m, nle, jacobians, constants[-1])
+                if out is not None:  # else (M_p not positive definite: never) the Python path decides
+                    # the frozen dataclass without its __init__ (one object.__setattr__ per field): the same
+                    # object, about half the cost
+                    result = object.__new__(AttitudeModel)
+                    result.__dict__.update(zip(_ATTITUDE_FIELDS, out))
+                    return result
+            elif self.compiled_attitude:
+                raise RuntimeError("Robot.compiled_attitude = True: the compiled attitude model "
+                                   "(fpr/model/_attitude.c) is not built or does not fit this robot; build it "
+                                   "with `pip install -e .` (a C compiler is needed) or `python setup.py "
+                                   "build_ext --inplace`")
+        return self._attitude_python(m, nle, jacobians)
+
+    def _build_attitude_constants(self) -> tuple:
+        """What :meth:`attitude_model` needs besides the state, built once: (T^-1)[a]^T, the Jacobian rows of
+        f and tau, and the compiled part's constants vector (``fpr/model/_attitude.c``: n, n_d, n_a, the
+        attitude indices, T, T^-1; None when the robot does not fit it)."""
+        n, n_d = self.nq, self.n_drones
+        attitude = self.indices(self.layout.attitude)
+        rows = np.arange(6 * n_d).reshape(n_d, 6)
+        vector = None
+        if _attitude_kernel is not None and n <= _attitude_kernel.MAX_COORDINATES \
+                and n_d <= _attitude_kernel.MAX_DRONES:
+            vector = np.concatenate([[n, n_d, attitude.size], attitude, self.T.reshape(-1),
+                                     self.T_inv.reshape(-1)]).astype(float)
+        constants = self.__dict__["_attitude_constants"] = (
+            np.ascontiguousarray(self.T_inv[attitude].T), rows[:, 2].copy(), rows[:, 3:].reshape(-1).copy(), vector)
+        return constants
+
+    def _attitude_python(self, m, nle, jacobians) -> AttitudeModel:
+        """:meth:`attitude_model` from Pinocchio's M_p (upper triangle read), its nonlinear effects and the
+        drones' frame Jacobians (LOCAL), with numpy and LAPACK: the reference of the compiled part.
+
+        Only the n_a needed rows of M^-1, from M_p (upper triangle, as CRBA fills it and as LAPACK's posv
+        reads it) without forming M = T^T M_p T: M^-1 = T^-1 M_p^-1 T^-T, so the rows a of M^-1 are
+        (T^-1 X)^T with M_p X = (T^-1)[a]^T. Same values to round-off (4e-16 relative on m_inv_a).
+        """
+        rhs, f_rows, tau_rows = (self.__dict__.get("_attitude_constants") or self._build_attitude_constants())[:3]
+        t = self.T
+        c = t.T.dot(nle)
+        jac = np.vstack(jacobians).dot(t)
         x, info = _posv(m, rhs)[1:]
         if info != 0:  # (not positive definite: never) the full symmetric M and a general solve
             x = np.linalg.solve(np.where(self._upper_mask, m, m.T), rhs)

@@ -314,20 +314,16 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     wind = None if not wind.any() else wind
 
     n, n_d, n_t = robot.nq, robot.n_drones, ticks.size
-    log = {k: np.zeros(s) for k, s in {
-        "q": (n_t, n), "v": (n_t, n), "roll_desired": (n_t, n_d), "speed_command": (n_t, n_d, 4),
-        "speed": (n_t, n_d, 4), "thrust": (n_t, n_d), "torque": (n_t, n_d, 3), "saturated": (n_t, n_d, 4),
-        "drone_height": (n_t, n_d), "closure_error": (n_t,)}.items()}
+    # the log: each tick's arrays kept as they are (fresh arrays, or read-only ones), stacked after the loop (one
+    # list append per group instead of a numpy row write per array)
+    measured, commanded = [], []  # (q, v, rotor speeds, closure error, centres); (rolls, command, f, tau, saturated)
     start = time.perf_counter()
     next_report = 1.0
     failure = failure_time = None
     last = n_t - 1  # index of the last logged tick
     # the loop's lookups done once (every tick pays for each attribute or dict access); the times as floats
     # (the same values; float arithmetic is cheaper than numpy scalars')
-    log_q, log_v, log_speed, log_closure, log_height = (log[k] for k in ("q", "v", "speed", "closure_error",
-                                                                         "drone_height"))
-    log_roll, log_command, log_thrust, log_torque, log_saturated = (
-        log[k] for k in ("roll_desired", "speed_command", "thrust", "torque", "saturated"))
+    log_measured, log_commanded = measured.append, commanded.append
     observe, check, update, advance = plant.observe, watch.check, controller.update, plant.advance
     for k, t in enumerate(ticks.tolist()):
         q, v, positions, closure_error = observe()  # one kinematics pass
@@ -335,10 +331,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
         if failure is not None and not (np.isfinite(q).all() and np.isfinite(v).all()):
             last, failure_time = k - 1, float(t)  # nothing finite to log at this tick
             break
-        log_q[k], log_v[k] = q, v
-        log_speed[k] = plant.rotor_speeds
-        log_closure[k] = closure_error
-        log_height[k] = positions[:, 2]
+        log_measured((q, v, plant.rotor_speeds, closure_error, positions))
         q_meas = q + noise_q * rng.normal(size=n) if noise_q else q
         v_meas = v + noise_v * rng.normal(size=n) if noise_v else v
         reference = Reference(motion[:5, k], planned.roll_rate[k], planned.roll_acceleration[k],
@@ -347,10 +340,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
             reference.task_force, reference.drone_forces = in_flight.known_force(float(t))
         out = update(t, q_meas, v_meas, reference)
         allocation = out.allocation
-        log_roll[k] = out.roll_desired
-        log_command[k] = out.speeds
-        log_thrust[k], log_torque[k] = allocation.thrust, allocation.torque
-        log_saturated[k] = allocation.saturated
+        log_commanded((out.roll_desired, out.speeds, allocation.thrust, allocation.torque, allocation.saturated))
         if failure is not None:
             last, failure_time = k, float(t)
             break
@@ -373,11 +363,20 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
             progress(t + tick, ticks[-1])
             next_report += 1.0
     keep = slice(0, last + 1)
-    log = {name: values[keep] for name, values in log.items()}
+    log = {}  # the groups stacked: both hold last + 1 ticks
+    for rows, fields in ((measured, {"q": (n,), "v": (n,), "speed": (n_d, 4), "closure_error": (),
+                                     "positions": (n_d, 3)}),
+                         (commanded, {"roll_desired": (n_d,), "speed_command": (n_d, 4), "thrust": (n_d,),
+                                      "torque": (n_d, 3), "saturated": (n_d, 4)})):
+        columns = zip(*rows, strict=True) if rows else [()] * len(fields)
+        for (name, shape), column in zip(fields.items(), columns, strict=True):
+            dtype = bool if name == "saturated" else float
+            log[name] = np.array(column, dtype=dtype).reshape((len(rows),) + shape)
+    log["drone_height"] = log.pop("positions")[:, :, 2].copy()
     speed_limit = robot.rotor_constants.max_speed - robot.margins.rotor_speed
     return SimulationLog(robot.name, tuple(robot.layout.coordinates), tuple(robot.layout.chain), ticks[keep],
                          log["q"], log["v"], motion[:3, keep], planned.roll[keep], log["roll_desired"],
                          log["speed_command"], log["speed"], log["thrust"], log["torque"],
-                         log["saturated"].astype(bool), log["drone_height"], log["closure_error"],
+                         log["saturated"], log["drone_height"], log["closure_error"],
                          robot.rotor_constants.max_speed, speed_limit, time.perf_counter() - start, failure,
                          failure_time)

@@ -24,6 +24,11 @@ import math
 
 import numpy as np
 
+try:  # the screen in C (setup.py builds it when a compiler is there)
+    from fpr.sim import _watch as _screen_kernel
+except ImportError:
+    _screen_kernel = None
+
 
 def _past(value: float, bound: float) -> str:
     """``value`` with enough significant digits (4 at least) to read as past ``bound`` (0.2001, not 0.2)."""
@@ -55,8 +60,14 @@ class Watch:
         self.chain_index = robot.indices(robot.layout.chain)
         self._screen = None  # index arrays of the plant's state, built at the first check
 
+    #: the screen compiled (``fpr/sim/_watch.c``): None (default) when the extension is built, else the Python
+    #: screen; False: always the Python screen (the reference); True: the compiled one, an error when it is
+    #: not built. Set it on a watch or on the class.
+    compiled_screen: bool | None = None
+
     def _build_screen(self, plant) -> None:
-        """Indices into the plant's state for :meth:`_may_be_lost`, as tuples of ints."""
+        """Indices into the plant's state for :meth:`_may_be_lost`, as tuples of ints, and the bounds moved
+        1e-9 (relative) towards the safe side; the same as one float64 vector for the compiled screen."""
         flyers = plant._freeflyers
         self._screen = (
             tuple(iq + 2 for iq, _, _ in flyers),  # hinge heights z
@@ -65,34 +76,58 @@ class Watch:
             tuple((iq + 3, iq + 4, iq + 5, iq + 6, tuple(float(a) for a in axis)) for iq, _, axis in flyers),
             tuple(int(i) for i in self.chain_index),
         )
+        tight = 1.0 - 1e-9  # the screen fires a little before the bounds, never after
+        floor = self.ground - self.ground_tolerance
+        floor += 1e-9 * max(1.0, abs(floor))
+        self._bounds = (floor, self.max_closure_error * tight, (self.max_drone_speed * tight) ** 2,
+                        (self.max_drone_rate * tight) ** 2,
+                        math.cos(self.max_tilt * tight) if self.max_tilt < math.pi else math.nan,
+                        self.max_tracking_error * tight)
+        self._screen_constants = np.array(
+            self._bounds + (len(flyers), len(self.chain_index))
+            + tuple(x for iq, iv, axis in flyers for x in (iq, iv, *(float(a) for a in axis)))
+            + self._screen[4], dtype=float)
 
     def _may_be_lost(self, plant, q, v, positions, closure_error: float, planned) -> bool:
         """A cheap screen with every bound moved 1e-9 (relative) towards the safe side: False means
         :meth:`check` finds nothing; True sends the state to the full check, which decides and words the
         failure.
 
-        It runs at every inner-loop tick (500 Hz) on a few dozen numbers, where each numpy call costs
-        microseconds: plain Python on the state as lists (~15 us) instead of the full check (~140 us).
+        It runs at every inner-loop tick (500 Hz) on a few dozen numbers: in C when built
+        (``fpr/sim/_watch.c``, below a microsecond), else :meth:`_may_be_lost_python`, its reference (the
+        same comparisons; tests/test_watch_compiled.py holds them equal).
         """
         if self._screen is None:
             self._build_screen(plant)
+        if self.compiled_screen is not False:
+            if _screen_kernel is not None:
+                return _screen_kernel.may_be_lost(plant.qc, plant.vc, q, v, positions, closure_error, planned,
+                                                  self._screen_constants)
+            if self.compiled_screen:
+                raise RuntimeError("Watch.compiled_screen = True: the compiled screen (fpr/sim/_watch.c) is not "
+                                   "built; build it with `pip install -e .` (a C compiler is needed) or "
+                                   "`python setup.py build_ext --inplace`")
+        return self._may_be_lost_python(plant, q, v, positions, closure_error, planned)
+
+    def _may_be_lost_python(self, plant, q, v, positions, closure_error: float, planned) -> bool:
+        """:meth:`_may_be_lost` in plain Python on the state as lists (~15 us instead of the full check's
+        ~140 us): the reference of the compiled screen."""
+        if self._screen is None:
+            self._build_screen(plant)
         hinge_z, linear, angular, quaternions, chain = self._screen
+        floor, closure, speed, rate, lowest, bound = self._bounds
         qc, vc, ql = plant.qc.tolist(), plant.vc.tolist(), q.tolist()
         if not math.isfinite(sum(qc) + sum(vc) + sum(ql) + sum(v.tolist())):  # NaN or inf if any entry is
             return True
-        tight = 1.0 - 1e-9  # the screen fires a little before the bounds, never after
-        floor = self.ground - self.ground_tolerance
-        floor += 1e-9 * max(1.0, abs(floor))
         if min(qc[i] for i in hinge_z) < floor or min(row[2] for row in positions.tolist()) < floor:
             return True
-        if not closure_error <= self.max_closure_error * tight:
+        if not closure_error <= closure:
             return True
-        speed, rate = (self.max_drone_speed * tight) ** 2, (self.max_drone_rate * tight) ** 2
         for (a, b, c), (d, e, f) in zip(linear, angular, strict=True):
-            if vc[a] ** 2 + vc[b] ** 2 + vc[c] ** 2 > speed or vc[d] ** 2 + vc[e] ** 2 + vc[f] ** 2 > rate:
+            if vc[a] * vc[a] + vc[b] * vc[b] + vc[c] * vc[c] > speed \
+                    or vc[d] * vc[d] + vc[e] * vc[e] + vc[f] * vc[f] > rate:  # x * x, as the C screen
                 return True
-        if self.max_tilt < math.pi:  # the cosine of the tilt: third row of the drone's rotation . its axis
-            lowest = math.cos(self.max_tilt * tight)
+        if not math.isnan(lowest):  # the cosine of the tilt: third row of the drone's rotation . its axis
             for i, j, k, m, (ax, ay, az) in quaternions:
                 x, y, z, w = qc[i], qc[j], qc[k], qc[m]
                 norm2 = x * x + y * y + z * z + w * w
@@ -100,7 +135,6 @@ class Watch:
                     + (1 - 2 * (x * x + y * y) / norm2) * az
                 if cosine < lowest:
                     return True
-        bound = self.max_tracking_error * tight
         return any(abs(ql[i] - p) > bound for i, p in zip(chain, planned.tolist(), strict=True))
 
     def check(self, t: float, plant, q, v, positions, closure_error: float, planned) -> str | None:

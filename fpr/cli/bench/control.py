@@ -23,9 +23,10 @@ simulation of the ``square`` mission's two-step plan (:func:`fpr.sim.closed_loop
 plant 1 kHz, inner loop 500 Hz, outer loop 100 Hz): simulated time, the wall time of the whole ``simulate``
 call and the real-time factor (median of 3 runs, 1 with ``--quick``; the CPU time too, less sensitive to a
 shared machine), and one more run with timers around the simulator's parts (observe: measure and logged
-kinematics, outer loop, attitude model, allocation, the rest of the inner loop, plant steps; the remainder is
-the loop itself and the logging) for the per-tick breakdown. Goals (issue 13), each a row of ``targets`` with
-its value, goal and verdict: the allocation's whole call <= 20 us with and without an active bound, RTF >= 20.
+kinematics, outer loop, attitude model, allocation, the rest of the inner loop, plant steps, the watch; the
+remainder is the loop itself and the logging) for the per-tick breakdown, with which parts of the tick run
+compiled (``setup.py``'s optional extensions). Goals (issue 13), each a row of ``targets`` with its value, goal
+and verdict: the allocation's whole call <= 20 us with and without an active bound, RTF >= 20.
 """
 
 from __future__ import annotations
@@ -47,9 +48,10 @@ from fpr.cli.bench.model import SEED
 from fpr.cli.bench.timing import Bench, cycling, fmt, time_part
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.model.qp import proxsuite_module
-from fpr.model.robot import Robot
+from fpr.model.robot import Robot, _attitude_kernel
 from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.sim.plant import Plant, hover_configuration
+from fpr.sim.watch import Watch, _screen_kernel
 from planners.mission import load_mission
 from planners.optimize import plan
 
@@ -166,7 +168,8 @@ def _tick_timers(acc: dict):
                              (CascadedController, "update", "controller"),
                              (CascadedController, "outer", "outer loop"),
                              (Robot, "attitude_model", "attitude model"),
-                             (Allocator, "solve", "allocation")):
+                             (Allocator, "solve", "allocation"),
+                             (Watch, "check", "watch")):
         original = cls.__dict__[method]
 
         def timed(*args, _f=original, _key=key, **kwargs):
@@ -218,10 +221,16 @@ def _simulation(result, runs: int, say) -> dict:
         "controller: inner loop (the rest)": inner,
         "controller: allocation (Allocator.solve)": acc.get("allocation", 0.0),
         "plant steps (2 per tick, RKMK4)": acc.get("plant steps", 0.0),
+        "watch (Watch.check)": acc.get("watch", 0.0),
     }
     parts["loop, reference, logging, the rest"] = timed.wall_time - sum(parts.values())
     simulated = float(logs[0].t[-1] - logs[0].t[0])
     st = settings.controller
+    robot = result.robot
+    compiled = {"allocation tick": Allocator(robot).compiled,
+                "attitude model": _attitude_kernel is not None and robot.compiled_attitude is not False,
+                "inner loop": CascadedController(robot, st)._inner_kernel() is not None,
+                "watch screen": _screen_kernel is not None and Watch.compiled_screen is not False}
     return dict(mission=CONTROL_MISSION, method="two-step", plant_rate_hz=settings.plant_rate,
                 inner_rate_hz=st.inner_rate, outer_rate_hz=st.outer_rate, runs=runs, simulated_s=simulated,
                 wall_s=float(np.median(walls)), wall_min_s=float(min(walls)), wall_runs_s=walls,
@@ -231,7 +240,7 @@ def _simulation(result, runs: int, say) -> dict:
                 breakdown_wall_s=timed.wall_time, breakdown_real_time_factor=timed.real_time_factor,
                 breakdown_per_tick_s={k: v / ticks for k, v in parts.items()},
                 breakdown_fraction={k: v / timed.wall_time for k, v in parts.items()},
-                per_plant_step_s=acc.get("plant steps", 0.0) / max(1, 2 * steps))
+                per_plant_step_s=acc.get("plant steps", 0.0) / max(1, 2 * steps), compiled=compiled)
 
 
 
@@ -308,7 +317,8 @@ def control_table(control: dict) -> str:
                  f"{sim['cpu_real_time_factor']:.2f})")
     lines.append(f"per-tick breakdown ({sim['ticks']} ticks; timed run: wall "
                  f"{sim['breakdown_wall_s']:.2f} s, RTF {sim['breakdown_real_time_factor']:.2f}, timers "
-                 f"included; {fmt(sim['per_plant_step_s'])} per plant step)")
+                 f"included; {fmt(sim['per_plant_step_s'])} per plant step; compiled: "
+                 f"{', '.join(k for k, v in sim.get('compiled', {}).items() if v) or 'nothing'})")
     for k, v in sim["breakdown_per_tick_s"].items():
         lines.append(f"  {k:<50}  {fmt(v)}  {100 * sim['breakdown_fraction'][k]:5.1f} %")
     lines += allocation_lines(control["allocation_along_loops"], fmt)

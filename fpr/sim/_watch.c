@@ -1,0 +1,124 @@
+/* The watch's screen (fpr/sim/watch.py, Watch._may_be_lost_python) in C (issue 13): the same comparisons on
+ * the same numbers, without the interpreter's cost of a few dozen float operations at every inner-loop tick.
+ *
+ * may_be_lost(qc, vc, q, v, positions, closure_error, planned, constants) -> bool
+ *   qc, vc: the plant's state; q, v: the measured state; positions: the drones' centres (n_d, 3) [m];
+ *   closure_error [m]; planned: the planned chain coordinates (n_s,).
+ *   constants (Watch._screen_constants, one contiguous float64 vector): floor, closure bound, speed^2,
+ *   rate^2, the lowest tilt cosine (NaN: no tilt screen), the tracking bound -- each already moved towards
+ *   the safe side as the Python screen moves it --, n_f, n_s, then per free flyer (iq, iv, ax, ay, az), then
+ *   the chain's indices in q (n_s).
+ *   True when any entry of qc, vc, q, v is not finite, or a bound is crossed: the full check then decides.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+#include <math.h>
+
+#define HEADER 8
+
+/* A contiguous float64 vector (or matrix) of obj, or NULL (an exception set) */
+static PyArrayObject *vector(PyObject *obj)
+{
+    return (PyArrayObject *)PyArray_FROM_OTF(obj, NPY_DOUBLE, NPY_ARRAY_IN_ARRAY);
+}
+
+static int all_finite(PyArrayObject *a)
+{
+    const double *d = (const double *)PyArray_DATA(a);
+    const npy_intp n = PyArray_SIZE(a);
+    for (npy_intp i = 0; i < n; i++)
+        if (!isfinite(d[i])) return 0;
+    return 1;
+}
+
+static int screen(PyArrayObject *qa, PyArrayObject *va, PyArrayObject *qm, PyArrayObject *vm, PyArrayObject *pa,
+                  double closure_error, PyArrayObject *sa, const double *k, npy_intp k_len)
+{
+    if (!all_finite(qa) || !all_finite(va) || !all_finite(qm) || !all_finite(vm)) return 1;
+    const double *qc = (const double *)PyArray_DATA(qa), *vc = (const double *)PyArray_DATA(va),
+                 *q = (const double *)PyArray_DATA(qm), *pos = (const double *)PyArray_DATA(pa),
+                 *planned = (const double *)PyArray_DATA(sa);
+    const npy_intp nqc = PyArray_SIZE(qa), nvc = PyArray_SIZE(va), nq = PyArray_SIZE(qm);
+    const double floor = k[0], closure = k[1], speed = k[2], rate = k[3], lowest = k[4], bound = k[5];
+    const int nf = (int)k[6], ns = (int)k[7];
+    if (k_len != HEADER + 5 * nf + ns || PyArray_SIZE(sa) != ns || PyArray_NDIM(pa) != 2
+        || PyArray_DIM(pa, 1) != 3) {
+        PyErr_SetString(PyExc_ValueError, "may_be_lost: the constants do not fit the state");
+        return -1;
+    }
+    const double *flyers = k + HEADER, *chain = flyers + 5 * nf;
+    for (int f = 0; f < nf; f++) {
+        const npy_intp iq = (npy_intp)flyers[5 * f], iv = (npy_intp)flyers[5 * f + 1];
+        if (iq < 0 || iq + 7 > nqc || iv < 0 || iv + 6 > nvc) {
+            PyErr_SetString(PyExc_ValueError, "may_be_lost: a free flyer outside the state");
+            return -1;
+        }
+    }
+    for (int i = 0; i < ns; i++)
+        if (!(chain[i] >= 0 && chain[i] < nq)) {
+            PyErr_SetString(PyExc_ValueError, "may_be_lost: a chain index outside q");
+            return -1;
+        }
+    for (int f = 0; f < nf; f++)
+        if (qc[(npy_intp)flyers[5 * f] + 2] < floor) return 1;  /* hinge heights */
+    const npy_intp nd = PyArray_DIM(pa, 0);
+    for (npy_intp d = 0; d < nd; d++)
+        if (pos[3 * d + 2] < floor) return 1;  /* centres of mass */
+    if (!(closure_error <= closure)) return 1;
+    for (int f = 0; f < nf; f++) {
+        const double *w = vc + (npy_intp)flyers[5 * f + 1];
+        if (w[0] * w[0] + w[1] * w[1] + w[2] * w[2] > speed || w[3] * w[3] + w[4] * w[4] + w[5] * w[5] > rate)
+            return 1;
+    }
+    if (!isnan(lowest))
+        for (int f = 0; f < nf; f++) {
+            const double *o = qc + (npy_intp)flyers[5 * f] + 3, ax = flyers[5 * f + 2], ay = flyers[5 * f + 3],
+                         az = flyers[5 * f + 4];
+            const double x = o[0], y = o[1], z = o[2], w = o[3];
+            const double norm2 = x * x + y * y + z * z + w * w;
+            const double cosine = (2 * (x * z - w * y) * ax + 2 * (y * z + w * x) * ay) / norm2
+                                   + (1 - 2 * (x * x + y * y) / norm2) * az;
+            if (cosine < lowest) return 1;
+        }
+    for (int i = 0; i < ns; i++)
+        if (fabs(q[(npy_intp)chain[i]] - planned[i]) > bound) return 1;
+    return 0;
+}
+
+static PyObject *may_be_lost(PyObject *self, PyObject *args)
+{
+    PyObject *o[8];
+    double closure_error;
+    if (!PyArg_ParseTuple(args, "OOOOOdOO", &o[0], &o[1], &o[2], &o[3], &o[4], &closure_error, &o[5], &o[6]))
+        return NULL;
+    if (!PyArray_Check(o[6]) || PyArray_TYPE((PyArrayObject *)o[6]) != NPY_DOUBLE
+        || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o[6]) || PyArray_SIZE((PyArrayObject *)o[6]) < HEADER) {
+        PyErr_SetString(PyExc_TypeError, "may_be_lost: constants must be a contiguous float64 vector");
+        return NULL;
+    }
+    PyArrayObject *a[6] = {NULL};
+    int answer = -1;
+    for (int i = 0; i < 6; i++)
+        if ((a[i] = vector(o[i])) == NULL) goto done;
+    answer = screen(a[0], a[1], a[2], a[3], a[4], closure_error, a[5], PyArray_DATA((PyArrayObject *)o[6]),
+                    PyArray_SIZE((PyArrayObject *)o[6]));
+done:
+    for (int i = 0; i < 6; i++) Py_XDECREF(a[i]);
+    if (answer < 0) return NULL;
+    return PyBool_FromLong(answer);
+}
+
+static PyMethodDef methods[] = {
+    {"may_be_lost", may_be_lost, METH_VARARGS, "The watch's screen (see the module's C source): a bool."},
+    {NULL, NULL, 0, NULL}};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr.sim._watch",
+                                    "The closed loop's watch screen in C (fpr.sim.watch).", -1, methods};
+
+PyMODINIT_FUNC PyInit__watch(void)
+{
+    import_array();
+    return PyModule_Create(&module);
+}

@@ -1,0 +1,81 @@
+"""The inner loop's float part in C (``controllers/_alloc.c``'s ``inner``) against its Python reference
+(``CascadedController._inner_python``): the same operations in the same order, so the same bits -- thrusts,
+u_a, desired rolls, pitch reference -- at random states of both robots (rolls past pi, the pitch clamped on
+both sides), after the gains change; and whole controller ticks alike on either path."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from helpers import near_hover
+
+import fpr
+from controllers import allocation
+from controllers.ctc import CascadedController, ControllerSettings, Reference
+
+needs_kernel = pytest.mark.skipif(getattr(allocation._load_kernel(), "inner", None) is None,
+                                  reason="controllers._alloc not built")
+
+
+def _reference(robot, rng):
+    n_s, n_d = len(robot.layout.chain), robot.n_drones
+    return Reference(rng.normal(size=(5, n_s)), rng.normal(size=n_d), rng.normal(size=n_d))
+
+
+@needs_kernel
+@pytest.mark.parametrize("name", fpr.ROBOTS)
+def test_compiled_inner_loop_is_the_python_part_to_the_bit(name):
+    robot = fpr.load(name)
+    rng = np.random.default_rng(12)
+    controller = CascadedController(robot)
+    kernel = controller._inner_kernel()
+    clamped = set()
+    for k in range(400):
+        if k == 200:  # other gains: the constants follow
+            controller.settings = dataclasses.replace(controller.settings, attitude_frequency=31.0,
+                                                      lateral_frequency=2.5, max_pitch=0.1)
+        q, v = rng.normal(scale=4.0, size=robot.nq), rng.normal(scale=3.0, size=robot.nq)
+        controller._force = rng.normal(scale=10.0, size=(robot.n_drones, 2))
+        reference = _reference(robot, rng)
+        expected = controller._inner_python(q, v, reference)
+        controller._attitude_gains()
+        found = kernel(q, v, controller._force, reference.roll_rate, reference.roll_acceleration,
+                       controller._gains[5])
+        for a, b in zip(found[:3], expected[:3], strict=True):
+            assert a.dtype == b.dtype and a.shape == b.shape
+            np.testing.assert_array_equal(a, b)
+        assert found[3] == expected[3] and type(found[3]) is float
+        if controller.lateral:
+            clamped.add(np.sign(expected[3]) if abs(expected[3]) == controller.settings.max_pitch else 0.0)
+    if controller.lateral:
+        assert clamped == {-1.0, 0.0, 1.0}  # clamped on both sides, and inside
+
+
+@needs_kernel
+@pytest.mark.parametrize("name", fpr.ROBOTS)
+def test_controller_ticks_alike_on_either_path(name):
+    robot = fpr.load(name)
+    q, v, *_ = near_hover(robot, 3)
+    rng = np.random.default_rng(2)
+    compiled, python = CascadedController(robot), CascadedController(robot)
+    python.compiled_inner = False
+    for k in range(5):
+        reference = _reference(robot, rng)
+        reference.motion[0] = q[robot.indices(robot.layout.chain)]
+        a, b = compiled.update(0.002 * k, q, v, reference), python.update(0.002 * k, q, v, reference)
+        for field in ("speeds", "force", "roll_desired", "thrust_desired", "attitude_desired"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+        assert a.pitch_desired == b.pitch_desired
+
+
+def test_missing_extension_falls_back_or_raises(monkeypatch):
+    monkeypatch.setattr("controllers.ctc._load_kernel", lambda: None)
+    robot = fpr.load("prototype")
+    controller = CascadedController(robot, ControllerSettings())
+    assert controller._inner_kernel() is None
+    q, v, *_ = near_hover(robot, 4)
+    reference = _reference(robot, np.random.default_rng(5))
+    assert np.isfinite(controller.update(0.0, q, v, reference).speeds).all()  # the Python part
+    controller.compiled_inner = True
+    with pytest.raises(RuntimeError, match="not built"):
+        controller.update(0.002, q, v, reference)
