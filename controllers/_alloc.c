@@ -121,7 +121,7 @@ static PyObject *tick(PyObject *self, PyObject *args)
     if (!PyArg_UnpackTuple(args, "tick", 8, 8, &o_m, &o_jf, &o_at, &o_c, &o_f, &o_u, &o_k, &o_state))
         return NULL;
     if (!PyArray_Check(o_k) || PyArray_TYPE((PyArrayObject *)o_k) != NPY_DOUBLE
-        || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o_k) || !PyArray_Check(o_state)
+        || !PyArray_ISCARRAY_RO((PyArrayObject *)o_k) || !PyArray_Check(o_state)
         || PyArray_TYPE((PyArrayObject *)o_state) != NPY_INT8
         || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o_state) || !PyArray_ISWRITEABLE((PyArrayObject *)o_state)) {
         PyErr_SetString(PyExc_TypeError, "tick: constants must be contiguous float64, state writable int8");
@@ -371,7 +371,7 @@ static PyObject *inner(PyObject *self, PyObject *args)
     PyObject *o[5], *o_k;
     if (!PyArg_UnpackTuple(args, "inner", 6, 6, &o[0], &o[1], &o[2], &o[3], &o[4], &o_k)) return NULL;
     if (!PyArray_Check(o_k) || PyArray_TYPE((PyArrayObject *)o_k) != NPY_DOUBLE
-        || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o_k) || PyArray_SIZE((PyArrayObject *)o_k) < INNER_HEADER) {
+        || !PyArray_ISCARRAY_RO((PyArrayObject *)o_k) || PyArray_SIZE((PyArrayObject *)o_k) < INNER_HEADER) {
         PyErr_SetString(PyExc_TypeError, "inner: constants must be a contiguous float64 vector");
         return NULL;
     }
@@ -416,7 +416,7 @@ static PyObject *inner(PyObject *self, PyObject *args)
     for (int a = 0; a < na; a++) {
         const npy_intp i = (npy_intp)att[a];
         double error = AT(qv, 0, i) - target[a];
-        if (a >= 2) error = remainder(error, 2 * M_PI);  /* rolls: the shortest angle */
+        if (a >= 2) error = remainder(error, 2 * Py_MATH_PI);  /* rolls: the shortest angle */
         u_a[a] = acc[a] - kp[a] * error - kd[a] * (AT(vv, 0, i) - rate[a]);
     }
     PyObject *o_t = new_array(nd, 0, thrust, 1.0), *o_u = new_array(na, 0, u_a, 1.0),

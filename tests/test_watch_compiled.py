@@ -79,3 +79,32 @@ def test_missing_extension_falls_back_or_raises(monkeypatch):
     watch.compiled_screen = True
     with pytest.raises(RuntimeError, match="not built"):
         watch.check(*args)
+
+
+@needs_kernel
+def test_a_zero_quaternion_goes_to_the_full_check():
+    """A drone quaternion of zeros gives a NaN tilt cosine: the C screen answers "may be lost" (the full check
+    then decides), where the Python screen divides by zero."""
+    robot, plant, q, positions, closure, planned = state("fpr")
+    watch = Watch(robot, SimulationSettings(**BOUNDS))
+    watch._build_screen(plant)
+    args = (plant, q, np.zeros(robot.nq), positions, closure, planned)
+    assert watch._may_be_lost(*args) is False  # the state as it is passes the screen
+    iq = plant._freeflyers[0][0]
+    plant.qc = plant.qc.copy()
+    plant.qc[iq + 3 : iq + 7] = 0.0
+    assert watch._may_be_lost(*args) is True
+    watch.compiled_screen = False
+    with pytest.raises(ZeroDivisionError):
+        watch._may_be_lost(*args)
+
+
+@needs_kernel
+def test_constants_must_be_native_aligned_float64():
+    robot, plant, q, positions, closure, planned = state("fpr")
+    watch = Watch(robot, SimulationSettings(**BOUNDS))
+    watch._build_screen(plant)
+    swapped = watch._screen_constants.astype(">f8")
+    with pytest.raises(TypeError):
+        watch_module._screen_kernel.may_be_lost(plant.qc, plant.vc, q, np.zeros(robot.nq), positions, closure,
+                                                planned, swapped)

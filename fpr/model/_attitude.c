@@ -54,7 +54,7 @@ static PyObject *post(PyObject *self, PyObject *args)
     PyObject *o_m, *o_c, *o_j, *o_k;
     if (!PyArg_UnpackTuple(args, "post", 4, 4, &o_m, &o_c, &o_j, &o_k)) return NULL;
     if (!PyArray_Check(o_k) || PyArray_TYPE((PyArrayObject *)o_k) != NPY_DOUBLE
-        || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o_k) || !PyTuple_Check(o_j)) {
+        || !PyArray_ISCARRAY_RO((PyArrayObject *)o_k) || !PyTuple_Check(o_j)) {
         PyErr_SetString(PyExc_TypeError, "post: constants must be contiguous float64, jacobians a tuple");
         return NULL;
     }

@@ -80,7 +80,7 @@ static int screen(PyArrayObject *qa, PyArrayObject *va, PyArrayObject *qm, PyArr
             const double norm2 = x * x + y * y + z * z + w * w;
             const double cosine = (2 * (x * z - w * y) * ax + 2 * (y * z + w * x) * ay) / norm2
                                    + (1 - 2 * (x * x + y * y) / norm2) * az;
-            if (cosine < lowest) return 1;
+            if (!(cosine >= lowest)) return 1;  /* NaN (a zero quaternion) too: the full check decides */
         }
     for (int i = 0; i < ns; i++)
         if (fabs(q[(npy_intp)chain[i]] - planned[i]) > bound) return 1;
@@ -94,7 +94,7 @@ static PyObject *may_be_lost(PyObject *self, PyObject *args)
     if (!PyArg_ParseTuple(args, "OOOOOdOO", &o[0], &o[1], &o[2], &o[3], &o[4], &closure_error, &o[5], &o[6]))
         return NULL;
     if (!PyArray_Check(o[6]) || PyArray_TYPE((PyArrayObject *)o[6]) != NPY_DOUBLE
-        || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o[6]) || PyArray_SIZE((PyArrayObject *)o[6]) < HEADER) {
+        || !PyArray_ISCARRAY_RO((PyArrayObject *)o[6]) || PyArray_SIZE((PyArrayObject *)o[6]) < HEADER) {
         PyErr_SetString(PyExc_TypeError, "may_be_lost: constants must be a contiguous float64 vector");
         return NULL;
     }
