@@ -519,11 +519,19 @@ class MotionProblem:
         rows = (np.sqrt(curvature)[..., None] * local).reshape(m, -1, width)
         blocks = np.matmul(rows.transpose(0, 2, 1), rows)  # (m, 10 n, 10 n)
         # each block's entries added at their x indices (fixed entries dropped): one bincount
+        hit, flat, scales = self._assembly_pattern
+        h = np.bincount(flat, blocks[hit], minlength=self.n_x * self.n_x).reshape(self.n_x, self.n_x)
+        return h * scales
+
+    @functools.cached_property
+    def _assembly_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What :meth:`_assemble` scatters by, the same at every evaluation: the entries of the segments'
+        blocks that are free in both indices (m, 10 n, 10 n), their flat index in the (n_x, n_x) matrix, and
+        the variables' scales' outer product (n_x, n_x)."""
         cols = self._segment_columns  # (m, 10 n), -1 where fixed
         hit = (cols[:, :, None] >= 0) & (cols[:, None, :] >= 0)
         flat = (cols[:, :, None] * self.n_x + cols[:, None, :])[hit]
-        h = np.bincount(flat, blocks[hit], minlength=self.n_x * self.n_x).reshape(self.n_x, self.n_x)
-        return h * np.outer(self.scale, self.scale)
+        return hit, flat, np.outer(self.scale, self.scale)
 
     @functools.cached_property
     def _segment_columns(self) -> np.ndarray:
