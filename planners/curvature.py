@@ -59,6 +59,9 @@ def smoothed_hessian(ev, width: float = POWER_WIDTH, share: float = MAJORISER_SH
     # sparse too): each P_k depends on one segment's entries only, so the sum over the powers is a sparse
     # product (the same sum to round-off; below, the dense product the planner's figures were measured with)
     if pj.shape[1] >= SPARSE_FROM:
-        pj = sparse.csr_matrix(pj)
-        return ev.rate_hessian + (pj.T @ (pj.multiply(weight[:, None]))).toarray()
+        pj = getattr(ev, "power_jacobian_sparse", None)  # the evaluation's own CSR copy (no dense scan)
+        pj = sparse.csr_matrix(ev.power_jacobian) if pj is None else pj
+        weighted = pj.copy()
+        weighted.data *= np.repeat(weight, np.diff(pj.indptr))  # row k times its weight
+        return ev.rate_hessian + (pj.T @ weighted).toarray()
     return ev.rate_hessian + pj.T @ (weight[:, None] * pj)

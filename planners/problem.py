@@ -219,6 +219,7 @@ class Evaluation:
         rate_hessian: the Gauss-Newton matrix of the a_phi J_phi part alone (or None).
         jacobian_sparse: ``jacobian`` as a scipy CSR matrix (same numbers), for problems of
             :data:`SPARSE_FROM` variables or more (else None).
+        power_jacobian_sparse: ``power_jacobian`` likewise (CSR from :data:`SPARSE_FROM` variables, else None).
     """
 
     J: float
@@ -232,6 +233,7 @@ class Evaluation:
     power_jacobian: np.ndarray | None = None
     rate_hessian: np.ndarray | None = None
     jacobian_sparse: object | None = None
+    power_jacobian_sparse: object | None = None
 
     @property
     def violation(self) -> float:
@@ -449,7 +451,8 @@ class MotionProblem:
                 rate_hess = self._assemble((2 * a_phi * self.weights)[:, None] * np.ones(rate_local.shape[1]),
                                            rate_local)
                 # the powers' derivatives with respect to x: (N n_d, n_x)
-                p_jac = self._scatter(np.repeat(index, n_d, axis=0), local[:, :n_d].reshape(n_s * n_d, -1))
+                p_jac, p_sparse = self._scatter(np.repeat(index, n_d, axis=0),
+                                                local[:, :n_d].reshape(n_s * n_d, -1), True)
                 p_weight = np.repeat(a_e * self.weights, n_d)
         n_d = raw.shape[1] // 2
         terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
@@ -477,7 +480,7 @@ class MotionProblem:
         if not self.power_model:
             return Evaluation(value, terms, constraints, grad, jac, hess, jacobian_sparse=jac_sparse)
         return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess,
-                          jac_sparse)
+                          jac_sparse, p_sparse)
 
     def _scatter(self, entries, values, with_sparse: bool = False):
         """The (rows, n_x) derivatives with respect to x of rows whose derivatives with respect to the
@@ -516,11 +519,19 @@ class MotionProblem:
         rows = (np.sqrt(curvature)[..., None] * local).reshape(m, -1, width)
         blocks = np.matmul(rows.transpose(0, 2, 1), rows)  # (m, 10 n, 10 n)
         # each block's entries added at their x indices (fixed entries dropped): one bincount
+        hit, flat, scales = self._assembly_pattern
+        h = np.bincount(flat, blocks[hit], minlength=self.n_x * self.n_x).reshape(self.n_x, self.n_x)
+        return h * scales
+
+    @functools.cached_property
+    def _assembly_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What :meth:`_assemble` scatters by, the same at every evaluation: the entries of the segments'
+        blocks that are free in both indices (m, 10 n, 10 n), their flat index in the (n_x, n_x) matrix, and
+        the variables' scales' outer product (n_x, n_x)."""
         cols = self._segment_columns  # (m, 10 n), -1 where fixed
         hit = (cols[:, :, None] >= 0) & (cols[:, None, :] >= 0)
         flat = (cols[:, :, None] * self.n_x + cols[:, None, :])[hit]
-        h = np.bincount(flat, blocks[hit], minlength=self.n_x * self.n_x).reshape(self.n_x, self.n_x)
-        return h * np.outer(self.scale, self.scale)
+        return hit, flat, np.outer(self.scale, self.scale)
 
     @functools.cached_property
     def _segment_columns(self) -> np.ndarray:

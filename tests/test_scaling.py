@@ -149,6 +149,17 @@ def test_long_problems_sparse_jacobian_is_the_dense_one(long_evaluation, monkeyp
     np.testing.assert_allclose(h_sparse, smoothed_hessian(ev), rtol=0, atol=1e-12 * np.abs(h_sparse).max())
 
 
+def test_long_problems_sparse_power_jacobian_is_the_dense_one(long_evaluation):
+    """The evaluation's CSR copy of the powers' Jacobian holds the same numbers as the dense one, and the
+    smoothed model's H from it is the one from converting the dense array (bit for bit)."""
+    _, ev = long_evaluation
+    assert ev.power_jacobian_sparse is not None
+    np.testing.assert_array_equal(ev.power_jacobian_sparse.toarray(), ev.power_jacobian)
+    from_dense = smoothed_hessian(dataclasses.replace(ev, power_jacobian_sparse=None))
+    np.testing.assert_array_equal(smoothed_hessian(ev), from_dense)
+    assert np.abs(from_dense - ev.rate_hessian).max() > 0  # the powers' part is there
+
+
 @pytest.fixture(scope="module")
 def long_qp(long_evaluation):
     """The step QP of the 1-step NLP of 10 way points (1 via point a travel) at its start, as the SQP

@@ -157,6 +157,12 @@ class StackedPoints:
         return out.reshape(features.shape[:-1] + (-1, 2))
 
 
+def _take(x, index):
+    """``x[..., index]`` for an integer array ``index`` (array or Jet): np.take, about 3 times faster than
+    fancy indexing on the last axis of the planner's large complex-step batches (the same values)."""
+    return Jet(np.take(x.d, index, axis=-1)) if isinstance(x, Jet) else np.take(x, index, axis=-1)
+
+
 def _pairs(f: int):
     """The index pairs f <= f' of F features (upper triangle, row by row)."""
     return np.triu_indices(f)
@@ -205,7 +211,7 @@ class StackedDynamics:
 
     def mass_matrix_from(self, features):
         """M from the features (..., F) (array or Jet), shape (..., n, n)."""
-        pairs = features[..., self._pair_i] * features[..., self._pair_j]
+        pairs = _take(features, self._pair_i) * _take(features, self._pair_j)
         return self._mass(pairs).reshape(features.shape[:-1] + (self._n, self._n))
 
     def bias_from(self, features, v):
@@ -217,7 +223,7 @@ class StackedDynamics:
         else:
             w2 = (jets.inexact(v) @ self._rows_t) ** 2
             psi = features[..., 1:] * np.concatenate([w2, w2], axis=-1)
-        return self._bias(features[..., self._bias_f] * psi[..., self._bias_e]) + self._gravity(features)
+        return self._bias(_take(features, self._bias_f) * _take(psi, self._bias_e)) + self._gravity(features)
 
 
 __all__ = ["StackedDynamics", "StackedPoints"]
