@@ -419,6 +419,14 @@ static PyObject *inner(PyObject *self, PyObject *args)
         if (a >= 2) error = remainder(error, 2 * Py_MATH_PI);  /* rolls: the shortest angle */
         u_a[a] = acc[a] - kp[a] * error - kd[a] * (AT(vv, 0, i) - rate[a]);
     }
+    int finite = isfinite(pitch);
+    for (int i = 0; i < nd; i++) finite = finite && isfinite(thrust[i]) && isfinite(target[2 + i]);
+    for (int a = 0; a < na; a++) finite = finite && isfinite(u_a[a]);
+    if (!finite) {  /* overflow or a non-finite state: the Python reference decides (it may raise) */
+        Py_INCREF(Py_None);
+        result = Py_None;
+        goto done;
+    }
     PyObject *o_t = new_array(nd, 0, thrust, 1.0), *o_u = new_array(na, 0, u_a, 1.0),
              *o_r = new_array(nd, 0, target + 2, 1.0);
     if (o_t != NULL && o_u != NULL && o_r != NULL) result = Py_BuildValue("NNNd", o_t, o_u, o_r, pitch);
@@ -440,7 +448,8 @@ static PyMethodDef methods[] = {
     {"tick", tick, METH_VARARGS, "One allocation tick (see the module's C source): a tuple or None."},
     {"box_qp", box_qp, METH_VARARGS, "box_qp(h, g, state, max_iterations=12, tolerance=1e-12): "
                                      "controllers.box_qp.solve_box_qp_state in C."},
-    {"inner", inner, METH_VARARGS, "The inner loop's float part (see the module's C source): a tuple."},
+    {"inner", inner, METH_VARARGS, "The inner loop's float part (see the module's C source): a tuple, or None "
+                                   "when a result is not finite (the Python reference then decides)."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "controllers._alloc",

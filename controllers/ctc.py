@@ -370,12 +370,11 @@ class CascadedController:
         kernel = self.__dict__.get("_inner")
         if kernel is None or kernel[0] != self.compiled_inner:
             kernel = self._inner = (self.compiled_inner, self._inner_kernel())
-        if kernel[1] is not None:  # in C: the same bits as _inner_python
+        inner = None
+        if kernel[1] is not None:  # in C: the same bits as _inner_python (None: a result not finite)
             self._attitude_gains()  # its constants up to date, in self._gains
-            thrust, u_a, roll_desired, pitch = kernel[1](q, v, self._force, reference.roll_rate,
-                                                         reference.roll_acceleration, self._gains[5])
-        else:
-            thrust, u_a, roll_desired, pitch = self._inner_python(q, v, reference)
+            inner = kernel[1](q, v, self._force, reference.roll_rate, reference.roll_acceleration, self._gains[5])
+        thrust, u_a, roll_desired, pitch = self._inner_python(q, v, reference) if inner is None else inner
         attitude = self.robot.attitude_model(q, v)
         if reference.task_force is not None or reference.drone_forces is not None:  # the known wind (2.12)
             attitude = self._attitude_in_wind(attitude, reference.task_force, reference.drone_forces)

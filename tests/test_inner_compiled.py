@@ -79,3 +79,23 @@ def test_missing_extension_falls_back_or_raises(monkeypatch):
     controller.compiled_inner = True
     with pytest.raises(RuntimeError, match="not built"):
         controller.update(0.002, q, v, reference)
+
+
+@needs_kernel
+def test_a_result_that_is_not_finite_goes_to_the_python_reference():
+    """A roll rate whose square overflows: the C part returns None (no inf thrust), and the controller's tick
+    then raises what the Python reference raises."""
+    robot = fpr.load("fpr")
+    q, v, *_ = near_hover(robot, 3)
+    controller = CascadedController(robot)
+    reference = _reference(robot, np.random.default_rng(5))
+    controller.update(0.0, q, v, reference)  # the outer loop's force, the kernel, the gains
+    fast = v.copy()
+    fast[controller.rolls[0]] = 1e200  # drone 1's roll rate
+    kernel = controller._inner_kernel()
+    assert kernel(q, fast, controller._force, reference.roll_rate, reference.roll_acceleration,
+                  controller._gains[5]) is None
+    with pytest.raises(OverflowError):
+        controller._inner_python(q, fast, reference)
+    with pytest.raises(OverflowError):
+        controller.update(0.001, q, fast, reference)
