@@ -23,6 +23,17 @@ def near_hover(robot, seed):
     return q, v, w, w * (1 + 0.05 * rng.normal(size=w.shape)), rng
 
 
+def hover_thrusts(robot):
+    """The reference pose's hover configuration and each drone's hover thrust [N]: (q0, thrusts (n_d,))."""
+    import numpy as np
+
+    from fpr.sim.plant import hover_configuration, hover_speeds
+
+    q0 = hover_configuration(robot, robot.kind.reference_chain)
+    w = hover_speeds(robot, q0)
+    return q0, np.array([rotor.wrench(wi**2)[0] for rotor, wi in zip(robot.rotors, w, strict=True)])
+
+
 # A one-travel prototype mission short enough for campaign tests (tests/test_campaign*.py).
 SHORT_HOP = """description = "a short hop of the prototype's drone, for tests"
 robot = "prototype"

@@ -20,13 +20,14 @@ import sys
 
 import numpy as np
 import pytest
+from helpers import hover_thrusts
 
 import fpr
 from controllers import allocation
 from controllers.allocation import Allocator
 from controllers.box_qp import AT_LOWER, AT_UPPER, FREE, solve_box_qp_state
 from fpr.model.robot import AttitudeModel
-from fpr.sim.plant import hover_configuration, hover_speeds
+
 
 kernel = allocation._load_kernel()
 needs_kernel = pytest.mark.skipif(kernel is None, reason="the C extension controllers._alloc is not built "
@@ -39,9 +40,7 @@ def _walk(name, count, seed, spread=0.5):
     rad/s^2."""
     robot = fpr.load(name)
     rng = np.random.default_rng(seed)
-    q0 = hover_configuration(robot, robot.kind.reference_chain)
-    w = hover_speeds(robot, q0)
-    hover = np.array([rotor.wrench(wi**2)[0] for rotor, wi in zip(robot.rotors, w, strict=True)])
+    q0, hover = hover_thrusts(robot)
     n_a = len(robot.layout.attitude)
     q, v, factor, u_a = q0.copy(), np.zeros(robot.nq), 1.0, np.zeros(n_a)
     calls = []

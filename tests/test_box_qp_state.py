@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import hover_thrusts
 
 import fpr
 from controllers.allocation import Allocator, selectors
 from controllers.box_qp import AT_LOWER, AT_UPPER, FREE, solve_box_qp, solve_box_qp_state
 from fpr.model.qp import proxsuite_module
-from fpr.sim.plant import hover_configuration, hover_speeds
+
 
 proxsuite = proxsuite_module()
 
@@ -63,9 +64,7 @@ def test_bounded_result_is_its_definition(name):
     a bound", read-only, and z within the bounds."""
     robot = fpr.load(name)
     rng = np.random.default_rng(4)
-    q0 = hover_configuration(robot, robot.kind.reference_chain)
-    w = hover_speeds(robot, q0)
-    hover = np.array([rotor.wrench(wi**2)[0] for rotor, wi in zip(robot.rotors, w, strict=True)])
+    q0, hover = hover_thrusts(robot)
     allocator = Allocator(robot)
     s_f, s_tau = selectors(robot)
     w_max2 = robot.rotor_constants.max_speed**2

@@ -19,13 +19,13 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import near_hover
+from helpers import hover_thrusts, near_hover
 
 import fpr
 from controllers.allocation import Allocator, allocation_qp, selectors
 from controllers.box_qp import solve_box_qp
 from fpr.model.qp import proxsuite_module
-from fpr.sim.plant import Plant, hover_configuration, hover_speeds, rkmk4_step
+from fpr.sim.plant import Plant, hover_configuration, rkmk4_step
 
 proxsuite = proxsuite_module()
 DT = 1e-3
@@ -84,9 +84,7 @@ def _allocation_cases(name, thrust_factor, count, seed, spread=0.3):
     thrust_factor 3 makes rotors saturate."""
     robot = fpr.load(name)
     rng = np.random.default_rng(seed)
-    q0 = hover_configuration(robot, robot.kind.reference_chain)
-    w = hover_speeds(robot, q0)
-    hover = np.array([rotor.wrench(wi**2)[0] for rotor, wi in zip(robot.rotors, w, strict=True)])
+    q0, hover = hover_thrusts(robot)
     n_a = len(robot.layout.attitude)
     cases = []
     for _ in range(count):
