@@ -120,15 +120,13 @@ static PyObject *tick(PyObject *self, PyObject *args)
     PyObject *o_m, *o_jf, *o_at, *o_c, *o_f, *o_u, *o_k, *o_state;
     if (!PyArg_UnpackTuple(args, "tick", 8, 8, &o_m, &o_jf, &o_at, &o_c, &o_f, &o_u, &o_k, &o_state))
         return NULL;
-    if (!PyArray_Check(o_k) || PyArray_TYPE((PyArrayObject *)o_k) != NPY_DOUBLE
-        || !PyArray_ISCARRAY_RO((PyArrayObject *)o_k) || !PyArray_Check(o_state)
-        || PyArray_TYPE((PyArrayObject *)o_state) != NPY_INT8
+    npy_intp k_len = 0;
+    const double *k = constants_of(o_k, &k_len);
+    if (k == NULL || !PyArray_Check(o_state) || PyArray_TYPE((PyArrayObject *)o_state) != NPY_INT8
         || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o_state) || !PyArray_ISWRITEABLE((PyArrayObject *)o_state)) {
         PyErr_SetString(PyExc_TypeError, "tick: constants must be contiguous float64, state writable int8");
         return NULL;
     }
-    const double *k = (const double *)PyArray_DATA((PyArrayObject *)o_k);
-    const npy_intp k_len = PyArray_SIZE((PyArrayObject *)o_k);
     if (k_len < HEADER) goto bad_constants;
     const int nd = (int)k[0], na = (int)k[1], n = 4 * nd, nt = 3 * nd;
     const double scale = k[2], tol = k[3], reg = k[4];
@@ -370,17 +368,17 @@ static PyObject *inner(PyObject *self, PyObject *args)
 {
     PyObject *o[5], *o_k;
     if (!PyArg_UnpackTuple(args, "inner", 6, 6, &o[0], &o[1], &o[2], &o[3], &o[4], &o_k)) return NULL;
-    if (!PyArray_Check(o_k) || PyArray_TYPE((PyArrayObject *)o_k) != NPY_DOUBLE
-        || !PyArray_ISCARRAY_RO((PyArrayObject *)o_k) || PyArray_SIZE((PyArrayObject *)o_k) < INNER_HEADER) {
+    npy_intp k_len = 0;
+    const double *k = constants_of(o_k, &k_len);
+    if (k == NULL || k_len < INNER_HEADER) {
         PyErr_SetString(PyExc_TypeError, "inner: constants must be a contiguous float64 vector");
         return NULL;
     }
-    const double *k = (const double *)PyArray_DATA((PyArrayObject *)o_k);
     const int nd = (int)k[0], na = nd + 2, lateral = k[1] != 0.0, ix = (int)k[2];
     const double kp_lat = k[3], kd_lat = k[4], pitch_gain = k[5], max_pitch = k[6];
     View qv = {0}, vv = {0}, fv = {0}, rv = {0}, av = {0};
     PyObject *result = NULL;
-    if (nd < 1 || nd > MAX_A - 2 || PyArray_SIZE((PyArrayObject *)o_k) != INNER_HEADER + nd + na + nd + 2 * na) {
+    if (nd < 1 || nd > MAX_A - 2 || k_len != INNER_HEADER + nd + na + nd + 2 * na) {
         PyErr_SetString(PyExc_ValueError, "inner: the constants vector does not fit its header");
         return NULL;
     }

@@ -53,13 +53,12 @@ static PyObject *post(PyObject *self, PyObject *args)
 {
     PyObject *o_m, *o_c, *o_j, *o_k;
     if (!PyArg_UnpackTuple(args, "post", 4, 4, &o_m, &o_c, &o_j, &o_k)) return NULL;
-    if (!PyArray_Check(o_k) || PyArray_TYPE((PyArrayObject *)o_k) != NPY_DOUBLE
-        || !PyArray_ISCARRAY_RO((PyArrayObject *)o_k) || !PyTuple_Check(o_j)) {
+    npy_intp k_len = 0;
+    const double *k = constants_of(o_k, &k_len);
+    if (k == NULL || !PyTuple_Check(o_j)) {
         PyErr_SetString(PyExc_TypeError, "post: constants must be contiguous float64, jacobians a tuple");
         return NULL;
     }
-    const double *k = (const double *)PyArray_DATA((PyArrayObject *)o_k);
-    const npy_intp k_len = PyArray_SIZE((PyArrayObject *)o_k);
     if (k_len < HEADER) goto bad_constants;
     const int n = (int)k[0], nd = (int)k[1], na = (int)k[2], nt = 3 * nd;
     if (n < 1 || n > MAX_V || nd < 1 || nd > MAX_D || na < 1 || na > n || k_len != HEADER + na + 2 * n * n

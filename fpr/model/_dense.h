@@ -1,6 +1,6 @@
 /* Small dense helpers shared by the compiled parts of the closed loop's tick (controllers/_alloc.c,
- * fpr/model/_attitude.c): float64 views of numpy arrays of any strides, and a Cholesky factor and solve (the
- * same loops, so the same bits, wherever they run). Included after Python.h and numpy's arrayobject.h, not
+ * fpr/model/_attitude.c, fpr/sim/_watch.c): the constants vectors the Python side builds, float64 views of numpy
+ * arrays of any strides, and a Cholesky factor and solve (the same loops, so the same bits, wherever they run). Included after Python.h and numpy's arrayobject.h, not
  * linked: each extension gets its own static copy. */
 #ifndef FPR_DENSE_H
 #define FPR_DENSE_H
@@ -13,8 +13,19 @@ typedef struct {
     npy_intp rows, cols, s0, s1;
 } View;
 
+/* The data of a constants vector (float64, aligned, native byte order, C-contiguous: as the Python side builds
+ * them) and its length into *len; NULL, with no error set, when obj is not one. */
+static inline const double *constants_of(PyObject *obj, npy_intp *len)
+{
+    if (!PyArray_Check(obj) || PyArray_TYPE((PyArrayObject *)obj) != NPY_DOUBLE
+        || !PyArray_ISCARRAY_RO((PyArrayObject *)obj))
+        return NULL;
+    *len = PyArray_SIZE((PyArrayObject *)obj);
+    return (const double *)PyArray_DATA((PyArrayObject *)obj);
+}
+
 /* A float64 view of obj with `ndim` dimensions (1: a row vector of `cols`); 0 on a wrong type or shape. */
-static int view(PyObject *obj, int ndim, View *v)
+static inline int view(PyObject *obj, int ndim, View *v)
 {
     v->array = (PyArrayObject *)PyArray_FROM_OTF(obj, NPY_DOUBLE, NPY_ARRAY_ALIGNED);
     if (v->array == NULL) return 0;
@@ -42,7 +53,7 @@ static int view(PyObject *obj, int ndim, View *v)
 
 /* Cholesky A = R^T R of the k x k matrix a (leading dimension lda), its upper triangle read as LAPACK's posv;
  * R's upper triangle into r (leading dimension k). 0 when not positive definite. */
-static int cholesky(const double *a, int lda, int k, double *r)
+static inline int cholesky(const double *a, int lda, int k, double *r)
 {
     for (int j = 0; j < k; j++) {
         double d = a[j * lda + j];
@@ -60,7 +71,7 @@ static int cholesky(const double *a, int lda, int k, double *r)
 }
 
 /* x (in place) := (R^T R)^-1 x, R from cholesky (k x k). */
-static void cholesky_solve(const double *r, int k, double *x)
+static inline void cholesky_solve(const double *r, int k, double *x)
 {
     for (int i = 0; i < k; i++) {
         double s = x[i];

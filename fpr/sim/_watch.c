@@ -16,6 +16,8 @@
 #include <numpy/arrayobject.h>
 #include <math.h>
 
+#include "fpr/model/_dense.h"  /* constants_of */
+
 #define HEADER 8
 
 /* A contiguous float64 vector (or matrix) of obj, or NULL (an exception set) */
@@ -93,8 +95,9 @@ static PyObject *may_be_lost(PyObject *self, PyObject *args)
     double closure_error;
     if (!PyArg_ParseTuple(args, "OOOOOdOO", &o[0], &o[1], &o[2], &o[3], &o[4], &closure_error, &o[5], &o[6]))
         return NULL;
-    if (!PyArray_Check(o[6]) || PyArray_TYPE((PyArrayObject *)o[6]) != NPY_DOUBLE
-        || !PyArray_ISCARRAY_RO((PyArrayObject *)o[6]) || PyArray_SIZE((PyArrayObject *)o[6]) < HEADER) {
+    npy_intp k_len = 0;
+    const double *k = constants_of(o[6], &k_len);
+    if (k == NULL || k_len < HEADER) {
         PyErr_SetString(PyExc_TypeError, "may_be_lost: constants must be a contiguous float64 vector");
         return NULL;
     }
@@ -102,8 +105,7 @@ static PyObject *may_be_lost(PyObject *self, PyObject *args)
     int answer = -1;
     for (int i = 0; i < 6; i++)
         if ((a[i] = vector(o[i])) == NULL) goto done;
-    answer = screen(a[0], a[1], a[2], a[3], a[4], closure_error, a[5], PyArray_DATA((PyArrayObject *)o[6]),
-                    PyArray_SIZE((PyArrayObject *)o[6]));
+    answer = screen(a[0], a[1], a[2], a[3], a[4], closure_error, a[5], k, k_len);
 done:
     for (int i = 0; i < 6; i++) Py_XDECREF(a[i]);
     if (answer < 0) return NULL;
