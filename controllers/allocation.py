@@ -31,13 +31,13 @@ holds one ProxQP workspace, built once and warm-started at every call.
 from __future__ import annotations
 
 import functools
-import importlib
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import lapack
 
 from controllers.box_qp import AT_LOWER, AT_UPPER, FREE, solve_box_qp_state
+from fpr.model.compiled import choose, load_extension
 from fpr.model.qp import proxsuite_module
 
 # the portable build, whose results do not depend on memory alignment (fpr.model.qp)
@@ -47,12 +47,9 @@ _posv = lapack.dposv
 
 
 def _load_kernel():
-    """The compiled allocation tick (``controllers/_alloc.c``, built by ``setup.py``), or None when it was not
-    built (no compiler at install time) or cannot be imported."""
-    try:
-        return importlib.import_module("controllers._alloc")
-    except ImportError:
-        return None
+    """The compiled allocation tick's module (``controllers/_alloc.c``, built by ``setup.py``), or None when it
+    was not built (no compiler at install time) or cannot be imported."""
+    return load_extension("controllers._alloc")
 
 
 #: the routes of the compiled tick's answer, by its route number
@@ -260,17 +257,11 @@ class Allocator:
 
     def _resolve_kernel(self):
         """The compiled tick for this allocator (``compiled``), or None for the Python path."""
-        if self._compiled is False:
-            return None
-        module = _load_kernel()
-        if module is not None and self.n <= module.MAX_ROTORS and self._w_a.size <= module.MAX_ATTITUDE \
-                and self.robot.nq <= module.MAX_COORDINATES:
-            return module.tick
-        if self._compiled:
-            raise RuntimeError("Allocator(compiled=True): the compiled allocation (controllers/_alloc.c) is "
-                               "not built or does not fit this robot; build it with `pip install -e .` (a C "
-                               "compiler is needed) or `python setup.py build_ext --inplace`")
-        return None
+        module = None if self._compiled is False else _load_kernel()
+        fits = module is not None and self.n <= module.MAX_ROTORS and self._w_a.size <= module.MAX_ATTITUDE \
+            and self.robot.nq <= module.MAX_COORDINATES
+        return choose(self._compiled, getattr(module, "tick", None), "Allocator(compiled=True)",
+                      "allocation (controllers/_alloc.c)", fits)
 
     @property
     def compiled(self) -> bool:

@@ -57,6 +57,7 @@ import numpy as np
 import pinocchio as pin
 
 from controllers.allocation import AllocationResult, Allocator, _load_kernel
+from fpr.model.compiled import choose
 from fpr.model.inverse_dynamics import inverse_dynamics
 
 
@@ -345,17 +346,10 @@ class CascadedController:
 
     def _inner_kernel(self):
         """The compiled inner loop's function, or None for :meth:`_inner_python` (``compiled_inner``)."""
-        if self.compiled_inner is not False:
-            module = _load_kernel()
-            kernel = getattr(module, "inner", None)
-            if kernel is not None and len(self.attitude) <= module.MAX_ATTITUDE:
-                return kernel
-            if self.compiled_inner:
-                raise RuntimeError("CascadedController.compiled_inner = True: the compiled inner loop "
-                                   "(controllers/_alloc.c) is not built or does not fit this robot; build it with "
-                                   "`pip install -e .` (a C compiler is needed) or `python setup.py build_ext "
-                                   "--inplace`")
-        return None
+        module = None if self.compiled_inner is False else _load_kernel()
+        return choose(self.compiled_inner, getattr(module, "inner", None),
+                      "CascadedController.compiled_inner = True", "inner loop (controllers/_alloc.c)",
+                      module is not None and len(self.attitude) <= module.MAX_ATTITUDE)
 
     def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
         """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""

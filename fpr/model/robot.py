@@ -34,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
+from fpr.model.compiled import choose, load_extension
 from fpr.model.description import single_angle_urdf
 from fpr.model.errors import ModelArgumentError, NotUniformError, RobotDefinitionError, check_shape
 from fpr.model.parameters import Margins, RotorConstants, load_parameters, margins, rotor_constants
@@ -44,10 +45,8 @@ logger = logging.getLogger(__name__)
 
 _posv = lapack.dposv
 
-try:  # the numpy part of Robot.attitude_model in C (setup.py builds it when a compiler is there)
-    from fpr.model import _attitude as _attitude_kernel
-except ImportError:
-    _attitude_kernel = None
+#: the numpy part of Robot.attitude_model in C (setup.py builds it when a compiler is there), or None
+_attitude_kernel = load_extension("fpr.model._attitude")
 
 
 @dataclass(frozen=True)
@@ -411,20 +410,17 @@ class Robot:
         pin.computeJointJacobians(model, data, qp)
         pin.updateFramePlacements(model, data)
         jacobians = tuple([pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in self.drone_frame_ids])
-        if self.compiled_attitude is not False:
-            if _attitude_kernel is not None and constants[-1] is not None:
-                out = _attitude_kernel.post(m, nle, jacobians, constants[-1])
-                if out is not None:  # else (M_p not positive definite: never) the Python path decides
-                    # the frozen dataclass without its __init__ (one object.__setattr__ per field): the same
-                    # object, about half the cost
-                    result = object.__new__(AttitudeModel)
-                    result.__dict__.update(zip(_ATTITUDE_FIELDS, out))
-                    return result
-            elif self.compiled_attitude:
-                raise RuntimeError("Robot.compiled_attitude = True: the compiled attitude model "
-                                   "(fpr/model/_attitude.c) is not built or does not fit this robot; build it "
-                                   "with `pip install -e .` (a C compiler is needed) or `python setup.py "
-                                   "build_ext --inplace`")
+        post = choose(self.compiled_attitude, getattr(_attitude_kernel, "post", None),
+                      "Robot.compiled_attitude = True", "attitude model (fpr/model/_attitude.c)",
+                      constants[-1] is not None)
+        if post is not None:
+            out = post(m, nle, jacobians, constants[-1])
+            if out is not None:  # else (M_p not positive definite: never) the Python path decides
+                # the frozen dataclass without its __init__ (one object.__setattr__ per field): the same
+                # object, about half the cost
+                result = object.__new__(AttitudeModel)
+                result.__dict__.update(zip(_ATTITUDE_FIELDS, out))
+                return result
         return self._attitude_python(m, nle, jacobians)
 
     def _build_attitude_constants(self) -> tuple:

@@ -24,10 +24,10 @@ import math
 
 import numpy as np
 
-try:  # the screen in C (setup.py builds it when a compiler is there)
-    from fpr.sim import _watch as _screen_kernel
-except ImportError:
-    _screen_kernel = None
+from fpr.model.compiled import choose, load_extension
+
+#: the screen in C (setup.py builds it when a compiler is there), or None
+_screen_kernel = load_extension("fpr.sim._watch")
 
 
 def _past(value: float, bound: float) -> str:
@@ -99,14 +99,10 @@ class Watch:
         """
         if self._screen is None:
             self._build_screen(plant)
-        if self.compiled_screen is not False:
-            if _screen_kernel is not None:
-                return _screen_kernel.may_be_lost(plant.qc, plant.vc, q, v, positions, closure_error, planned,
-                                                  self._screen_constants)
-            if self.compiled_screen:
-                raise RuntimeError("Watch.compiled_screen = True: the compiled screen (fpr/sim/_watch.c) is not "
-                                   "built; build it with `pip install -e .` (a C compiler is needed) or "
-                                   "`python setup.py build_ext --inplace`")
+        screen = choose(self.compiled_screen, getattr(_screen_kernel, "may_be_lost", None),
+                        "Watch.compiled_screen = True", "screen (fpr/sim/_watch.c)")
+        if screen is not None:
+            return screen(plant.qc, plant.vc, q, v, positions, closure_error, planned, self._screen_constants)
         return self._may_be_lost_python(plant, q, v, positions, closure_error, planned)
 
     def _may_be_lost_python(self, plant, q, v, positions, closure_error: float, planned) -> bool:
