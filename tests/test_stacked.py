@@ -50,12 +50,12 @@ def test_mass_matrix_bias_and_jacobians_equal_the_per_body_sums(robot, drones, c
     q, v = ((_complex_step(rng, shape), _complex_step(rng, shape)) if complex_step
             else (rng.uniform(-2, 2, shape), rng.uniform(-2, 2, shape)))
     m_ref, c_ref = _reference(model, q, v)
-    m, c, centres = model.mass_matrix_bias_and_centre_jacobians(q, v)
+    m, c, centres = model.dynamics_and_centre_jacobians(q, v)
     _close(m, m_ref)
     _close(c, c_ref)
     _close(model.mass_matrix(q), m_ref)
     _close(model.bias(q, v), c_ref)
-    for centre, jac in zip(model.drone_centres, centres):
+    for centre, jac in zip(model.drone_centres, np.moveaxis(centres, -3, 0), strict=True):
         _close(jac, centre.jacobian(q))
     # one sample without a batch axis
     _close(model.mass_matrix(q[0]), m_ref[0])
@@ -95,10 +95,10 @@ def test_roll_torques_partition_equals_the_full_formula(robot):
     thrust = 10.0 + _complex_step(rng, (25, robot.n_drones))
     acc = _complex_step(rng, (25, robot.n_drones))
     tau = roll_torques(robot, q, v, thrust, acc)
-    m, c, centres = rigid.mass_matrix_bias_and_centre_jacobians(q, v)
+    m, c, centres = rigid.dynamics_and_centre_jacobians(q, v)
     sel = np.array(rigid.drone_angles)
     gen = -c
-    for i, jac in enumerate(centres):
+    for i, jac in enumerate(np.moveaxis(centres, -3, 0)):
         sin, cos = jets.sin_cos_value(q @ sel[i])
         gen = gen + np.einsum("...in,...i->...n", jac, np.stack([-sin, cos], -1)) * thrust[..., i:i + 1]
     minv = np.linalg.inv(m)

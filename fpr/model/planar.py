@@ -273,14 +273,9 @@ class PlanarModel:
         features = self.stacked.points.features(q)
         return self.stacked.mass_matrix_from(features), self.stacked.bias_from(features, v)
 
-    def mass_matrix_bias_and_centre_jacobians(self, q, v) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
-        """M(q), c(q, qdot) and the Jacobians (..., 2, n) of the :attr:`drone_centres`, from one table of sines
-        and cosines."""
-        m, c, centres = self.dynamics_and_centre_jacobians(q, v)
-        return m, c, [centres[..., i, :, :] for i in range(centres.shape[-3])]
-
     def dynamics_and_centre_jacobians(self, q, v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`mass_matrix_bias_and_centre_jacobians` with the centres' Jacobians as one array (..., n_d, 2, n)."""
+        """M(q), c(q, qdot) and the Jacobians of the :attr:`drone_centres` as one array (..., n_d, 2, n), from
+        one table of sines and cosines."""
         st = self.stacked
         features = st.points.features(q)
         return (st.mass_matrix_from(features), st.bias_from(features, v),
