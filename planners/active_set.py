@@ -38,6 +38,13 @@ BANDED_SHARE = 0.25
 BANDED_MIN_SIZE = 200
 
 
+def shifted(hess, shift: float) -> np.ndarray:
+    """A copy of H with ``shift`` added to its diagonal (float)."""
+    out = np.array(hess, dtype=float)
+    out[np.diag_indices_from(out)] += shift
+    return out
+
+
 def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None, shift: float = 0.0):
     """The minimiser of 1/2 d^T (H + shift I) d + g^T d s.t. rows d >= lower, |d|_inf <= radius, or None.
 
@@ -62,8 +69,7 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None, shif
     solve = banded_solver(hess, shift)
     if solve is None:
         if shift:
-            hess = np.array(hess, dtype=float)
-            hess[np.diag_indices(n)] += shift
+            hess = shifted(hess, shift)
         # H = V diag(w) V^T; the range-space steps below lose about 1e-16 |H^-1 g| to cancellation: keep
         # that below 1e-9 of the radius, else leave the QP to a solver that does not invert H
         w, v = np.linalg.eigh(0.5 * (hess + hess.T))

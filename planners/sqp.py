@@ -70,7 +70,7 @@ from scipy import sparse
 
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
-from planners.active_set import BANDED_MIN_SIZE, solve_step_qp
+from planners.active_set import BANDED_MIN_SIZE, shifted, solve_step_qp
 from planners.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
 from planners.problem import POWER_SMOOTHING
 
@@ -323,9 +323,7 @@ def _shift(hess) -> float:
 
 def _regularised(hess):
     """H + :func:`_shift` (H) I: the step QP's curvature made positive definite."""
-    out = np.array(hess, dtype=float)
-    out[np.diag_indices_from(out)] += _shift(hess)
-    return out
+    return shifted(hess, _shift(hess))
 
 
 def _rows_divided(a, norms):
