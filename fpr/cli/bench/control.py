@@ -43,7 +43,7 @@ import numpy as np
 import fpr
 from controllers.allocation import Allocator, pseudo_inverse_law
 from controllers.ctc import CascadedController
-from fpr.cli.bench.loop_allocation import allocation_along_loops, allocation_lines
+from fpr.cli.bench.loop_allocation import allocation_along_loops, allocation_lines, path_name
 from fpr.cli.bench.model import SEED
 from fpr.cli.bench.timing import Bench, cycling, fmt, time_part
 from fpr.model.inverse_dynamics import inverse_dynamics
@@ -101,8 +101,7 @@ def _allocation_rows(bench: Bench, robot, case: str, states, thrust, quadprog) -
         allocator.qp.solve()
         iterations.append(int(allocator.qp.results.info.iter))
     calls = [(a, thrust, u) for a, u in states]
-    path = "compiled (C)" if allocator.compiled else "Python"
-    rows = [bench.time(f"{label}: (1) Allocator.solve, full call ({path} path, states cycled)",
+    rows = [bench.time(f"{label}: (1) Allocator.solve, full call ({path_name(allocator)} path, states cycled)",
                        cycling(allocator.solve, calls))]
     if allocator.compiled:  # the Python path (the reference) on the same calls
         rows.append(bench.time(f"{label}:     Allocator.solve, full call (Python path, states cycled)",

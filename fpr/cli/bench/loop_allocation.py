@@ -53,7 +53,7 @@ def record_allocations(result, settings: SimulationSettings) -> tuple[list[tuple
     return calls, log
 
 
-def _path_name(allocator) -> str:
+def path_name(allocator) -> str:
     """Which path an allocator's ``solve`` runs."""
     return "compiled (C)" if allocator.compiled else "Python"
 
@@ -81,7 +81,7 @@ def replay_paths(robot, calls: list[tuple], passes: int, paths) -> list[dict]:
         for m, compiled in enumerate(paths):
             allocator = Allocator(robot, compiled=compiled)
             if p == 0:
-                names.append(_path_name(allocator))
+                names.append(path_name(allocator))
             counts = allocator.routes
             gc.disable()
             try:
