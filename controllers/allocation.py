@@ -260,7 +260,7 @@ class Allocator:
         module = None if self._compiled is False else _load_kernel()
         fits = module is not None and self.n <= module.MAX_ROTORS and self._w_a.size <= module.MAX_ATTITUDE \
             and self.robot.nq <= module.MAX_COORDINATES
-        return choose(self._compiled, getattr(module, "tick", None), "Allocator(compiled=True)",
+        return choose(self._compiled, getattr(module, "tick", None), "compiled", "Allocator(compiled=True)",
                       "allocation (controllers/_alloc.c)", fits)
 
     @property

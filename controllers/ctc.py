@@ -347,7 +347,7 @@ class CascadedController:
     def _inner_kernel(self):
         """The compiled inner loop's function, or None for :meth:`_inner_python` (``compiled_inner``)."""
         module = None if self.compiled_inner is False else _load_kernel()
-        return choose(self.compiled_inner, getattr(module, "inner", None),
+        return choose(self.compiled_inner, getattr(module, "inner", None), "compiled_inner",
                       "CascadedController.compiled_inner = True", "inner loop (controllers/_alloc.c)",
                       module is not None and len(self.attitude) <= module.MAX_ATTITUDE)
 

@@ -210,3 +210,22 @@ def test_non_finite_input_is_decided_by_the_python_path():
             a, b = fast.solve(*case), reference.solve(*case)
         assert np.isnan(a.speeds_squared).all() and np.isnan(b.speeds_squared).all()
         assert a.iterations == b.iterations and fast.routes == reference.routes
+
+
+def test_a_switch_that_is_not_none_false_or_true_is_refused_in_one_line(monkeypatch):
+    """Every compiled part's switch (fpr.model.compiled.choose): a clear ModelArgumentError naming it."""
+    from controllers.ctc import CascadedController
+    from fpr.model.errors import ModelArgumentError
+
+    robot = fpr.load("fpr")
+    with pytest.raises(ModelArgumentError, match=r"^compiled = 'yes': give None") as error:
+        Allocator(robot, compiled="yes")
+    assert error.value.argument == "compiled" and "\n" not in str(error.value)
+    controller = CascadedController(robot)
+    controller.compiled_inner = 1
+    with pytest.raises(ModelArgumentError, match=r"^compiled_inner = 1: "):
+        controller._inner_kernel()
+    monkeypatch.setattr(robot, "compiled_attitude", "no", raising=False)  # the loaded robot may be shared
+    q = np.zeros(robot.nq)
+    with pytest.raises(ModelArgumentError, match=r"^compiled_attitude = 'no': "):
+        robot.attitude_model(q, q)

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import importlib
 
+from fpr.model.errors import ModelArgumentError
+
 #: how to get the extensions: said by every error that wants one
 BUILD_HINT = ("build it with `pip install -e .` (a C compiler is needed) or "
               "`python setup.py build_ext --inplace`")
@@ -25,19 +27,24 @@ def load_extension(name: str):
         return None
 
 
-def choose(switch: bool | None, function, setting: str, part: str, fits: bool = True):
+def choose(switch: bool | None, function, name: str, setting: str, part: str, fits: bool = True):
     """The compiled ``function`` to call under ``switch``, or None for the Python reference.
 
     Args:
         switch: None, False or True (module docstring).
         function: the extension's function, or None when it is not built.
+        name: the switch's name, for the error on a value that is not one (e.g. ``"compiled_attitude"``).
         setting: the switch as the user sets it, for the error (e.g. ``"Robot.compiled_attitude = True"``).
         part: what is compiled and where, for the error (e.g. ``"attitude model (fpr/model/_attitude.c)"``).
         fits: whether the robot is within the compiled part's fixed sizes.
 
     Raises:
+        ModelArgumentError: ``switch`` is not None, False or True.
         RuntimeError: ``switch`` is True and the part is not built or does not fit.
     """
+    if switch is not None and not isinstance(switch, bool):
+        raise ModelArgumentError(name, switch, f"{name} = {switch!r}: give None (the compiled part when it is "
+                                               "built), False (the Python reference) or True (require it)")
     if switch is False:
         return None
     if function is not None and fits:

@@ -410,7 +410,7 @@ class Robot:
         pin.computeJointJacobians(model, data, qp)
         pin.updateFramePlacements(model, data)
         jacobians = tuple([pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in self.drone_frame_ids])
-        post = choose(self.compiled_attitude, getattr(_attitude_kernel, "post", None),
+        post = choose(self.compiled_attitude, getattr(_attitude_kernel, "post", None), "compiled_attitude",
                       "Robot.compiled_attitude = True", "attitude model (fpr/model/_attitude.c)",
                       constants[-1] is not None)
         if post is not None:

@@ -100,7 +100,7 @@ class Watch:
         if self._screen is None:
             self._build_screen(plant)
         screen = choose(self.compiled_screen, getattr(_screen_kernel, "may_be_lost", None),
-                        "Watch.compiled_screen = True", "screen (fpr/sim/_watch.c)")
+                        "compiled_screen", "Watch.compiled_screen = True", "screen (fpr/sim/_watch.c)")
         if screen is not None:
             return screen(plant.qc, plant.vc, q, v, positions, closure_error, planned, self._screen_constants)
         return self._may_be_lost_python(plant, q, v, positions, closure_error, planned)
