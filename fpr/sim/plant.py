@@ -33,10 +33,13 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
+from fpr.model.compiled import choose
 from fpr.model.constrained import ClosedChainModel, build_closed_chain
 from fpr.model.errors import FprError, ModelArgumentError, check_shape
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.robots import load
+from fpr.sim.plant_kernel import kernel as _plant_kernel
+from fpr.sim.plant_kernel import plant_constants
 
 _gesv = lapack.dgesv
 
@@ -200,6 +203,12 @@ class Plant:
         time: simulated time [s].
     """
 
+    #: the steps compiled (``fpr/sim/_plant.c``): None (default) when the extension is built and knows the
+    #: model's joints and closures (:func:`plant_constants`), else the Python steps; False: always the Python
+    #: steps (the reference, on Pinocchio's ``constraintDynamics``); True: the compiled ones, an error when
+    #: they are not built or do not fit. Only the steps without wind are compiled.
+    compiled_step: bool | None = None
+
     def __init__(self, closed: ClosedChainModel, qc, vc=None, w=None, time: float = 0.0, reference=None,
                  rotor_constant_scale: float = 1.0):
         """
@@ -235,6 +244,7 @@ class Plant:
         self._rotor_map = _rotor_force_map(closed, self._mixing)
         self._max_speed = closed.robot.rotor_constants.max_speed
         self._step_constants = {}  # dt -> (lag decay at 0, dt/2, dt; dt/2; RK4 weights), see _lean_step
+        self._plant_constants = False  # the compiled step's model (plant_constants), looked up at the first step
         # constraint and frame data read by drone_positions_and_closure_error (looked up once)
         self._closure_terms = tuple((cm.joint1_id, cm.joint1_placement.translation.copy(), cm.joint2_id,
                                      cm.joint2_placement.translation.copy()) for cm in closed.constraints)
@@ -559,6 +569,46 @@ class Plant:
         return constants
 
     def _lean_steps(self, w_cmd, dt: float, steps: int) -> None:
+        """``steps`` RKMK4 steps without wind, w_cmd saturated: in C (:meth:`_compiled_steps`) when
+        :attr:`compiled_step` chooses it, else :meth:`_python_steps`."""
+        kernel = self._step_kernel()
+        if kernel is None:
+            self._python_steps(w_cmd, dt, steps)
+        else:
+            self._compiled_steps(kernel, w_cmd, dt, steps)
+
+    def _step_kernel(self):
+        """``fpr.sim._plant.steps`` under :attr:`compiled_step`, or None for the Python steps."""
+        if self._plant_constants is False:  # not looked up yet
+            self._plant_constants = None if _plant_kernel is None else plant_constants(self.closed)
+        return choose(self.compiled_step, getattr(_plant_kernel, "steps", None), "compiled_step",
+                      "Plant.compiled_step = True", "plant step (fpr/sim/_plant.c)",
+                      fits=self._plant_constants is not None)
+
+    def _compiled_steps(self, kernel, w_cmd, dt: float, steps: int) -> None:
+        """:meth:`_python_steps` in C (``fpr/sim/_plant.c``): the same RKMK4 steps, the dynamics, the group's
+        exponential and dexp^-1 computed there (equal to Pinocchio's to round-off; tests/test_plant_compiled.py).
+        A step that turns a free flyer by more than the C series covers (0.5 rad in half a step) runs in Python."""
+        constants = self._lean_constants(dt)
+        force_map_t, decay = constants[3], constants[0]
+        while steps > 0:
+            q, v, w, done, status = kernel(self._plant_constants, force_map_t, decay, self.qc, self.vc,
+                                           self._w, w_cmd, dt, steps)
+            if done:
+                self.qc, self.vc, self._w = q, v, w.reshape(-1, 4)
+                for _ in range(done):
+                    self.time += dt
+            steps -= done
+            if status == 1:
+                raise PlantDivergedError(self.time, dt)
+            if status == 2:
+                raise PlantDivergedError(self.time, dt, "the plant's integrator failed (a matrix of the "
+                                                        "constraint dynamics is not positive definite)")
+            if status == 3:  # a fast turn: this step in Python
+                self._python_steps(w_cmd, dt, 1)
+                steps -= 1
+
+    def _python_steps(self, w_cmd, dt: float, steps: int) -> None:
         """``steps`` RKMK4 steps without wind, w_cmd saturated: the same steps as :func:`rkmk4_step` (equal to
         round-off; tested), in fewer array calls.
 
