@@ -24,6 +24,8 @@
  *   status 0: all steps done; 1: the state became non-finite in step done + 1; 2: a matrix was not positive
  *   definite in step done + 1 at a finite state (the integrator failed); 3: step done + 1 turns a free flyer by more than the
  *   series covers (the caller runs it in Python). q, v, w: the state after `done` steps.
+ * points(constants, q, spec) -> (positions (n, 3), closure error): world positions of points on joints (spec:
+ *   n, then joint, x, y, z per point) and the largest distance between a closure's two points, at q.
  * dynamics(constants, q, v, tau) -> a; rigid_terms(constants, q, v) -> (M, nle); integrate(constants, q, theta) -> q; dexp_inverse(constants, theta, v) -> x
  *   (None beyond the series' range): the parts, for the tests.
  */
@@ -661,6 +663,73 @@ static PyObject *py_dynamics(PyObject *self, PyObject *args)
     return result;
 }
 
+/* world positions of points on joints at q (spec: count, then joint, x, y, z per point) into positions, and the
+ * largest distance between the two points of a closure; 0 on a spec that does not fit the model */
+static int points(const Model *m, const double *q, const double *spec, npy_intp spec_len, double *positions,
+                  double *closure)
+{
+    SE3 o[MAXJ], li;
+    memset(&o[0], 0, sizeof o[0]);
+    o[0].R[0] = o[0].R[4] = o[0].R[8] = 1.0;
+    for (int i = 1; i < m->nj; i++) {
+        joint_placement(&m->joints[i], q, &li);
+        compose(&o[m->joints[i].parent], &li, &o[i]);
+    }
+    const int n = (int)spec[0];
+    if (spec_len != 1 + 4 * (npy_intp)n) return 0;
+    for (int k = 0; k < n; k++) {
+        const double *p = spec + 1 + 4 * k;
+        const int j = (int)p[0];
+        if (!(p[0] >= 0 && j < m->nj)) return 0;
+        double t[3];
+        mat_vec(o[j].R, p + 1, t);
+        for (int d = 0; d < 3; d++) positions[3 * k + d] = t[d] + o[j].p[d];
+    }
+    double worst = 0.0;
+    for (int c = 0; c < m->nc; c++) {
+        const Closure *cl = &m->closures[c];
+        double a[3], b[3], e = 0.0;
+        mat_vec(o[cl->j1].R, cl->p1, a);
+        mat_vec(o[cl->j2].R, cl->p2, b);
+        for (int d = 0; d < 3; d++) {
+            const double x = (a[d] + o[cl->j1].p[d]) - (b[d] + o[cl->j2].p[d]);
+            e += x * x;
+        }
+        e = sqrt(e);
+        if (e > worst || isnan(e)) worst = e;
+    }
+    *closure = worst;
+    return 1;
+}
+
+static PyObject *py_points(PyObject *self, PyObject *args)
+{
+    PyObject *ko, *qo, *so;
+    if (!PyArg_ParseTuple(args, "OOO", &ko, &qo, &so)) return NULL;
+    Model m;
+    if (!model_of(ko, &m)) return NULL;
+    npy_intp spec_len = 0;
+    const double *spec = constants_of(so, &spec_len);
+    if (spec == NULL || spec_len < 1 || !(spec[0] >= 0) || spec[0] > 64) {
+        PyErr_SetString(PyExc_ValueError, "points: the spec must be a contiguous float64 vector (count, points)");
+        return NULL;
+    }
+    PyArrayObject *q = copy_of(qo, m.nq, "q");
+    if (q == NULL) return NULL;
+    npy_intp dims[2] = {(npy_intp)spec[0], 3};
+    PyArrayObject *positions = (PyArrayObject *)PyArray_SimpleNew(2, dims, NPY_DOUBLE);
+    PyObject *result = NULL;
+    double closure = 0.0;
+    if (positions != NULL) {
+        if (!points(&m, DATA(q), spec, spec_len, DATA(positions), &closure))
+            PyErr_SetString(PyExc_ValueError, "points: the spec does not fit the model");
+        else
+            result = Py_BuildValue("Od", positions, closure);
+    }
+    Py_XDECREF(positions), Py_DECREF(q);
+    return result;
+}
+
 static PyObject *py_rigid_terms(PyObject *self, PyObject *args)
 {
     PyObject *ko, *qo, *vo;
@@ -719,6 +788,7 @@ static PyObject *py_dexp_inverse(PyObject *self, PyObject *args)
 static PyMethodDef methods[] = {
     {"steps", py_steps, METH_VARARGS, "RKMK4 steps of the plant (see the module's C source)."},
     {"dynamics", py_dynamics, METH_VARARGS, "Constrained acceleration at (q, v) under tau."},
+    {"points", py_points, METH_VARARGS, "(positions, closure error) of points on joints at q."},
     {"rigid_terms", py_rigid_terms, METH_VARARGS, "(M, nle) at (q, v): the mass matrix and the bias forces."},
     {"integrate", py_integrate, METH_VARARGS, "q (+) theta on the configuration group."},
     {"dexp_inverse", py_dexp_inverse, METH_VARARGS, "dexp^-1_theta(v), or None beyond the series' range."},

@@ -252,6 +252,8 @@ class Plant:
         self._drone_frames = tuple((model.frames[f].parentJoint, model.frames[f].placement.translation.copy())
                                    for f in closed.drone_frame_ids)
         self._drone_points = tuple((joint, p.tolist()) for joint, p in self._drone_frames)  # as floats
+        self._point_spec = np.array([len(self._drone_points)] + [x for joint, p in self._drone_points
+                                                                  for x in (joint, *p)], dtype=float)
         self._closure_points = tuple((j1, p1.tolist(), j2, p2.tolist())
                                      for j1, p1, j2, p2 in self._closure_terms)
         self._point_joints = tuple(sorted({j for j, _ in self._drone_points}
@@ -366,7 +368,9 @@ class Plant:
 
     def observe(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """What the closed loop reads at every tick, from one forward kinematics pass: :meth:`measure` (q, v)
-        and :meth:`drone_positions_and_closure_error` (positions, closure error), the same values.
+        and :meth:`drone_positions_and_closure_error` (positions, closure error), the same values (the
+        positions and the closure error from the compiled plant's kinematics when it steps the plant: equal to
+        round-off, a NaN state giving a NaN closure error).
 
         Returns:
             q, v (thesis coordinates, shape (n,)); the drones' centres of mass, shape (n_d, 3) [m]; the
@@ -375,6 +379,8 @@ class Plant:
         q, v = self.measure()
         if not self._closure_is_3d:
             return (q, v) + self.drone_positions_and_closure_error()
+        if self._step_kernel() is not None:  # the compiled plant's kinematics (the same points, to round-off)
+            return (q, v) + _plant_kernel.points(self._plant_constants, self.qc, self._point_spec)
         # ClosedChainModel.to_minimal (in measure) left the placements at qc in closed.data
         return (q, v) + self._positions_and_closure()
 
