@@ -403,13 +403,13 @@ static void point_terms(const Model *m, const Work *w, int i, const double *p, d
  * positive definite */
 static int dynamics(const Model *m, const double *q, const double *v, const double *tau, double *a, Work *w)
 {
-    const int nv = m->nv, nr = 3 * m->nc;
+    const int nv = m->nv, nr = 3 * m->nc, nb = nr + 1;
     rigid_terms(m, q, v, w);
     if (!cholesky(w->M, nv, nv, w->R)) return 0;
-    for (int k = 0; k < nv; k++) a[k] = tau[k] - w->nle[k];
-    cholesky_solve(w->R, nv, a);  /* the free acceleration */
-    if (nr == 0) return 1;
-    double G[MAXR * MAXV], Yt[MAXR * MAXV], gamma[MAXR], K[MAXR * MAXR], KR[MAXR * MAXR];
+    /* With M = R^T R: B's columns are G^T's rows and tau - nle; Z = R^-T B by one forward substitution on all
+     * columns at once (independent sums side by side); then K = Z_G^T Z_G, b = gamma - Z_G^T z_tau and, once
+     * l is known, a = R^-1 (z_tau + Z_G l): M^-1 G^T is never formed. */
+    double G[MAXR * MAXV], Z[MAXV * (MAXR + 1)], gamma[MAXR], K[MAXR * MAXR], KR[MAXR * MAXR];
     memset(G, 0, sizeof(double) * nr * nv);
     for (int c = 0; c < m->nc; c++) {
         const Closure *cl = &m->closures[c];
@@ -419,34 +419,55 @@ static int dynamics(const Model *m, const double *q, const double *v, const doub
         for (int d = 0; d < 3; d++)
             gamma[3 * c + d] = -(a1[d] - a2[d]) - cl->kp * (x1[d] - x2[d]) - cl->kd * (d1[d] - d2[d]);
     }
-    for (int r = 0; r < nr; r++) {  /* Yt[r] = M^-1 G[r]^T; b = gamma - G a_free */
-        memcpy(Yt + r * nv, G + r * nv, sizeof(double) * nv);
-        cholesky_solve(w->R, nv, Yt + r * nv);
-        double s = 0.0;
-        for (int k = 0; k < nv; k++) s += G[r * nv + k] * a[k];
-        gamma[r] -= s;
-    }
-    for (int r = 0; r < nr; r++)
-        for (int s = 0; s <= r; s++) {
-            double t = 0.0;
-            for (int k = 0; k < nv; k++) t += G[r * nv + k] * Yt[s * nv + k];
-            K[r * nr + s] = K[s * nr + r] = t + (r == s ? m->mu : 0.0);
+    const double *R = w->R;
+    for (int i = 0; i < nv; i++) {  /* Z row i: (B[i] - sum_p R[p][i] Z[p]) / R[i][i], column nr = tau - nle */
+        double *zi = Z + i * nb;
+        for (int r = 0; r < nr; r++) zi[r] = G[r * nv + i];
+        zi[nr] = tau[i] - w->nle[i];
+        for (int p = 0; p < i; p++) {
+            const double rpi = R[p * nv + i];
+            const double *zp = Z + p * nb;
+            for (int r = 0; r < nb; r++) zi[r] -= rpi * zp[r];
         }
-    if (!cholesky(K, nr, nr, KR)) return 0;
+        const double d = R[i * nv + i];
+        for (int r = 0; r < nb; r++) zi[r] /= d;
+    }
     double lambda[MAXR] = {0}, next[MAXR];
-    for (int it = 0; it < m->max_iter; it++) {
-        for (int r = 0; r < nr; r++) next[r] = gamma[r] + m->mu * lambda[r];
-        cholesky_solve(KR, nr, next);
-        double change = 0.0;
+    if (nr > 0) {
+        for (int r = 0; r < nr; r++)
+            for (int s = 0; s <= r; s++) {
+                double t = 0.0;
+                for (int k = 0; k < nv; k++) t += Z[k * nb + r] * Z[k * nb + s];
+                K[r * nr + s] = K[s * nr + r] = t + (r == s ? m->mu : 0.0);
+            }
         for (int r = 0; r < nr; r++) {
-            const double d = fabs(next[r] - lambda[r]);
-            if (d > change) change = d;
-            lambda[r] = next[r];
+            double t = 0.0;
+            for (int k = 0; k < nv; k++) t += Z[k * nb + r] * Z[k * nb + nr];
+            gamma[r] -= t;
         }
-        if (m->mu * change <= m->abs_acc || change <= m->rel_acc) break;
+        if (!cholesky(K, nr, nr, KR)) return 0;
+        for (int it = 0; it < m->max_iter; it++) {
+            for (int r = 0; r < nr; r++) next[r] = gamma[r] + m->mu * lambda[r];
+            cholesky_solve(KR, nr, next);
+            double change = 0.0;
+            for (int r = 0; r < nr; r++) {
+                const double d = fabs(next[r] - lambda[r]);
+                if (d > change) change = d;
+                lambda[r] = next[r];
+            }
+            if (m->mu * change <= m->abs_acc || change <= m->rel_acc) break;
+        }
     }
-    for (int r = 0; r < nr; r++)
-        for (int k = 0; k < nv; k++) a[k] += Yt[r * nv + k] * lambda[r];
+    for (int k = 0; k < nv; k++) {
+        double t = Z[k * nb + nr];
+        for (int r = 0; r < nr; r++) t += Z[k * nb + r] * lambda[r];
+        a[k] = t;
+    }
+    for (int i = nv - 1; i >= 0; i--) {  /* a = R^-1 (z_tau + Z_G l) */
+        double t = a[i];
+        for (int p = i + 1; p < nv; p++) t -= R[i * nv + p] * a[p];
+        a[i] = t / R[i * nv + i];
+    }
     return 1;
 }
 
