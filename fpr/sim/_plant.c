@@ -20,8 +20,8 @@
  *     is handed back to the Python path).
  * They agree with Pinocchio's to round-off (tests/test_plant_compiled.py).
  *
- * steps(constants, force_map_t, decay, q, v, w, w_cmd, dt, steps) -> (q, v, w, done, status)
- *   status 0: all steps done; 1: the state became non-finite in step done + 1; 2: a matrix was not positive
+ * steps(constants, force_map_t, decay, q, v, w, w_command, w_max, dt, steps) -> (q, v, w, w_cmd, done, status)
+ *   w_command is saturated to [0, w_max] first (w_cmd, as Plant.saturate). status 0: all steps done; 1: the state became non-finite in step done + 1; 2: a matrix was not positive
  *   definite in step done + 1 at a finite state (the integrator failed); 3: step done + 1 turns a free flyer by more than the
  *   series covers (the caller runs it in Python). q, v, w: the state after `done` steps.
  * points(constants, q, spec) -> (positions (n, 3), closure error): world positions of points on joints (spec:
@@ -633,12 +633,24 @@ static PyArrayObject *copy_of(PyObject *obj, npy_intp n, const char *what)
 
 #define DATA(a) ((double *)PyArray_DATA(a))
 
+/* a contiguous float64 array of obj with n entries (a view when it already is one), or NULL (an exception set) */
+static PyArrayObject *input_of(PyObject *obj, npy_intp n, const char *what)
+{
+    PyArrayObject *a = (PyArrayObject *)PyArray_FROMANY(obj, NPY_DOUBLE, 0, 0, NPY_ARRAY_IN_ARRAY);
+    if (a != NULL && PyArray_SIZE(a) != n) {
+        PyErr_Format(PyExc_ValueError, "%s: expected %zd values", what, (Py_ssize_t)n);
+        Py_CLEAR(a);
+    }
+    return a;
+}
+
 static PyObject *py_steps(PyObject *self, PyObject *args)
 {
     PyObject *ko, *go, *deco, *qo, *vo, *wo, *wco;
-    double dt;
+    double w_max, dt;
     long steps;
-    if (!PyArg_ParseTuple(args, "OOOOOOOdl", &ko, &go, &deco, &qo, &vo, &wo, &wco, &dt, &steps)) return NULL;
+    if (!PyArg_ParseTuple(args, "OOOOOOOddl", &ko, &go, &deco, &qo, &vo, &wo, &wco, &w_max, &dt, &steps))
+        return NULL;
     Model m;
     if (!model_of(ko, &m)) return NULL;
     PyObject *result = NULL;
@@ -646,19 +658,24 @@ static PyObject *py_steps(PyObject *self, PyObject *args)
     if ((q = copy_of(qo, m.nq, "q")) == NULL || (v = copy_of(vo, m.nv, "v")) == NULL) goto done;
     if ((w = copy_of(wo, -1, "w")) == NULL) goto done;
     const npy_intp nw = PyArray_SIZE(w);
-    if (nw > 4 * MAXJ || (wc = copy_of(wco, nw, "w_cmd")) == NULL || (g = copy_of(go, nw * m.nv, "force_map_t")) == NULL
-        || (dec = copy_of(deco, 3, "decay")) == NULL)
+    if (nw > 4 * MAXJ || (wc = copy_of(wco, nw, "w_command")) == NULL
+        || (g = input_of(go, nw * m.nv, "force_map_t")) == NULL || (dec = input_of(deco, 3, "decay")) == NULL)
         goto done;
     if (!(dt > 0) || steps < 0) {
         PyErr_SetString(PyExc_ValueError, "steps: dt must be > 0 and steps >= 0");
         goto done;
     }
+    double *command = DATA(wc);
+    for (npy_intp r = 0; r < nw; r++) {  /* saturated to [0, w_max] as Plant.saturate (NaN stays NaN) */
+        if (command[r] < 0.0) command[r] = 0.0;
+        if (command[r] > w_max) command[r] = w_max;
+    }
     long count = 0;
     int status;
     Py_BEGIN_ALLOW_THREADS
-    status = run_steps(&m, DATA(g), (int)nw, DATA(dec), DATA(q), DATA(v), DATA(w), DATA(wc), dt, steps, &count);
+    status = run_steps(&m, DATA(g), (int)nw, DATA(dec), DATA(q), DATA(v), DATA(w), command, dt, steps, &count);
     Py_END_ALLOW_THREADS
-    result = Py_BuildValue("OOOli", q, v, w, count, status);
+    result = Py_BuildValue("OOOOli", q, v, w, wc, count, status);
 done:
     Py_XDECREF(q), Py_XDECREF(v), Py_XDECREF(w), Py_XDECREF(wc), Py_XDECREF(g), Py_XDECREF(dec);
     return result;

@@ -477,11 +477,8 @@ class Plant:
 
     def saturate(self, w_command) -> np.ndarray:
         """Rotor speed commands clipped to [0, w_max], shape (n_d, 4) [rad/s]."""
-        w = w_command
         # the usual call (a float array of the right shape) skips check_shape
-        if not (type(w) is np.ndarray and w.shape == self._w.shape and w.dtype == float):
-            w = check_shape("w_command", w_command, (self.robot.n_drones, 4))
-        return np.minimum(np.maximum(w, 0.0), self._max_speed)  # np.clip, cheaper
+        return np.minimum(np.maximum(self._checked_command(w_command), 0.0), self._max_speed)  # np.clip, cheaper
 
     def step(self, w_command, dt: float, wind=None) -> None:
         """Advance the plant by dt under a rotor speed command held over the step.
@@ -548,7 +545,11 @@ class Plant:
         if wind is None and self._rotor_map is not None and type(self).step is Plant.step:
             if not dt > 0:
                 raise ModelArgumentError("dt", dt, f"dt = {dt!r}: the time step must be positive [s]")
-            self._lean_steps(self.saturate(w_command), dt, steps)
+            kernel = self._step_kernel()
+            if kernel is None:
+                self._python_steps(self.saturate(w_command), dt, steps)
+            else:  # the C code saturates the command itself (the same clip)
+                self._compiled_steps(kernel, self._checked_command(w_command), dt, steps)
             return
         for _ in range(steps):
             self.step(w_command, dt, wind)
@@ -583,6 +584,13 @@ class Plant:
         else:
             self._compiled_steps(kernel, w_cmd, dt, steps)
 
+    def _checked_command(self, w_command) -> np.ndarray:
+        """The command as :meth:`saturate` takes it, not yet clipped (shape checked)."""
+        w = w_command
+        if not (type(w) is np.ndarray and w.shape == self._w.shape and w.dtype == float):
+            w = check_shape("w_command", w_command, (self.robot.n_drones, 4))
+        return w
+
     def _step_kernel(self):
         """``fpr.sim._plant.steps`` under :attr:`compiled_step`, or None for the Python steps."""
         if self._plant_constants is False:  # not looked up yet
@@ -594,14 +602,15 @@ class Plant:
     def _compiled_steps(self, kernel, w_cmd, dt: float, steps: int) -> None:
         """:meth:`_python_steps` in C (``fpr/sim/_plant.c``): the same RKMK4 steps, the dynamics, the group's
         exponential and dexp^-1 computed there (equal to Pinocchio's to round-off; tests/test_plant_compiled.py).
-        A step that turns a free flyer by more than the C series covers (0.5 rad in half a step) runs in Python."""
+        A step that turns a free flyer by more than the C series covers (0.5 rad in half a step) runs in Python.
+        The C code saturates w_cmd to [0, w_max] as :meth:`saturate` does (a saturated command is unchanged)."""
         constants = self._lean_constants(dt)
         force_map_t, decay = constants[3], constants[0]
         while steps > 0:
-            q, v, w, done, status = kernel(self._plant_constants, force_map_t, decay, self.qc, self.vc,
-                                           self._w, w_cmd, dt, steps)
+            q, v, w, w_cmd, done, status = kernel(self._plant_constants, force_map_t, decay, self.qc, self.vc,
+                                                  self._w, w_cmd, self._max_speed, dt, steps)
             if done:
-                self.qc, self.vc, self._w = q, v, w.reshape(-1, 4)
+                self.qc, self.vc, self._w = q, v, w
                 for _ in range(done):
                     self.time += dt
             steps -= done
