@@ -1,4 +1,4 @@
-"""The compiled plant step (fpr/sim/_plant.c) against Pinocchio and against the Python steps, its reference.
+"""The compiled plant step (fpr/model/_multibody.c) against Pinocchio and against the Python steps, its reference.
 
 Its parts are checked one by one against Pinocchio's own algorithms (CRBA, RNEA, constraintDynamics, integrate,
 dIntegrate), and whole runs against ``Plant.compiled_step = False``, which steps on Pinocchio's
@@ -15,9 +15,9 @@ import fpr
 from fpr.model.constrained import build_closed_chain
 from fpr.model.errors import ModelArgumentError
 from fpr.sim.plant import Plant, PlantDivergedError, hover_configuration, hover_speeds
-from fpr.sim.plant_kernel import kernel, plant_constants
+from fpr.model.multibody import kernel, model_constants, plant_constants
 
-pytestmark = pytest.mark.skipif(kernel is None, reason="fpr.sim._plant is not built (no C compiler)")
+pytestmark = pytest.mark.skipif(kernel is None, reason="fpr.model._multibody is not built (no C compiler)")
 
 ROBOTS = ("fpr", "prototype")
 DT = 1e-3
@@ -181,7 +181,7 @@ def test_the_switch():
     fake = types.SimpleNamespace(model=model, constraints=[], settings=pin.ProximalSettings(1e-12, 1e-9, 3))
     assert plant_constants(fake) is None
     plant.compiled_step = True
-    plant._plant_constants = None
+    plant._plant_constants = None  # as _export leaves it for such a model
     with pytest.raises(RuntimeError, match="plant step"):
         plant.advance(np.zeros((1, 4)), DT, 1)
 
@@ -209,3 +209,40 @@ def test_observed_positions_and_closure_error_are_the_python_ones(name):
     np.testing.assert_allclose(positions, reference_positions, rtol=0, atol=1e-15)
     assert abs(closure - reference_closure) < 1e-15
     assert 0 < reference_closure < 1e-6
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_minimal_model_terms_are_pinocchio_s(name):
+    """The minimal model exported (the FPR's root a composite of 3 prismatic and 3 revolute joints, split into
+    massless parts): M and nle equal Pinocchio's CRBA and RNEA."""
+    robot = fpr.load(name)
+    constants, ids = model_constants(robot.model)
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        q = rng.normal(size=robot.model.nq)
+        v = rng.normal(size=robot.model.nv)
+        mass, nle = kernel.rigid_terms(constants, q, v)
+        reference = pin.crba(robot.model, robot.data, q)
+        reference = np.triu(reference) + np.triu(reference, 1).T
+        np.testing.assert_allclose(mass, reference, rtol=0, atol=1e-14 * np.abs(reference).max())
+        np.testing.assert_allclose(nle, pin.nonLinearEffects(robot.model, robot.data, q, v), rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_measured_velocity_is_the_python_one(name):
+    """to_minimal's velocity by the compiled least squares equals the Python path's (LAPACK's posv on K built
+    from Pinocchio's Jacobians) to 1e-12, at states on and off the closure; the configuration is the same."""
+    closed, qc, vc, rng = closed_state(name, 7)
+    for k in range(3):
+        v_closed = vc if k == 0 else vc + 0.01 * rng.normal(size=vc.size)  # off the closure: least squares
+        q, v = closed.to_minimal(qc, v_closed)
+        closed.compiled_velocity = False
+        try:
+            q_reference, v_reference = closed.to_minimal(qc, v_closed)
+        finally:
+            closed.compiled_velocity = None
+        np.testing.assert_array_equal(q, q_reference)
+        np.testing.assert_allclose(v, v_reference, rtol=0, atol=1e-12 * np.abs(v_reference).max())
+    closed.compiled_velocity = 2
+    with pytest.raises(ModelArgumentError, match="compiled_velocity"):
+        closed.to_minimal(qc, vc)

@@ -27,7 +27,9 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
+from fpr.model.compiled import choose
 from fpr.model.errors import check_shape
+from fpr.model.multibody import kernel as _multibody, model_constants
 
 _posv = lapack.dposv
 
@@ -101,6 +103,12 @@ class ClosedChainModel:
     freeflyer_ids: tuple
     reversed_ids: dict
     settings: pin.ProximalSettings
+
+    #: the measured velocity's least squares compiled (``fpr/model/_multibody.c``, :meth:`to_minimal`): None
+    #: (default) when the extension is built and knows the minimal model's joints, else the Python path; False:
+    #: always the Python path (the reference); True: the compiled one, an error when it is not built or does not
+    #: fit.
+    compiled_velocity = None
 
     # ------------------------------------------------------------------ state conversion
     def from_minimal(self, q, v=None, a=None):
@@ -179,6 +187,13 @@ class ClosedChainModel:
         if vc is None:
             return q
         vc = check_shape("vc", vc, (self.model.nv,))
+        velocity = choose(self.compiled_velocity, getattr(_multibody, "velocity", None), "compiled_velocity",
+                          "ClosedChainModel.compiled_velocity = True", "measured velocity (fpr/model/_multibody.c)",
+                          cache.velocity_spec is not None)
+        if velocity is not None:  # the same normal equations in C, K built there from the minimal model
+            v = velocity(cache.velocity_spec[0], cache.velocity_spec[1], q, vc)
+            if v is not None:  # else (K^T K not positive definite: not these robots) the Python path decides
+                return q, v
         # Speed: least squares by the normal equations K^T K v = K^T vc (Cholesky, LAPACK's posv called
         # directly) instead of lstsq's SVD: K is well conditioned (cond(K) ~ 3 on both robots, so
         # cond(K^T K) ~ 10), which keeps v within 1e-15 (relative) of the SVD solution.
@@ -275,6 +290,20 @@ class _MinimalCache:
         self.angular = closed._angular
         self.angular_list = self.angular.tolist()
         self.reader = r.kind.closure_reader(closed)
+        self.velocity_spec = self._velocity_spec(closed, r)
+
+    def _velocity_spec(self, closed, r) -> tuple[np.ndarray, np.ndarray] | None:
+        """The compiled velocity's inputs (``fpr/model/_multibody.c``, ``velocity``): the minimal model's constants
+        and the spec of K (its hinge Jacobian blocks and the constant rows, T), or None when not built or the
+        minimal model does not fit (:func:`~fpr.model.multibody.model_constants`)."""
+        exported = None if _multibody is None else model_constants(r.model)
+        if exported is None or r.model.nq != r.model.nv:
+            return None
+        constants, ids = exported
+        blocks = [x for iv, hinge in self.freeflyer_rows for x in (iv, ids[hinge])]
+        spec = [r.nq, closed.model.nv, r.model.nq, *r.T.reshape(-1), len(self.freeflyer_rows), *blocks,
+                *self.velocity_rows.reshape(-1)]
+        return constants, np.ascontiguousarray(spec, dtype=float)
 
 
 def _minimal_cache(closed: "ClosedChainModel") -> _MinimalCache:

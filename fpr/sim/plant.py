@@ -38,8 +38,8 @@ from fpr.model.constrained import ClosedChainModel, build_closed_chain
 from fpr.model.errors import FprError, ModelArgumentError, check_shape
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.robots import load
-from fpr.sim.plant_kernel import kernel as _plant_kernel
-from fpr.sim.plant_kernel import plant_constants
+from fpr.model.multibody import kernel as _plant_kernel
+from fpr.model.multibody import model_constants
 
 _gesv = lapack.dgesv
 
@@ -203,7 +203,7 @@ class Plant:
         time: simulated time [s].
     """
 
-    #: the steps compiled (``fpr/sim/_plant.c``): None (default) when the extension is built and knows the
+    #: the steps compiled (``fpr/model/_multibody.c``): None (default) when the extension is built and knows the
     #: model's joints and closures (:func:`plant_constants`), else the Python steps; False: always the Python
     #: steps (the reference, on Pinocchio's ``constraintDynamics``); True: the compiled ones, an error when
     #: they are not built or do not fit. Only the steps without wind are compiled.
@@ -244,7 +244,7 @@ class Plant:
         self._rotor_map = _rotor_force_map(closed, self._mixing)
         self._max_speed = closed.robot.rotor_constants.max_speed
         self._step_constants = {}  # dt -> (lag decay at 0, dt/2, dt; dt/2; RK4 weights), see _lean_step
-        self._plant_constants = False  # the compiled step's model (plant_constants), looked up at the first step
+        self._plant_constants = False  # the compiled step's model (_export), looked up at the first step
         # constraint and frame data read by drone_positions_and_closure_error (looked up once)
         self._closure_terms = tuple((cm.joint1_id, cm.joint1_placement.translation.copy(), cm.joint2_id,
                                      cm.joint2_placement.translation.copy()) for cm in closed.constraints)
@@ -252,8 +252,6 @@ class Plant:
         self._drone_frames = tuple((model.frames[f].parentJoint, model.frames[f].placement.translation.copy())
                                    for f in closed.drone_frame_ids)
         self._drone_points = tuple((joint, p.tolist()) for joint, p in self._drone_frames)  # as floats
-        self._point_spec = np.array([len(self._drone_points)] + [x for joint, p in self._drone_points
-                                                                  for x in (joint, *p)], dtype=float)
         self._closure_points = tuple((j1, p1.tolist(), j2, p2.tolist())
                                      for j1, p1, j2, p2 in self._closure_terms)
         self._point_joints = tuple(sorted({j for j, _ in self._drone_points}
@@ -477,7 +475,6 @@ class Plant:
 
     def saturate(self, w_command) -> np.ndarray:
         """Rotor speed commands clipped to [0, w_max], shape (n_d, 4) [rad/s]."""
-        # the usual call (a float array of the right shape) skips check_shape
         return np.minimum(np.maximum(self._checked_command(w_command), 0.0), self._max_speed)  # np.clip, cheaper
 
     def step(self, w_command, dt: float, wind=None) -> None:
@@ -592,15 +589,26 @@ class Plant:
         return w
 
     def _step_kernel(self):
-        """``fpr.sim._plant.steps`` under :attr:`compiled_step`, or None for the Python steps."""
+        """``fpr.model._multibody.steps`` under :attr:`compiled_step`, or None for the Python steps."""
         if self._plant_constants is False:  # not looked up yet
-            self._plant_constants = None if _plant_kernel is None else plant_constants(self.closed)
+            self._export()
         return choose(self.compiled_step, getattr(_plant_kernel, "steps", None), "compiled_step",
-                      "Plant.compiled_step = True", "plant step (fpr/sim/_plant.c)",
+                      "Plant.compiled_step = True", "plant step (fpr/model/_multibody.c)",
                       fits=self._plant_constants is not None)
 
+    def _export(self) -> None:
+        """The compiled plant's constants (None when it does not fit) and the drones' centres in its numbering."""
+        closed = self.closed
+        exported = None if _plant_kernel is None else model_constants(closed.model, closed.constraints,
+                                                                      closed.settings)
+        self._plant_constants = None if exported is None else exported[0]
+        if exported is not None:
+            ids = exported[1]
+            self._point_spec = np.array([len(self._drone_points)] + [x for joint, p in self._drone_points
+                                                                      for x in (ids[joint], *p)], dtype=float)
+
     def _compiled_steps(self, kernel, w_cmd, dt: float, steps: int) -> None:
-        """:meth:`_python_steps` in C (``fpr/sim/_plant.c``): the same RKMK4 steps, the dynamics, the group's
+        """:meth:`_python_steps` in C (``fpr/model/_multibody.c``): the same RKMK4 steps, the dynamics, the group's
         exponential and dexp^-1 computed there (equal to Pinocchio's to round-off; tests/test_plant_compiled.py).
         A step that turns a free flyer by more than the C series covers (0.5 rad in half a step) runs in Python.
         The C code saturates w_cmd to [0, w_max] as :meth:`saturate` does (a saturated command is unchanged)."""

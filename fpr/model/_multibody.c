@@ -46,7 +46,7 @@
 #define MAXR 12  /* constraint rows (4 point closures) */
 #define SERIES_LIMIT 0.5 /* largest |theta_angular| of a free flyer for the dexp^-1 series [rad] */
 
-enum { REVOLUTE = 0, FREEFLYER = 1 };
+enum { REVOLUTE = 0, FREEFLYER = 1, PRISMATIC = 2 };
 
 typedef struct {
     double R[9], p[3];
@@ -206,7 +206,9 @@ static int parse(const double *k, npy_intp len, Model *m)
     for (int i = 1; i < m->nj; i++, c += JOINT) {
         Joint *j = &m->joints[i];
         j->type = (int)c[0], j->parent = (int)c[1], j->iq = (int)c[2], j->iv = (int)c[3];
-        if ((j->type != REVOLUTE && j->type != FREEFLYER) || j->parent < 0 || j->parent >= i) return 0;
+        if ((j->type != REVOLUTE && j->type != FREEFLYER && j->type != PRISMATIC) || j->parent < 0
+            || j->parent >= i)
+            return 0;
         j->nvj = j->type == FREEFLYER ? 6 : 1;
         const int nqj = j->type == FREEFLYER ? 7 : 1;
         if (j->iq < 0 || j->iq + nqj > m->nq || j->iv < 0 || j->iv + j->nvj > m->nv) return 0;
@@ -247,11 +249,23 @@ static inline void joint_placement(const Joint *j, const double *q, SE3 *out)
     if (j->type == FREEFLYER) {
         quat_matrix(q + j->iq + 3, J.R);
         memcpy(J.p, q + j->iq, sizeof J.p);
+    } else if (j->type == PRISMATIC) {
+        memset(J.R, 0, sizeof J.R);
+        J.R[0] = J.R[4] = J.R[8] = 1.0;
+        J.p[0] = j->axis[0] * q[j->iq], J.p[1] = j->axis[1] * q[j->iq], J.p[2] = j->axis[2] * q[j->iq];
     } else {
         axis_matrix(j->axis, q[j->iq], J.R);
         J.p[0] = J.p[1] = J.p[2] = 0.0;
     }
     compose(&j->placement, &J, out);
+}
+
+/* the motion of a one-degree joint at rate qd, in its own frame: [0, axis qd] (revolute), [axis qd, 0] (prismatic) */
+static inline void subspace(const Joint *j, double qd, double *out)
+{
+    const int at = j->type == PRISMATIC ? 0 : 3;
+    memset(out, 0, 6 * sizeof(double));
+    out[at] = j->axis[0] * qd, out[at + 1] = j->axis[1] * qd, out[at + 2] = j->axis[2] * qd;
 }
 
 /* world inertia of joint i's body as a 6x6 matrix at the world origin, added into Y */
@@ -296,8 +310,7 @@ static void rigid_terms(const Model *m, const double *q, const double *v, Work *
         if (j->type == FREEFLYER)
             memcpy(vj, v + j->iv, sizeof vj);
         else
-            vj[0] = vj[1] = vj[2] = 0.0, vj[3] = j->axis[0] * v[j->iv], vj[4] = j->axis[1] * v[j->iv],
-            vj[5] = j->axis[2] * v[j->iv];
+            subspace(j, v[j->iv], vj);
         act_inv_motion(&li[i], w->v[j->parent], t);
         for (int k = 0; k < 6; k++) w->v[i][k] = t[k] + vj[k];
         act_inv_motion(&li[i], w->a[j->parent], t);
@@ -320,7 +333,8 @@ static void rigid_terms(const Model *m, const double *q, const double *v, Work *
                 act_motion(&w->o[i], e, w->cols[j->iv + k]);
             }
         else {
-            double e[6] = {0, 0, 0, j->axis[0], j->axis[1], j->axis[2]};
+            double e[6];
+            subspace(j, 1.0, e);
             act_motion(&w->o[i], e, w->cols[j->iv]);
         }
         memset(w->Y[i], 0, sizeof w->Y[i]);
@@ -331,8 +345,10 @@ static void rigid_terms(const Model *m, const double *q, const double *v, Work *
         const Joint *j = &m->joints[i];
         if (j->type == FREEFLYER)
             memcpy(w->nle + j->iv, f[i], 6 * sizeof(double));
-        else
-            w->nle[j->iv] = j->axis[0] * f[i][3] + j->axis[1] * f[i][4] + j->axis[2] * f[i][5];
+        else {
+            const double *g = j->type == PRISMATIC ? f[i] : f[i] + 3;
+            w->nle[j->iv] = j->axis[0] * g[0] + j->axis[1] * g[1] + j->axis[2] * g[2];
+        }
         if (j->parent > 0) {
             double t[6];
             act_force(&li[i], f[i], t);
@@ -476,7 +492,7 @@ static void integrate(const Model *m, const double *q, const double *theta, doub
 {
     for (int i = 1; i < m->nj; i++) {
         const Joint *j = &m->joints[i];
-        if (j->type == REVOLUTE) {
+        if (j->type != FREEFLYER) {
             out[j->iq] = q[j->iq] + theta[j->iv];
             continue;
         }
@@ -522,7 +538,7 @@ static int dexp_inverse(const Model *m, const double *theta, const double *v, do
 {
     for (int i = 1; i < m->nj; i++) {
         const Joint *j = &m->joints[i];
-        if (j->type == REVOLUTE) {
+        if (j->type != FREEFLYER) {
             x[j->iv] = v[j->iv];
             continue;
         }
@@ -549,6 +565,75 @@ static int dexp_inverse(const Model *m, const double *theta, const double *v, do
         }
         memcpy(x + j->iv, sum, sizeof sum);
     }
+    return 1;
+}
+
+/* ---------------------------------------------------------------- the measured velocity */
+/* v = argmin |K v - vc| (normal equations), K's rows the LOCAL Jacobians of some joints times T (rows given by
+ * the spec) and constant rows elsewhere, at the model's configuration T q. spec: n, rows, nq (T's rows), T
+ * (nq x n), the number of Jacobian blocks, per block (first row, joint), then the constant rows (rows x n).
+ * 1 on success; 0 when K^T K is not positive definite; -1 when the spec does not fit. */
+static int velocity(const Model *m, const double *spec, npy_intp spec_len, const double *q, const double *vc,
+                    npy_intp vc_len, double *v)
+{
+    const int n = (int)spec[0], rows = (int)spec[1], nqm = (int)spec[2];
+    if (n < 1 || n > MAXV || rows < n || rows > 2 * MAXV || nqm != m->nq || m->nq != m->nv || vc_len != rows
+        || spec_len < 3 + (npy_intp)nqm * n + 1)
+        return -1;
+    const double *T = spec + 3;
+    const int blocks = (int)T[nqm * n];
+    const double *block = T + nqm * n + 1, *constant = block + 2 * blocks;
+    if (blocks < 0 || spec_len != 3 + (npy_intp)nqm * n + 1 + 2 * blocks + (npy_intp)rows * n) return -1;
+    double qp[MAXV], K[2 * MAXV * MAXV], A[MAXV * MAXV], R[MAXV * MAXV];
+    for (int i = 0; i < nqm; i++) {
+        double t = 0.0;
+        for (int k = 0; k < n; k++) t += T[i * n + k] * q[k];
+        qp[i] = t;
+    }
+    SE3 o[MAXJ], li;
+    double cols[MAXV][6];
+    memset(&o[0], 0, sizeof o[0]);
+    o[0].R[0] = o[0].R[4] = o[0].R[8] = 1.0;
+    for (int i = 1; i < m->nj; i++) {
+        const Joint *j = &m->joints[i];
+        if (j->type == FREEFLYER) return -1;
+        joint_placement(j, qp, &li);
+        compose(&o[j->parent], &li, &o[i]);
+        double e[6];
+        subspace(j, 1.0, e);
+        act_motion(&o[i], e, cols[j->iv]);
+    }
+    memcpy(K, constant, sizeof(double) * rows * n);
+    for (int b = 0; b < blocks; b++) {
+        const int first = (int)block[2 * b], joint = (int)block[2 * b + 1];
+        if (first < 0 || first + 6 > rows || joint < 1 || joint >= m->nj) return -1;
+        double J[6][MAXV];
+        memset(J, 0, sizeof J);
+        for (int s = joint; s > 0; s = m->joints[s].parent) {
+            const int k = m->joints[s].iv;
+            double c[6];
+            act_inv_motion(&o[joint], cols[k], c);
+            for (int d = 0; d < 6; d++) J[d][k] = c[d];
+        }
+        for (int d = 0; d < 6; d++)
+            for (int c = 0; c < n; c++) {
+                double t = 0.0;
+                for (int k = 0; k < nqm; k++) t += J[d][k] * T[k * n + c];
+                K[(first + d) * n + c] = t;
+            }
+    }
+    for (int a = 0; a < n; a++) {
+        for (int b = 0; b <= a; b++) {
+            double t = 0.0;
+            for (int r = 0; r < rows; r++) t += K[r * n + a] * K[r * n + b];
+            A[a * n + b] = A[b * n + a] = t;
+        }
+        double t = 0.0;
+        for (int r = 0; r < rows; r++) t += K[r * n + a] * vc[r];
+        v[a] = t;
+    }
+    if (!cholesky(A, n, n, R)) return 0;
+    cholesky_solve(R, n, v);
     return 1;
 }
 
@@ -768,6 +853,38 @@ static PyObject *py_points(PyObject *self, PyObject *args)
     return result;
 }
 
+static PyObject *py_velocity(PyObject *self, PyObject *args)
+{
+    PyObject *ko, *so, *qo, *vo;
+    if (!PyArg_ParseTuple(args, "OOOO", &ko, &so, &qo, &vo)) return NULL;
+    Model m;
+    if (!model_of(ko, &m)) return NULL;
+    npy_intp spec_len = 0;
+    const double *spec = constants_of(so, &spec_len);
+    if (spec == NULL || spec_len < 4) {
+        PyErr_SetString(PyExc_ValueError, "velocity: the spec must be a contiguous float64 vector");
+        return NULL;
+    }
+    PyArrayObject *q = input_of(qo, (npy_intp)spec[0], "q"), *vc = q ? input_of(vo, (npy_intp)spec[1], "vc") : NULL;
+    PyObject *result = NULL;
+    if (vc != NULL) {
+        npy_intp dims[1] = {(npy_intp)spec[0]};
+        PyArrayObject *v = (PyArrayObject *)PyArray_SimpleNew(1, dims, NPY_DOUBLE);
+        if (v != NULL) {
+            const int status = velocity(&m, spec, spec_len, DATA(q), DATA(vc), PyArray_SIZE(vc), DATA(v));
+            if (status < 0)
+                PyErr_SetString(PyExc_ValueError, "velocity: the spec does not fit the model");
+            else if (status == 0)
+                result = Py_None, Py_INCREF(Py_None);
+            else
+                result = (PyObject *)v, Py_INCREF(v);
+            Py_DECREF(v);
+        }
+    }
+    Py_XDECREF(q), Py_XDECREF(vc);
+    return result;
+}
+
 static PyObject *py_rigid_terms(PyObject *self, PyObject *args)
 {
     PyObject *ko, *qo, *vo;
@@ -826,16 +943,17 @@ static PyObject *py_dexp_inverse(PyObject *self, PyObject *args)
 static PyMethodDef methods[] = {
     {"steps", py_steps, METH_VARARGS, "RKMK4 steps of the plant (see the module's C source)."},
     {"dynamics", py_dynamics, METH_VARARGS, "Constrained acceleration at (q, v) under tau."},
+    {"velocity", py_velocity, METH_VARARGS, "Least-squares v of K(q) v = vc, or None (see the C source)."},
     {"points", py_points, METH_VARARGS, "(positions, closure error) of points on joints at q."},
     {"rigid_terms", py_rigid_terms, METH_VARARGS, "(M, nle) at (q, v): the mass matrix and the bias forces."},
     {"integrate", py_integrate, METH_VARARGS, "q (+) theta on the configuration group."},
     {"dexp_inverse", py_dexp_inverse, METH_VARARGS, "dexp^-1_theta(v), or None beyond the series' range."},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr.sim._plant",
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr.model._multibody",
                                     "The plant's RKMK4 steps in C (fpr.sim.plant).", -1, methods};
 
-PyMODINIT_FUNC PyInit__plant(void)
+PyMODINIT_FUNC PyInit__multibody(void)
 {
     import_array();
     return PyModule_Create(&module);
