@@ -267,16 +267,17 @@ class CascadedController:
                               for h in r.hinge_joint_ids]).dot(t)  # world (y, z) of each hinge point
         return m, c, jac
 
-    def _attitude_in_wind(self, attitude, task_force, drone_forces):
+    def _attitude_in_wind(self, q, attitude, task_force, drone_forces):
         """The attitude model (2.12) with the known external forces: c - Q_ext, Q_ext on the full coordinates.
 
         Q_ext = J_p^T f_p + sum_i J_c,i^T f_i (J_p: the task point's, J_c,i: drone i's centre of mass's, world
-        aligned, 3D), from the Jacobians of the ``attitude_model`` call just made (its Pinocchio pass at q):
-        the wind's push on the chain moves the rolls through the coupled dynamics, which the inner loop's
-        torques must then not fight.
+        aligned, 3D), from a Pinocchio kinematics pass at q: the wind's push on the chain moves the rolls
+        through the coupled dynamics, which the inner loop's torques must then not fight.
         """
         r = self.robot
         model, data = r.model, r.data
+        pin.computeJointJacobians(model, data, r.T.dot(q))
+        pin.updateFramePlacements(model, data)
         q_ext = np.zeros(r.nq)
         if task_force is not None:
             jac = pin.getFrameJacobian(model, data, self._full_task_frame, pin.LOCAL_WORLD_ALIGNED)[:3]
@@ -371,7 +372,7 @@ class CascadedController:
         thrust, u_a, roll_desired, pitch = self._inner_python(q, v, reference) if inner is None else inner
         attitude = self.robot.attitude_model(q, v)
         if reference.task_force is not None or reference.drone_forces is not None:  # the known wind (2.12)
-            attitude = self._attitude_in_wind(attitude, reference.task_force, reference.drone_forces)
+            attitude = self._attitude_in_wind(q, attitude, reference.task_force, reference.drone_forces)
         allocation = self.allocator.solve(attitude, thrust, u_a)
         speeds = np.sqrt(np.maximum(allocation.speeds_squared, 0.0))
         return ControlOutput(speeds, allocation, self._force, roll_desired, thrust, u_a, pitch)

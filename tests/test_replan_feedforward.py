@@ -134,7 +134,7 @@ def test_the_inner_loops_model_in_the_wind_is_the_forward_dynamics_with_the_forc
     expected = np.linalg.solve(robot.mass_matrix(q), robot.generalized_input(q, thrust, torque)
                                - robot.nonlinear_effects(q, v) + q_ext)[robot.indices(robot.layout.attitude)]
     controller = CascadedController(robot)
-    attitude = controller._attitude_in_wind(robot.attitude_model(q, v), force, None)
+    attitude = controller._attitude_in_wind(q, robot.attitude_model(q, v), force, None)
     np.testing.assert_allclose(attitude.attitude_acceleration(thrust, torque), expected, atol=1e-6)
     still = robot.attitude_model(q, v).attitude_acceleration(thrust, torque)
     assert np.abs(still - expected).max() > 1e-2  # the wind does move the attitude

@@ -885,6 +885,78 @@ static PyObject *py_velocity(PyObject *self, PyObject *args)
     return result;
 }
 
+/* (M, nle, (J_f...)) at the model's state (T q, T v): the mass matrix, the bias forces and the LOCAL Jacobians
+ * of frames (spec: n, T's rows nq, T (nq x n), the number of frames, per frame its joint, rotation (9, row-major)
+ * and translation (3) in the joint's frame), as Pinocchio's crba (mirrored), nonLinearEffects and
+ * getFrameJacobian(LOCAL) give them. */
+static PyObject *py_frame_terms(PyObject *self, PyObject *args)
+{
+    PyObject *ko, *so, *qo, *vo;
+    if (!PyArg_ParseTuple(args, "OOOO", &ko, &so, &qo, &vo)) return NULL;
+    Model m;
+    if (!model_of(ko, &m)) return NULL;
+    npy_intp spec_len = 0;
+    const double *spec = constants_of(so, &spec_len);
+    const int n = spec != NULL && spec_len >= 3 ? (int)spec[0] : -1;
+    const int count = n > 0 && n <= MAXV && spec[1] == m.nq && m.nq == m.nv && spec_len >= 3 + (npy_intp)m.nq * n
+                          ? (int)spec[2 + m.nq * n] : -1;
+    if (count < 0 || count > 8 || spec_len != 3 + (npy_intp)m.nq * n + 13 * (npy_intp)count) {
+        PyErr_SetString(PyExc_ValueError, "frame_terms: the spec does not fit the model");
+        return NULL;
+    }
+    const double *T = spec + 2, *frames = T + m.nq * n + 1;
+    for (int f = 0; f < count; f++)
+        if (!(frames[13 * f] >= 1 && frames[13 * f] < m.nj)) {
+            PyErr_SetString(PyExc_ValueError, "frame_terms: a frame on no joint of the model");
+            return NULL;
+        }
+    PyArrayObject *q = input_of(qo, n, "q"), *v = q ? input_of(vo, n, "v") : NULL;
+    if (v == NULL) {
+        Py_XDECREF(q);
+        return NULL;
+    }
+    double qp[MAXV], vp[MAXV];
+    for (int i = 0; i < m.nq; i++) {
+        double a = 0.0, b = 0.0;
+        for (int k = 0; k < n; k++) a += T[i * n + k] * DATA(q)[k], b += T[i * n + k] * DATA(v)[k];
+        qp[i] = a, vp[i] = b;
+    }
+    Py_DECREF(q), Py_DECREF(v);
+    Work work;
+    rigid_terms(&m, qp, vp, &work);
+    npy_intp dims[2] = {m.nv, m.nv}, jdims[2] = {6, m.nv};
+    PyArrayObject *M = (PyArrayObject *)PyArray_SimpleNew(2, dims, NPY_DOUBLE),
+                  *nle = (PyArrayObject *)PyArray_SimpleNew(1, dims, NPY_DOUBLE);
+    PyObject *jacobians = PyTuple_New(count), *result = NULL;
+    if (M == NULL || nle == NULL || jacobians == NULL) goto done;
+    memcpy(DATA(M), work.M, sizeof(double) * m.nv * m.nv);
+    memcpy(DATA(nle), work.nle, sizeof(double) * m.nv);
+    for (int f = 0; f < count; f++) {
+        const double *fr = frames + 13 * f;
+        const int joint = (int)fr[0];
+        SE3 local, of;
+        memcpy(local.R, fr + 1, sizeof local.R);
+        memcpy(local.p, fr + 10, sizeof local.p);
+        compose(&work.o[joint], &local, &of);
+        PyArrayObject *J = (PyArrayObject *)PyArray_ZEROS(2, jdims, NPY_DOUBLE, 0);
+        if (J == NULL) goto done;
+        PyTuple_SET_ITEM(jacobians, f, (PyObject *)J);
+        double *jd = DATA(J);
+        for (int s = joint; s > 0; s = m.joints[s].parent) {
+            const Joint *j = &m.joints[s];
+            for (int k = j->iv; k < j->iv + j->nvj; k++) {
+                double c[6];
+                act_inv_motion(&of, work.cols[k], c);
+                for (int d = 0; d < 6; d++) jd[d * m.nv + k] = c[d];
+            }
+        }
+    }
+    result = Py_BuildValue("OOO", M, nle, jacobians);
+done:
+    Py_XDECREF(M), Py_XDECREF(nle), Py_XDECREF(jacobians);
+    return result;
+}
+
 static PyObject *py_rigid_terms(PyObject *self, PyObject *args)
 {
     PyObject *ko, *qo, *vo;
@@ -943,6 +1015,7 @@ static PyObject *py_dexp_inverse(PyObject *self, PyObject *args)
 static PyMethodDef methods[] = {
     {"steps", py_steps, METH_VARARGS, "RKMK4 steps of the plant (see the module's C source)."},
     {"dynamics", py_dynamics, METH_VARARGS, "Constrained acceleration at (q, v) under tau."},
+    {"frame_terms", py_frame_terms, METH_VARARGS, "(M, nle, frame Jacobians) at (T q, T v) (see the C source)."},
     {"velocity", py_velocity, METH_VARARGS, "Least-squares v of K(q) v = vc, or None (see the C source)."},
     {"points", py_points, METH_VARARGS, "(positions, closure error) of points on joints at q."},
     {"rigid_terms", py_rigid_terms, METH_VARARGS, "(M, nle) at (q, v): the mass matrix and the bias forces."},

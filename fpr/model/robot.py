@@ -37,6 +37,7 @@ from scipy.linalg import lapack
 from fpr.model.compiled import choose, load_extension
 from fpr.model.description import single_angle_urdf
 from fpr.model.errors import ModelArgumentError, NotUniformError, RobotDefinitionError, check_shape
+from fpr.model.multibody import kernel as _multibody, model_constants
 from fpr.model.parameters import Margins, RotorConstants, load_parameters, margins, rotor_constants
 from fpr.model.planar import PlanarModel
 from fpr.model.rotors import RotorModel
@@ -398,21 +399,27 @@ class Robot:
         """The attitude model of seed 2.12-2.13 at (q, qdot)."""
         # Speed (the controller calls this at every inner-loop tick; each numpy call costs a microsecond or
         # more on these small arrays): the same quantities as mass_matrix, nonlinear_effects and
-        # drone_jacobians with fewer calls, from one Pinocchio pass (CRBA, RNEA, the joint Jacobians; the
-        # pass leaves its Jacobians in ``data`` for the controller's wind term). The rest, from Pinocchio's
-        # outputs, in C when built (fpr/model/_attitude.c, about 3 times cheaper than the numpy calls of
-        # _attitude_python, its reference, equal to round-off: tests/test_fast_paths.py).
+        # drone_jacobians with fewer calls, from one Pinocchio pass (CRBA, RNEA, the joint Jacobians), or with
+        # the compiled part from one call of fpr/model/_multibody.c (the same algorithms, equal to round-off:
+        # tests/test_plant_compiled.py). The rest, in C when built (fpr/model/_attitude.c, about 3 times
+        # cheaper than the numpy calls of _attitude_python, its reference, equal to round-off:
+        # tests/test_fast_paths.py). Neither path leaves a state in ``data``.
         constants = self.__dict__.get("_attitude_constants") or self._build_attitude_constants()
-        t, model, data = self.T, self.model, self.data
-        qp, vp = t.dot(check_shape("q", q, (self.nq,))), t.dot(check_shape("v", v, (self.nq,)))
-        m = pin.crba(model, data, qp)
-        nle = pin.nonLinearEffects(model, data, qp, vp)
-        pin.computeJointJacobians(model, data, qp)
-        pin.updateFramePlacements(model, data)
-        jacobians = tuple([pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in self.drone_frame_ids])
+        q, v = check_shape("q", q, (self.nq,)), check_shape("v", v, (self.nq,))
         post = choose(self.compiled_attitude, getattr(_attitude_kernel, "post", None), "compiled_attitude",
                       "Robot.compiled_attitude = True", "attitude model (fpr/model/_attitude.c)",
                       constants[-1] is not None)
+        terms = self.__dict__.get("_attitude_terms")
+        if post is not None and terms is not None:  # M_p, nle and the Jacobians by fpr/model/_multibody.c
+            m, nle, jacobians = _multibody.frame_terms(terms[0], terms[1], q, v)
+        else:
+            t, model, data = self.T, self.model, self.data
+            qp, vp = t.dot(q), t.dot(v)
+            m = pin.crba(model, data, qp)
+            nle = pin.nonLinearEffects(model, data, qp, vp)
+            pin.computeJointJacobians(model, data, qp)
+            pin.updateFramePlacements(model, data)
+            jacobians = tuple([pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in self.drone_frame_ids])
         if post is not None:
             out = post(m, nle, jacobians, constants[-1])
             if out is not None:  # else (M_p not positive definite: never) the Python path decides
@@ -437,6 +444,15 @@ class Robot:
                                      self.T_inv.reshape(-1)]).astype(float)
         constants = self.__dict__["_attitude_constants"] = (
             np.ascontiguousarray(self.T_inv[attitude].T), rows[:, 2].copy(), rows[:, 3:].reshape(-1).copy(), vector)
+        exported = None if _multibody is None or self.model.nq != self.model.nv else model_constants(self.model)
+        terms = None
+        if exported is not None:
+            frames = [self.model.frames[f] for f in self.drone_frame_ids]
+            terms = (exported[0], np.ascontiguousarray(
+                [n, self.model.nq, *self.T.reshape(-1), len(frames)]
+                + [x for fr in frames for x in (exported[1][fr.parentJoint], *fr.placement.rotation.reshape(-1),
+                                                 *fr.placement.translation)], dtype=float))
+        self.__dict__["_attitude_terms"] = terms  # frame_terms' constants and spec, or None
         return constants
 
     def _attitude_python(self, m, nle, jacobians) -> AttitudeModel:
