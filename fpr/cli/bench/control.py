@@ -46,7 +46,9 @@ from controllers.ctc import CascadedController
 from fpr.cli.bench.loop_allocation import allocation_along_loops, allocation_lines, path_name
 from fpr.cli.bench.model import SEED
 from fpr.cli.bench.timing import Bench, cycling, fmt, time_part
+from fpr.model.constrained import ClosedChainModel
 from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.model.multibody import kernel as _multibody
 from fpr.model.qp import proxsuite_module
 from fpr.model.robot import Robot, _attitude_kernel
 from fpr.sim.closed_loop import SimulationSettings, simulate
@@ -229,7 +231,9 @@ def _simulation(result, runs: int, say) -> dict:
     compiled = {"allocation tick": Allocator(robot).compiled,
                 "attitude model": _attitude_kernel is not None and robot.compiled_attitude is not False,
                 "inner loop": CascadedController(robot, st)._inner_kernel() is not None,
-                "watch screen": _screen_kernel is not None and Watch.compiled_screen is not False}
+                "watch screen": _screen_kernel is not None and Watch.compiled_screen is not False,
+                "plant steps": _multibody is not None and Plant.compiled_step is not False,
+                "measured velocity": _multibody is not None and ClosedChainModel.compiled_velocity is not False}
     return dict(mission=CONTROL_MISSION, method="two-step", plant_rate_hz=settings.plant_rate,
                 inner_rate_hz=st.inner_rate, outer_rate_hz=st.outer_rate, runs=runs, simulated_s=simulated,
                 wall_s=float(np.median(walls)), wall_min_s=float(min(walls)), wall_runs_s=walls,
