@@ -2,8 +2,8 @@
 
 Each fast path is held equal to a slower, independent computation of the same quantity:
 
-* the plant step without wind (:meth:`fpr.sim.plant.Plant._lean_step`: one constant rotor-force map, the
-  step's constants cached) against :func:`fpr.sim.plant.rkmk4_step` driven by Pinocchio's frame Jacobians
+* the plant step without wind (:meth:`fpr.sim.plant.Plant._python_steps`: one constant rotor-force map, the
+  step's constants cached; and the compiled steps) against :func:`fpr.sim.plant.rkmk4_step` driven by Pinocchio's frame Jacobians
   and the lag solution through ``np.exp``: the same RKMK4 step, so equal to round-off;
 * :meth:`fpr.sim.plant.Plant.observe` against :meth:`~fpr.sim.plant.Plant.measure` and
   :meth:`~fpr.sim.plant.Plant.drone_positions_and_closure_error` (their own kinematics pass);
@@ -38,10 +38,13 @@ def _moving_plant(name, seed):
     return robot, Plant.from_minimal(robot, q, v, w=w), command, rng
 
 
+@pytest.mark.parametrize("compiled", [False, None])
 @pytest.mark.parametrize("name", fpr.ROBOTS)
-def test_lean_step_is_the_reference_rkmk4_step(name):
-    """20 steps of 1 ms: the lean step and rkmk4_step on Pinocchio's Jacobians agree to 1e-12 (relative)."""
+def test_lean_step_is_the_reference_rkmk4_step(name, compiled):
+    """20 steps of 1 ms: the lean step (the Python steps, and the compiled ones when built) and rkmk4_step on
+    Pinocchio's Jacobians agree to 1e-12 (relative)."""
     robot, plant, command, _ = _moving_plant(name, 1)
+    plant.compiled_step = compiled
     lag = robot.rotor_constants.time_constant
     closed = plant.closed
     qc, vc, w0 = plant.qc.copy(), plant.vc.copy(), plant.rotor_speeds

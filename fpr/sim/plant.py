@@ -22,6 +22,9 @@ is of low order in the drones' rotations (its drift grows about as dt^1.5). Meas
 prototype (5 s, yaw rate 0.5 rad/s, hinge rate 2 rad/s): energy drift 8.6e-3 J at dt = 1 ms for the
 plain RK4, 1.6e-5 J for RKMK4 (2.8e-3 J at dt = 5 ms), for 1.7 times the cost per step;
 semi-implicit Euler gains 19 J.
+
+Without wind the steps run in C when built (``fpr/model/_multibody.c``, :attr:`Plant.compiled_step`): the same
+method on the same model, its dynamics written there and equal to Pinocchio's to round-off.
 """
 
 from __future__ import annotations
@@ -203,10 +206,9 @@ class Plant:
         time: simulated time [s].
     """
 
-    #: the steps compiled (``fpr/model/_multibody.c``): None (default) when the extension is built and knows the
-    #: model's joints and closures (:func:`plant_constants`), else the Python steps; False: always the Python
-    #: steps (the reference, on Pinocchio's ``constraintDynamics``); True: the compiled ones, an error when
-    #: they are not built or do not fit. Only the steps without wind are compiled.
+    #: the steps without wind compiled (``fpr/model/_multibody.c``): None (default) when built and the model fits
+    #: (:func:`~fpr.model.multibody.model_constants`), else the Python steps; False: always the Python steps (the
+    #: reference, on Pinocchio's ``constraintDynamics``); True: the compiled ones, an error when they cannot run.
     compiled_step: bool | None = None
 
     def __init__(self, closed: ClosedChainModel, qc, vc=None, w=None, time: float = 0.0, reference=None,
@@ -243,7 +245,7 @@ class Plant:
             self._mixing = self._mixing * rotor_constant_scale
         self._rotor_map = _rotor_force_map(closed, self._mixing)
         self._max_speed = closed.robot.rotor_constants.max_speed
-        self._step_constants = {}  # dt -> (lag decay at 0, dt/2, dt; dt/2; RK4 weights), see _lean_step
+        self._step_constants = {}  # dt -> (lag decay at 0, dt/2, dt; dt/2; RK4 weights), see _lean_steps
         self._plant_constants = False  # the compiled step's model (_export), looked up at the first step
         # constraint and frame data read by drone_positions_and_closure_error (looked up once)
         self._closure_terms = tuple((cm.joint1_id, cm.joint1_placement.translation.copy(), cm.joint2_id,
@@ -494,7 +496,7 @@ class Plant:
             raise ModelArgumentError("dt", dt, f"dt = {dt!r}: the time step must be positive [s]")
         w_cmd = self.saturate(w_command)
         if wind is None and self._rotor_map is not None:
-            self._lean_step(w_cmd, dt)
+            self._lean_steps(w_cmd, dt, 1)
             return
         w0 = self._w
         lag = self.robot.rotor_constants.time_constant
@@ -550,10 +552,6 @@ class Plant:
             return
         for _ in range(steps):
             self.step(w_command, dt, wind)
-
-    def _lean_step(self, w_cmd, dt: float) -> None:
-        """:meth:`step` without wind, w_cmd already saturated: one step of :meth:`_lean_steps`."""
-        self._lean_steps(w_cmd, dt, 1)
 
     def _lean_constants(self, dt: float) -> tuple:
         """What :meth:`_lean_steps` reads, looked up once per dt: the lag's decay at (0, dt/2, dt), dt/2, the
