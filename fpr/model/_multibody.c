@@ -1,5 +1,5 @@
-/* The plant's step (fpr/sim/plant.py, Plant._lean_steps) in C (issue 13): the same RKMK4 steps of the
- * closed chain's constraint dynamics, without the interpreter and the per-call cost of ~20 small Pinocchio and
+/* The plant's step (fpr/sim/plant.py, Plant._python_steps and, with a wind, Plant._python_wind_step) in C
+ * (issue 13): the same RKMK4 steps of the closed chain's constraint dynamics, without the interpreter and the per-call cost of ~20 small Pinocchio and
  * numpy calls per stage.
  *
  * The multibody algorithms are written here for the joints the closed chains are built of (revolute about
@@ -20,8 +20,10 @@
  *     is handed back to the Python path).
  * They agree with Pinocchio's to round-off (tests/test_plant_compiled.py).
  *
- * steps(constants, force_map_t, decay, q, v, w, w_command, w_max, dt, steps) -> (q, v, w, w_cmd, done, status)
- *   w_command is saturated to [0, w_max] first (w_cmd, as Plant.saturate). status 0: all steps done; 1: the state became non-finite in step done + 1; 2: a matrix was not positive
+ * steps(constants, force_map_t, decay, q, v, w, w_command, w_max, dt, steps[, points, forces])
+ *   -> (q, v, w, w_cmd, done, status)
+ *   w_command is saturated to [0, w_max] first (w_cmd, as Plant.saturate); forces (world axes, one row per point
+ *   of the spec `points`, as points() takes it) push on those points (a wind). status 0: all steps done; 1: the state became non-finite in step done + 1; 2: a matrix was not positive
  *   definite in step done + 1 at a finite state (the integrator failed); 3: step done + 1 turns a free flyer by more than the
  *   series covers (the caller runs it in Python). q, v, w: the state after `done` steps.
  * points(constants, q, spec) -> (positions (n, 3), closure error): world positions of points on joints (spec:
@@ -72,6 +74,13 @@ typedef struct {
     Joint joints[MAXJ];
     Closure closures[MAXR / 3];
 } Model;
+
+/* world forces at points on joints (a wind on the drones' centres): count, per point (joint, x, y, z) in the
+ * joint's frame, and the forces (count x 3, world axes) */
+typedef struct {
+    int count;
+    const double *points, *forces;
+} Push;
 
 /* ---------------------------------------------------------------- small spatial algebra (row-major 3x3) */
 static inline void cross(const double *a, const double *b, double *out)
@@ -417,11 +426,31 @@ static void point_terms(const Model *m, const Work *w, int i, const double *p, d
 
 /* a = the constrained acceleration at (q, v) under the generalised force tau; 0 when a matrix is not
  * positive definite */
-static int dynamics(const Model *m, const double *q, const double *v, const double *tau, double *a, Work *w)
+static int dynamics(const Model *m, const double *q, const double *v, const double *tau, const Push *push,
+                    double *a, Work *w)
 {
     const int nv = m->nv, nr = 3 * m->nc, nb = nr + 1;
     rigid_terms(m, q, v, w);
     if (!cholesky(w->M, nv, nv, w->R)) return 0;
+    double pushed[MAXV];
+    if (push != NULL && push->count > 0) {  /* tau + sum J_lin(x_d)^T F_d, J_lin the point's world linear rows */
+        memcpy(pushed, tau, sizeof(double) * nv);
+        for (int d = 0; d < push->count; d++) {
+            const double *p = push->points + 4 * d, *F = push->forces + 3 * d;
+            const int j = (int)p[0];
+            double x[3];
+            mat_vec(w->o[j].R, p + 1, x);
+            for (int e = 0; e < 3; e++) x[e] += w->o[j].p[e];
+            for (int s = j; s > 0; s = m->joints[s].parent)
+                for (int k = m->joints[s].iv; k < m->joints[s].iv + m->joints[s].nvj; k++) {
+                    double r[3];
+                    cross(w->cols[k] + 3, x, r);
+                    pushed[k] += F[0] * (w->cols[k][0] + r[0]) + F[1] * (w->cols[k][1] + r[1])
+                                 + F[2] * (w->cols[k][2] + r[2]);
+                }
+        }
+        tau = pushed;
+    }
     /* With M = R^T R: B's columns are G^T's rows and tau - nle; Z = R^-T B by one forward substitution on all
      * columns at once (independent sums side by side); then K = Z_G^T Z_G, b = gamma - Z_G^T z_tau and, once
      * l is known, a = R^-1 (z_tau + Z_G l): M^-1 G^T is never formed. */
@@ -645,8 +674,8 @@ static int all_finite(const double *x, int n)
     return isfinite(s);
 }
 
-static int run_steps(const Model *m, const double *force_map_t, int nw, const double *decay, double *q,
-                     double *v, double *w, const double *w_cmd, double dt, long steps, long *done)
+static int run_steps(const Model *m, const double *force_map_t, int nw, const double *decay, const Push *push,
+                     double *q, double *v, double *w, const double *w_cmd, double dt, long steps, long *done)
 {
     const int nq = m->nq, nv = m->nv;
     const double half = 0.5 * dt, weights[4] = {dt / 6.0, dt / 3.0, dt / 3.0, dt / 6.0};
@@ -662,7 +691,7 @@ static int run_steps(const Model *m, const double *force_map_t, int nw, const do
                 for (int k = 0; k < nv; k++) forces[s][k] += f * force_map_t[r * nv + k];
             }
         }
-        if (!dynamics(m, q, v, forces[0], kv[0], &work))
+        if (!dynamics(m, q, v, forces[0], push, kv[0], &work))
             return all_finite(q, nq) && all_finite(v, nv) && all_finite(forces[0], nv) ? 2 : 1;
         memcpy(kq[0], v, sizeof(double) * nv);
         static const int force_of[4] = {0, 1, 1, 2};
@@ -673,7 +702,7 @@ static int run_steps(const Model *m, const double *force_map_t, int nw, const do
                 theta[k] = h * kq[stage - 1][k];
             }
             integrate(m, q, theta, qs);
-            if (!dynamics(m, qs, vs, forces[force_of[stage]], kv[stage], &work))
+            if (!dynamics(m, qs, vs, forces[force_of[stage]], push, kv[stage], &work))
                 return all_finite(qs, nq) && all_finite(vs, nv) && all_finite(forces[force_of[stage]], nv) ? 2 : 1;
             if (!dexp_inverse(m, theta, vs, kq[stage])) return 3;
         }
@@ -731,21 +760,39 @@ static PyArrayObject *input_of(PyObject *obj, npy_intp n, const char *what)
 
 static PyObject *py_steps(PyObject *self, PyObject *args)
 {
-    PyObject *ko, *go, *deco, *qo, *vo, *wo, *wco;
+    PyObject *ko, *go, *deco, *qo, *vo, *wo, *wco, *po = Py_None, *fo = Py_None;
     double w_max, dt;
     long steps;
-    if (!PyArg_ParseTuple(args, "OOOOOOOddl", &ko, &go, &deco, &qo, &vo, &wo, &wco, &w_max, &dt, &steps))
+    if (!PyArg_ParseTuple(args, "OOOOOOOddl|OO", &ko, &go, &deco, &qo, &vo, &wo, &wco, &w_max, &dt, &steps, &po,
+                          &fo))
         return NULL;
     Model m;
     if (!model_of(ko, &m)) return NULL;
     PyObject *result = NULL;
-    PyArrayObject *q = NULL, *v = NULL, *w = NULL, *wc = NULL, *g = NULL, *dec = NULL;
+    PyArrayObject *q = NULL, *v = NULL, *w = NULL, *wc = NULL, *g = NULL, *dec = NULL, *pf = NULL;
+    Push push = {0, NULL, NULL};
     if ((q = copy_of(qo, m.nq, "q")) == NULL || (v = copy_of(vo, m.nv, "v")) == NULL) goto done;
     if ((w = copy_of(wo, -1, "w")) == NULL) goto done;
     const npy_intp nw = PyArray_SIZE(w);
     if (nw > 4 * MAXJ || (wc = copy_of(wco, nw, "w_command")) == NULL
         || (g = input_of(go, nw * m.nv, "force_map_t")) == NULL || (dec = input_of(deco, 3, "decay")) == NULL)
         goto done;
+    if (fo != Py_None) {  /* the points' spec (as points()) and their forces */
+        npy_intp spec_len = 0;
+        const double *spec = constants_of(po, &spec_len);
+        if (spec == NULL || spec_len < 1 || !(spec[0] >= 0 && spec[0] <= 64) || spec_len != 1 + 4 * (npy_intp)spec[0]) {
+            PyErr_SetString(PyExc_ValueError, "steps: the pushed points must be a spec as points() takes");
+            goto done;
+        }
+        push.count = (int)spec[0], push.points = spec + 1;
+        for (int d = 0; d < push.count; d++)
+            if (!(push.points[4 * d] >= 0 && push.points[4 * d] < m.nj)) {
+                PyErr_SetString(PyExc_ValueError, "steps: a pushed point on no joint of the model");
+                goto done;
+            }
+        if ((pf = input_of(fo, 3 * (npy_intp)push.count, "forces")) == NULL) goto done;
+        push.forces = DATA(pf);
+    }
     if (!(dt > 0) || steps < 0) {
         PyErr_SetString(PyExc_ValueError, "steps: dt must be > 0 and steps >= 0");
         goto done;
@@ -758,11 +805,12 @@ static PyObject *py_steps(PyObject *self, PyObject *args)
     long count = 0;
     int status;
     Py_BEGIN_ALLOW_THREADS
-    status = run_steps(&m, DATA(g), (int)nw, DATA(dec), DATA(q), DATA(v), DATA(w), command, dt, steps, &count);
+    status = run_steps(&m, DATA(g), (int)nw, DATA(dec), &push, DATA(q), DATA(v), DATA(w), command, dt, steps,
+                       &count);
     Py_END_ALLOW_THREADS
     result = Py_BuildValue("OOOOli", q, v, w, wc, count, status);
 done:
-    Py_XDECREF(q), Py_XDECREF(v), Py_XDECREF(w), Py_XDECREF(wc), Py_XDECREF(g), Py_XDECREF(dec);
+    Py_XDECREF(q), Py_XDECREF(v), Py_XDECREF(w), Py_XDECREF(wc), Py_XDECREF(g), Py_XDECREF(dec), Py_XDECREF(pf);
     return result;
 }
 
@@ -777,7 +825,7 @@ static PyObject *py_dynamics(PyObject *self, PyObject *args)
     PyObject *result = NULL;
     if (t != NULL) {
         Work work;
-        if (!dynamics(&m, DATA(q), DATA(v), DATA(t), DATA(t), &work))
+        if (!dynamics(&m, DATA(q), DATA(v), DATA(t), NULL, DATA(t), &work))
             PyErr_SetString(PyExc_ArithmeticError, "dynamics: a matrix is not positive definite");
         else
             result = (PyObject *)t, Py_INCREF(t);

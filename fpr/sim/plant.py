@@ -39,8 +39,8 @@ from scipy.linalg import lapack
 from fpr.model.compiled import choose
 from fpr.model.constrained import ClosedChainModel, build_closed_chain
 from fpr.model.errors import FprError, ModelArgumentError, check_shape
-from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.robots import load
+from fpr.sim.hover import hover_configuration, hover_speeds
 from fpr.model.multibody import kernel as _plant_kernel
 from fpr.model.multibody import model_constants
 
@@ -130,69 +130,6 @@ def _rotor_force_map(closed: ClosedChainModel, mixing) -> np.ndarray | None:
     return g
 
 
-def _static_inputs(robot, chain):
-    """Inverse dynamics of a motionless chain (:func:`fpr.model.inverse_dynamics.inverse_dynamics`), one sample."""
-    s = check_shape("chain", chain, (len(robot.layout.chain),))
-    motion = np.zeros((5, s.size))
-    motion[0] = s
-    return inverse_dynamics(robot, motion)
-
-
-def hover_configuration(robot, chain) -> np.ndarray:
-    """The static pose of a chain configuration: x = psi = theta = 0 and the drone rolls that hold it.
-
-    Args:
-        robot: the :class:`~fpr.model.robot.Robot`.
-        chain: the planning coordinates ``robot.layout.chain`` (FPR s = [y z phi q21] [m, m, rad, rad],
-            prototype xi = [q1 q2] [rad]), e.g. ``robot.kind.reference_chain``.
-
-    Returns:
-        q, shape (n,), with the drones' rolls along their static thrust vectors (seed 2.20).
-    """
-    q = np.zeros(robot.nq)
-    q[robot.indices(robot.layout.chain)] = chain
-    q[robot.indices(robot.layout.rolls)] = _static_inputs(robot, chain).roll[0]
-    return q
-
-
-def hover_speeds(robot, q, tolerance: float = 1e-6) -> np.ndarray:
-    """Rotor speeds that hold the robot still at a static pose.
-
-    The thrusts and roll torques come from :func:`fpr.model.inverse_dynamics.inverse_dynamics` with a
-    motionless chain: at rest the planning model's thrust vectors are exact (the forces on a drone
-    do not depend on where its mass sits), and the roll torques balance the drones' weight about
-    their hinges in the exact model. A static pose has the drone rolls along these thrusts (use
-    :func:`hover_configuration`) and a vertical plane (theta = 0); x and psi are free.
-
-    Args:
-        robot: the :class:`~fpr.model.robot.Robot`.
-        q: a static configuration, shape (n,).
-        tolerance: accepted difference of the rolls and theta from the static ones [rad].
-
-    Returns:
-        w, shape (n_d, 4) [rad/s].
-
-    Raises:
-        ModelArgumentError: q is not a static pose, or holding it needs a rotor speed outside [0, w_max].
-    """
-    q = check_shape("q", q, (robot.nq,))
-    inputs = _static_inputs(robot, q[robot.indices(robot.layout.chain)])
-    names = robot.layout.rolls + ("theta",)
-    actual = q[robot.indices(names)]
-    static = np.append(inputs.roll[0], 0.0)
-    off = np.abs(np.mod(actual - static + np.pi, 2 * np.pi) - np.pi)
-    if off.max() > tolerance:
-        raise ModelArgumentError("q", q, f"q is not a static pose: ({', '.join(names)}) = "
-                                         f"{np.array2string(actual, precision=6)} where holding the chain still "
-                                         f"needs {np.array2string(static, precision=6)} (use hover_configuration)")
-    w2 = inputs.rotor_speed_squared[0]
-    w_max = robot.rotor_constants.max_speed
-    if w2.min() < 0 or w2.max() > w_max**2:
-        raise ModelArgumentError("q", q, f"holding this pose needs rotor speeds^2 {np.array2string(w2, precision=1)} "
-                                         f"(rad/s)^2, outside [0, {w_max:g}^2]")
-    return np.sqrt(w2)
-
-
 class Plant:
     """The simulated robot: closed-chain constraint dynamics, rotor model and motor lag.
 
@@ -245,7 +182,7 @@ class Plant:
             self._mixing = self._mixing * rotor_constant_scale
         self._rotor_map = _rotor_force_map(closed, self._mixing)
         self._max_speed = closed.robot.rotor_constants.max_speed
-        self._step_constants = {}  # dt -> (lag decay at 0, dt/2, dt; dt/2; RK4 weights), see _lean_steps
+        self._step_constants = {}  # dt -> (lag decay at 0, dt/2, dt; dt/2; RK4 weights), see _python_steps
         self._plant_constants = False  # the compiled step's model (_export), looked up at the first step
         # constraint and frame data read by drone_positions_and_closure_error (looked up once)
         self._closure_terms = tuple((cm.joint1_id, cm.joint1_placement.translation.copy(), cm.joint2_id,
@@ -494,13 +431,20 @@ class Plant:
         """
         if not dt > 0:
             raise ModelArgumentError("dt", dt, f"dt = {dt!r}: the time step must be positive [s]")
+        kernel = self._step_kernel() if self._compiles_forces() else None
+        if kernel is not None:  # the C code saturates the command itself (the same clip)
+            self._compiled_steps(kernel, self._checked_command(w_command), dt, 1, self._wind_forces(wind))
+            return
         w_cmd = self.saturate(w_command)
         if wind is None and self._rotor_map is not None:
-            self._lean_steps(w_cmd, dt, 1)
+            self._python_steps(w_cmd, dt, 1)
             return
+        self._python_wind_step(w_cmd, dt, self._wind_forces(wind))
+
+    def _python_wind_step(self, w_cmd, dt: float, wind_forces) -> None:
+        """One :func:`rkmk4_step` on :meth:`generalized_force` (w_cmd saturated, wind_forces (n_d, 3) or None)."""
         w0 = self._w
         lag = self.robot.rotor_constants.time_constant
-        wind_forces = self._wind_forces(wind)
 
         def speeds(t):
             return w_cmd + (w0 - w_cmd) * np.exp(-t / lag) if lag > 0 else w_cmd
@@ -527,8 +471,8 @@ class Plant:
         """``steps`` calls of :meth:`step` with one command held (the closed loop's plant steps of one tick).
 
         A subclass that overrides :meth:`step` (e.g. :class:`fpr.sim.replanning.ForcedPlant`) gets its own
-        :meth:`step` called ``steps`` times; the base plant without wind runs :meth:`_lean_steps`, the same
-        steps bit for bit with the command saturated once and the step's set-up done once.
+        :meth:`step` called ``steps`` times; the base plant runs the steps in one call of the compiled steps, or
+        of :meth:`_python_steps` without wind (the same steps bit for bit, set up once).
 
         Args:
             w_command: commanded rotor speeds, shape (n_d, 4) [rad/s], held over the steps (as :meth:`step`).
@@ -541,20 +485,21 @@ class Plant:
             PlantDivergedError: the state became non-finite; the plant keeps its last finite state, and
                 the error's ``time`` says after which step.
         """
-        if wind is None and self._rotor_map is not None and type(self).step is Plant.step:
+        if type(self).step is Plant.step and self._compiles_forces():
             if not dt > 0:
                 raise ModelArgumentError("dt", dt, f"dt = {dt!r}: the time step must be positive [s]")
             kernel = self._step_kernel()
-            if kernel is None:
+            if kernel is not None:  # the C code saturates the command itself (the same clip)
+                self._compiled_steps(kernel, self._checked_command(w_command), dt, steps, self._wind_forces(wind))
+                return
+            if wind is None:
                 self._python_steps(self.saturate(w_command), dt, steps)
-            else:  # the C code saturates the command itself (the same clip)
-                self._compiled_steps(kernel, self._checked_command(w_command), dt, steps)
-            return
+                return
         for _ in range(steps):
             self.step(w_command, dt, wind)
 
     def _lean_constants(self, dt: float) -> tuple:
-        """What :meth:`_lean_steps` reads, looked up once per dt: the lag's decay at (0, dt/2, dt), dt/2, the
+        """What :meth:`_python_steps` and :meth:`_compiled_steps` read, looked up once per dt: the lag's decay at (0, dt/2, dt), dt/2, the
         RK4 weights (dt/6, dt/3, dt/3, dt/6), G^T, the Pinocchio objects and functions, two stage buffers."""
         constants = self._step_constants.get(dt)
         if constants is None:
@@ -570,21 +515,15 @@ class Plant:
                 np.empty((4, nv)), np.empty((4, nv)))
         return constants
 
-    def _lean_steps(self, w_cmd, dt: float, steps: int) -> None:
-        """``steps`` RKMK4 steps without wind, w_cmd saturated: in C (:meth:`_compiled_steps`) when
-        :attr:`compiled_step` chooses it, else :meth:`_python_steps`."""
-        kernel = self._step_kernel()
-        if kernel is None:
-            self._python_steps(w_cmd, dt, steps)
-        else:
-            self._compiled_steps(kernel, w_cmd, dt, steps)
+    def _compiles_forces(self) -> bool:
+        """Whether the compiled steps compute this plant's forces: the rotors' as one constant map, and no
+        subclass adds its own through :meth:`generalized_force` (a subclass that does says when it does not)."""
+        return self._rotor_map is not None and type(self).generalized_force is Plant.generalized_force
 
-    def _checked_command(self, w_command) -> np.ndarray:
+    def _checked_command(self, w) -> np.ndarray:
         """The command as :meth:`saturate` takes it, not yet clipped (shape checked)."""
-        w = w_command
-        if not (type(w) is np.ndarray and w.shape == self._w.shape and w.dtype == float):
-            w = check_shape("w_command", w_command, (self.robot.n_drones, 4))
-        return w
+        ok = type(w) is np.ndarray and w.shape == self._w.shape and w.dtype == float
+        return w if ok else check_shape("w_command", w, (self.robot.n_drones, 4))
 
     def _step_kernel(self):
         """``fpr.model._multibody.steps`` under :attr:`compiled_step`, or None for the Python steps."""
@@ -605,16 +544,18 @@ class Plant:
             self._point_spec = np.array([len(self._drone_points)] + [x for joint, p in self._drone_points
                                                                       for x in (ids[joint], *p)], dtype=float)
 
-    def _compiled_steps(self, kernel, w_cmd, dt: float, steps: int) -> None:
+    def _compiled_steps(self, kernel, w_cmd, dt: float, steps: int, wind_forces=None) -> None:
         """:meth:`_python_steps` in C (``fpr/model/_multibody.c``): the same RKMK4 steps, the dynamics, the group's
-        exponential and dexp^-1 computed there (equal to Pinocchio's to round-off; tests/test_plant_compiled.py).
+        exponential and dexp^-1 computed there (equal to Pinocchio's to round-off; tests/test_plant_compiled.py),
+        with the wind's J^T F of each drone's centre at every stage when ``wind_forces`` (n_d, 3) is given.
         A step that turns a free flyer by more than the C series covers (0.5 rad in half a step) runs in Python.
         The C code saturates w_cmd to [0, w_max] as :meth:`saturate` does (a saturated command is unchanged)."""
+        push = () if wind_forces is None else (self._point_spec, wind_forces)
         constants = self._lean_constants(dt)
         force_map_t, decay = constants[3], constants[0]
         while steps > 0:
             q, v, w, w_cmd, done, status = kernel(self._plant_constants, force_map_t, decay, self.qc, self.vc,
-                                                  self._w, w_cmd, self._max_speed, dt, steps)
+                                                  self._w, w_cmd, self._max_speed, dt, steps, *push)
             if done:
                 self.qc, self.vc, self._w = q, v, w
                 for _ in range(done):
@@ -626,7 +567,10 @@ class Plant:
                 raise PlantDivergedError(self.time, dt, "the plant's integrator failed (a matrix of the "
                                                         "constraint dynamics is not positive definite)")
             if status == 3:  # a fast turn: this step in Python
-                self._python_steps(w_cmd, dt, 1)
+                if wind_forces is None:
+                    self._python_steps(w_cmd, dt, 1)
+                else:
+                    self._python_wind_step(w_cmd, dt, wind_forces)
                 steps -= 1
 
     def _python_steps(self, w_cmd, dt: float, steps: int) -> None:

@@ -106,6 +106,10 @@ class ForcedPlant(Plant):
             forces = forces + drones
         return super().step(w_command, dt, forces)
 
+    def _compiles_forces(self) -> bool:
+        """The compiled steps while no end-effector gust pushes (the drones' gusts are their winds)."""
+        return self._tip_force is None and self._rotor_map is not None
+
     def generalized_force(self, qc, w, wind_forces=None) -> np.ndarray:
         """:meth:`Plant.generalized_force` plus J^T F of an end-effector gust (J: world-aligned, at qc)."""
         tau = super().generalized_force(qc, w, wind_forces)
