@@ -72,3 +72,36 @@ def test_signed_rotor_speeds_carry_a_complex_step_derivative_and_keep_their_real
     derivative = signed_speeds(nonzero + 1j * h).imag / h
     np.testing.assert_allclose(derivative, 0.5 / np.sqrt(np.abs(nonzero)), rtol=1e-12)
     assert np.all(derivative > 0)  # w grows with w^2 on both sides of 0
+
+
+def _copies(rng, count, batch, n):
+    """count complex-step copies (copy-major) of one batch of well-conditioned real matrices."""
+    real = rng.uniform(-1.0, 1.0, (batch, n, n)) + n * np.eye(n)
+    return np.broadcast_to(real, (count, batch, n, n)).reshape(-1, n, n) \
+        + 1j * 1e-30 * rng.standard_normal((count * batch, n, n))
+
+
+def test_complex_step_copies_are_inverted_once_with_numpys_values_and_derivatives():
+    rng = np.random.default_rng(5)
+    a = _copies(rng, 20, 30, 4)
+    b = rng.uniform(-1.0, 1.0, (600, 4, 2)) + 1j * 1e-30 * rng.standard_normal((600, 4, 2))
+    b.real = np.broadcast_to(b.real[:30], (20, 30, 4, 2)).reshape(600, 4, 2)
+    with jets.complex_step_copies(20):
+        inv, x = jets.inverse(a), jets.solve_matrices(a, b)
+    for fast, plain in ((inv, np.linalg.inv(a)), (x, np.linalg.solve(a, b))):
+        np.testing.assert_allclose(fast.real, plain.real, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(fast.imag / 1e-30, plain.imag / 1e-30, rtol=0, atol=1e-13)
+    # the derivative against central finite differences of the real inverse along Im(a) / h
+    r, da = a.real, a.imag / 1e-30
+    fd = (np.linalg.inv(r + 1e-6 * da) - np.linalg.inv(r - 1e-6 * da)) / 2e-6
+    np.testing.assert_allclose(inv.imag / 1e-30, fd, rtol=0, atol=1e-8)
+
+
+def test_batches_that_are_not_copies_take_numpys_route():
+    rng = np.random.default_rng(6)
+    a = _copies(rng, 4, 5, 3)
+    a.real[7] += 0.5  # one copy's real part differs
+    with jets.complex_step_copies(4):
+        assert jets._shared_real(a) is None and jets._shared_real(a[:-1]) is None
+        assert jets.inverse(a).tobytes() == np.linalg.inv(a).tobytes()
+    assert jets._shared_real(_copies(rng, 4, 5, 3)) is None  # outside the block
