@@ -72,6 +72,12 @@ def test_signed_rotor_speeds_carry_a_complex_step_derivative_and_keep_their_real
     derivative = signed_speeds(nonzero + 1j * h).imag / h
     np.testing.assert_allclose(derivative, 0.5 / np.sqrt(np.abs(nonzero)), rtol=1e-12)
     assert np.all(derivative > 0)  # w grows with w^2 on both sides of 0
+    # the real square roots give numpy's complex ones (sign * sqrt(sign * w2)) to round-off, 0 included
+    z = w2 + 1j * h * np.array([2.0, -1.0, 3.0, 0.5, -4.0])
+    sign = np.sign(z.real)
+    plain = sign * np.sqrt(sign * z)
+    np.testing.assert_allclose(signed_speeds(z).real, plain.real, rtol=1e-15, atol=0)
+    np.testing.assert_allclose(signed_speeds(z).imag / h, plain.imag / h, rtol=1e-14, atol=0)
 
 
 def _copies(rng, count, batch, n):
