@@ -224,14 +224,20 @@ class Evaluation:
         terms: [J_e, J_phi] on the grid (J_e with the smoothed |.|) [J, rad^2/s].
         constraints: windowed minima of the scaled constraint rows, shape (n_windows * R,).
         gradient: dJ/dx, shape (n_x,), or None.
-        jacobian: d constraints / dx, shape (n_windows * R, n_x), or None.
+        jacobian: d constraints / dx, shape (n_windows * R, n_x), or None (a property: the array given
+            as ``dense_jacobian``, or made from ``jacobian_sparse`` on first use when only that was given).
         hessian: Gauss-Newton approximation of d^2 J / dx^2 (positive semi-definite), or None.
         power, power_weight, power_jacobian: the drone powers P_k = F_i . r_i' at every node (K = N n_d,
             [W]), their weights a_e w_k in J (J = sum_k a_e w_k |P_k|_eps + a_phi J_phi) and their
-            derivatives (K, n_x): the SQP models the sum of |P_k| piecewise linearly (or None).
+            derivatives (K, n_x): the SQP models the sum of |P_k| piecewise linearly (or None;
+            ``power_jacobian`` is a property like ``jacobian``: ``dense_power_jacobian`` or made from
+            ``power_jacobian_sparse``).
         rate_hessian: the Gauss-Newton matrix of the a_phi J_phi part alone (or None).
         jacobian_sparse: ``jacobian`` as a scipy CSR matrix (same numbers), for problems of
-            :data:`SPARSE_FROM` variables or more (else None).
+            :data:`SPARSE_FROM` variables or more (else None). :class:`MotionProblem` gives those problems
+            the CSR matrix alone (the SQP's default route works on it; a dense copy of a long mission's
+            thousands of rows cost more than the rest of the derivatives' assembly), and ``jacobian`` makes
+            the dense array when asked for.
         power_jacobian_sparse: ``power_jacobian`` likewise (CSR from :data:`SPARSE_FROM` variables, else None).
     """
 
@@ -239,14 +245,31 @@ class Evaluation:
     terms: np.ndarray
     constraints: np.ndarray
     gradient: np.ndarray | None = None
-    jacobian: np.ndarray | None = None
+    dense_jacobian: np.ndarray | None = None
     hessian: np.ndarray | None = None
     power: np.ndarray | None = None
     power_weight: np.ndarray | None = None
-    power_jacobian: np.ndarray | None = None
+    dense_power_jacobian: np.ndarray | None = None
     rate_hessian: np.ndarray | None = None
     jacobian_sparse: object | None = None
     power_jacobian_sparse: object | None = None
+
+    @property
+    def jacobian(self) -> np.ndarray | None:
+        """d constraints / dx as an array (from ``jacobian_sparse`` on first use when only that was given)."""
+        return self._dense("dense_jacobian", "jacobian_sparse")
+
+    @property
+    def power_jacobian(self) -> np.ndarray | None:
+        """d P_k / dx as an array (from ``power_jacobian_sparse`` on first use when only that was given)."""
+        return self._dense("dense_power_jacobian", "power_jacobian_sparse")
+
+    def _dense(self, name: str, sparse_name: str):
+        dense = getattr(self, name)
+        if dense is None and getattr(self, sparse_name) is not None:
+            dense = getattr(self, sparse_name).toarray()
+            object.__setattr__(self, name, dense)  # kept: the same array on every access
+        return dense
 
     @property
     def violation(self) -> float:
@@ -502,23 +525,23 @@ class MotionProblem:
 
         The same numbers as filling a (rows, points.size) array and taking its free columns, without that
         array (each row touches one segment's two points: a long mission's would be mostly zeros). With
-        ``with_sparse``: (that array, the same as a CSR matrix or None below :data:`SPARSE_FROM` variables).
+        ``with_sparse``: (that array, None) below :data:`SPARSE_FROM` variables, else (None, the same numbers
+        as a CSR matrix): a long mission's dense array is not made (:class:`Evaluation` makes it when asked).
         """
         cols = self._column[entries]
         hit = cols >= 0
-        out = np.zeros((entries.shape[0], self.n_x))
         row, col = np.nonzero(hit)
         col = cols[row, col]
         value = values[hit] * self.scale[col]
+        shape = (entries.shape[0], self.n_x)
+        if with_sparse and self.n_x >= SPARSE_FROM:
+            # row by row, columns increasing (a row's entries are its segment's, in the points' order): the
+            # CSR arrays directly, without scipy's conversion from coordinates
+            indptr = np.concatenate([[0], np.cumsum(hit.sum(axis=1))])
+            return None, sparse.csr_matrix((value, col, indptr), shape=shape)
+        out = np.zeros(shape)
         out[row, col] = value
-        if not with_sparse:
-            return out
-        if self.n_x < SPARSE_FROM:
-            return out, None
-        # row by row, columns increasing (a row's entries are its segment's, in the points' order): the CSR
-        # arrays directly, without scipy's conversion from coordinates
-        indptr = np.concatenate([[0], np.cumsum(hit.sum(axis=1))])
-        return out, sparse.csr_matrix((value, col, indptr), shape=out.shape)
+        return (out, None) if with_sparse else out
 
     def _assemble(self, curvature, local) -> np.ndarray:
         """Sum over nodes i and quantities q of c_iq grad q_i grad q_i^T, for the free entries in x's scaling.
