@@ -33,6 +33,7 @@ reported J_e uses the exact absolute value.
 from __future__ import annotations
 
 import functools
+import itertools
 from dataclasses import dataclass
 from itertools import product
 
@@ -298,6 +299,51 @@ def cached_evaluation(evaluate):
     return cached
 
 
+class NodeDerivatives:
+    """The grid nodes' quantities and their complex-step sensitivities, segment by segment, of the last
+    evaluation with derivatives of each :class:`MotionProblem` given this store, for the problems of one plan
+    to share (:meth:`planners.methods.way_points.WayPointTask.problem`).
+
+    A node's quantities and their derivatives with respect to its motion jet depend on its segment's two
+    points, its duration and the grid alone, not on the problem (its free entries, scaling, weights): a
+    problem whose every segment is one that another problem's last evaluation with derivatives had (the
+    2-step polish starts where the travels of step 2 ended, :mod:`planners.methods.two_step`) takes their
+    numbers instead of computing them again. Points match when each entry is within 4 ulp of the stored one
+    (a way through x and back, ``points_of(x_of(p))``, may change the last bit).
+    """
+
+    def __init__(self):
+        self._segments: dict = {}  # (samples per segment, duration's bytes) -> [(owner, points (2, 5, n), data)]
+        self._owned: dict = {}  # owner -> its keys in _segments
+        self._owners = itertools.count()
+
+    def owner(self) -> int:
+        """A new owner's number (a problem's; not its id(), which a later problem may get again)."""
+        return next(self._owners)
+
+    def put(self, owner: int, points, durations, k: int, data: list) -> None:
+        """Keep ``owner``'s evaluation (``data[i]`` for segment i), replacing its earlier one."""
+        for key in self._owned.pop(owner, ()):
+            self._segments[key] = [e for e in self._segments[key] if e[0] != owner]
+        keys = [(k, d.tobytes()) for d in durations]
+        for i, key in enumerate(keys):
+            self._segments.setdefault(key, []).append((owner, points[i:i + 2], data[i]))
+        self._owned[owner] = set(keys)
+
+    def get(self, points, durations, k: int) -> list | None:
+        """The data of every segment of a motion (``points``, ``durations``, ``k`` nodes per segment), or
+        None when one of them is not in the store."""
+        found = []
+        for i, d in enumerate(durations):
+            ends = points[i:i + 2]
+            hit = next((data for _, stored, data in self._segments.get((k, d.tobytes()), ())
+                        if np.all(np.abs(stored - ends) <= 4 * np.finfo(float).eps * np.abs(ends))), None)
+            if hit is None:
+                return None
+            found.append(hit)
+        return found
+
+
 class MotionProblem:
     """J and the constraints of a piecewise motion as functions of its free point entries.
 
@@ -320,12 +366,17 @@ class MotionProblem:
             0..6 (:data:`fpr.model.inverse_dynamics.MOTION_ORDER`) and the assembly-mode bounds become the
             crossing's side constraints.
         min_thrust: a lower bound f_min [N] on every drone's thrust (``thrust_low``), or None.
+        node_store: a :class:`NodeDerivatives` shared with the other problems of the same robot and plan, or
+            None. Used by this class's own evaluation (not a subclass's, whose quantities may depend on more
+            than the motion), without a crossing or a thrust bound.
     """
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,
                  samples_per_segment: int = 17, windows_per_segment: int = 4, crossing: int | None = None,
-                 min_thrust: float | None = None):
+                 min_thrust: float | None = None, node_store: NodeDerivatives | None = None):
         self.robot = robot
+        self.node_store = node_store
+        self._store_owner = None if node_store is None else node_store.owner()
         self.points = np.array(points, dtype=float)
         self.durations = np.asarray(durations, dtype=float)
         self.free = np.asarray(free, dtype=bool)
@@ -455,16 +506,7 @@ class MotionProblem:
             raw, rows = self._quantities(motion)
             grad = jac = hess = None
         else:
-            directions = list(product(range(n_r), range(n)))
-            big = np.repeat(motion[:, None].astype(complex), len(directions), axis=1)  # (5, D, N, n)
-            for d, (r, j) in enumerate(directions):
-                big[r, d, :, j] += 1j * COMPLEX_STEP
-            with jets.complex_step_copies(len(directions)):  # their matrices inverted once, not per copy
-                raw_c, rows_c = self._quantities(big.reshape(n_r, -1, n))
-            raw, rows = raw_c[:n_s].real, rows_c[:n_s].real
-            # sensitivities d q_i / d X[r, i, j], arranged (N, Q, r, j), then d q_i / d points (N, Q, 2 * 5 * n)
-            sens_raw = (raw_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
-            sens_rows = (rows_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+            raw, rows, sens_raw, sens_rows = self._node_derivatives(points, motion)
             local = _chain_basis(sens_raw, self._basis_by_node).reshape(n_s, raw.shape[1], -1)
             n_d = raw.shape[1] // 2  # raw holds [powers..., roll rates...]
             power, rate = raw[:, :n_d], raw[:, n_d:]
@@ -518,6 +560,36 @@ class MotionProblem:
             return Evaluation(value, terms, constraints, grad, jac, hess, jacobian_sparse=jac_sparse)
         return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess,
                           jac_sparse, p_sparse)
+
+    def _node_derivatives(self, points, motion):
+        """Every node's quantities and their sensitivities to its motion jet by complex step (module docstring):
+        (raw (N, Q), rows (N, R), d raw / d X (N, Q, r, j), d rows / d X (N, R, r, j)), X[r, i, j] the r-th
+        derivative of coordinate j at node i; from ``node_store`` when it holds every segment."""
+        store = self.node_store if (type(self) is MotionProblem and self.crossing_sign is None
+                                    and self.min_thrust is None) else None
+        k = self.samples_per_segment
+        if store is not None:
+            found = store.get(points, self.durations, k)
+            if found is not None:
+                self._rows_names = found[0][4]
+                return tuple(np.concatenate([f[a] for f in found]) for a in range(4))
+        n_r, n_s, n = motion.shape
+        directions = list(product(range(n_r), range(n)))
+        big = np.repeat(motion[:, None].astype(complex), len(directions), axis=1)  # (5, D, N, n)
+        for d, (r, j) in enumerate(directions):
+            big[r, d, :, j] += 1j * COMPLEX_STEP
+        with jets.complex_step_copies(len(directions)):  # their matrices inverted once, not per copy
+            raw_c, rows_c = self._quantities(big.reshape(n_r, -1, n))
+        raw, rows = raw_c[:n_s].real, rows_c[:n_s].real
+        # sensitivities d q_i / d X[r, i, j], arranged (N, Q, r, j)
+        sens_raw = (raw_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+        sens_rows = (rows_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+        if store is not None:
+            names = self._rows_names
+            store.put(self._store_owner, points, self.durations, k,
+                      [(raw[a:a + k], rows[a:a + k], sens_raw[a:a + k], sens_rows[a:a + k], names)
+                       for a in range(0, n_s, k)])
+        return raw, rows, sens_raw, sens_rows
 
     def _scatter(self, entries, values, with_sparse: bool = False):
         """The (rows, n_x) derivatives with respect to x of rows whose derivatives with respect to the
