@@ -111,3 +111,16 @@ def test_batches_that_are_not_copies_take_numpys_route():
         assert jets._shared_real(a) is None and jets._shared_real(a[:-1]) is None
         assert jets.inverse(a).tobytes() == np.linalg.inv(a).tobytes()
     assert jets._shared_real(_copies(rng, 4, 5, 3)) is None  # outside the block
+
+
+def test_sine_and_cosine_of_complex_step_copies_come_from_one_copy_with_the_same_bits():
+    rng = np.random.default_rng(8)
+    real = rng.uniform(-4.0, 4.0, (30, 3))
+    z = np.broadcast_to(real, (20, 30, 3)).reshape(600, 3) + 1j * 1e-30 * rng.standard_normal((600, 3))
+    plain = jets.sin_cos_value(z)
+    with jets.complex_step_copies(20):
+        shared = jets.sin_cos_value(z)
+        other = z.copy()
+        other.real[599, 2] += 1.0  # not copies: computed as they are
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(jets.sin_cos_value(other), (np.sin(other), np.cos(other))))
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(shared, plain))
