@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import math
 from dataclasses import dataclass
 from itertools import product
 
@@ -484,13 +485,25 @@ class MotionProblem:
         the midpoints catch it on the optimisation grid instead of the dense check (and its grid refinement).
         Nodes and midpoints go through the robot kind's margins in one call.
         """
-        copies = motion.shape[1] // self.t.size
-        step = np.tile(0.5 * self.durations[self.segment] / (self.samples_per_segment - 1), copies)[:, None]
-        mid = sum(motion[k] * step**k / np.prod(np.arange(1, k + 1)) for k in range(N_DERIVS))
+        powers = self._half_step_powers(motion.shape[1] // self.t.size)
+        mid = motion[0] * powers[0]  # sum_k s^(k) (h/2)^k / k!, term by term in order (the bits of a plain sum)
+        for k in range(1, N_DERIVS):
+            term = motion[k] * powers[k]
+            term /= math.factorial(k)
+            mid += term
         margins = self.robot.kind.workspace_margins(np.concatenate([motion[0], mid]))
         n = motion.shape[1]
         # complex values (complex-step derivatives) compare by their real parts first
         return {name: np.where(col[n:].real < col[:n].real, col[n:], col[:n]) for name, col in margins.items()}
+
+    def _half_step_powers(self, copies: int) -> list:
+        """(h/2)^k, k = 0..4, of every node (h its segment's node spacing), tiled for ``copies`` copies of the
+        nodes: (N copies, 1) each, computed once per copy count."""
+        cache = self.__dict__.setdefault("_half_steps", {})
+        if copies not in cache:
+            step = np.tile(0.5 * self.durations[self.segment] / (self.samples_per_segment - 1), copies)[:, None]
+            cache[copies] = [step**k for k in range(N_DERIVS)]
+        return cache[copies]
 
     def _weights(self):
         return self.alpha / self.normalisation[0], (1.0 - self.alpha) / self.normalisation[1]
