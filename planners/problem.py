@@ -302,8 +302,9 @@ def cached_evaluation(evaluate):
 
 class NodeDerivatives:
     """The grid nodes' quantities and their complex-step sensitivities, segment by segment, of the last
-    evaluation with derivatives of each :class:`MotionProblem` given this store, for the problems of one plan
-    to share (:meth:`planners.methods.way_points.WayPointTask.problem`).
+    evaluation with derivatives of each :class:`MotionProblem` given this store
+    (:meth:`MotionProblem.share_node_derivatives`), for the problems of one plan to share
+    (:mod:`planners.methods.two_step`: one store per attempt, its travels and its polish).
 
     A node's quantities and their derivatives with respect to its motion jet depend on its segment's two
     points, its duration and the grid alone, not on the problem (its free entries, scaling, weights): a
@@ -367,17 +368,14 @@ class MotionProblem:
             0..6 (:data:`fpr.model.inverse_dynamics.MOTION_ORDER`) and the assembly-mode bounds become the
             crossing's side constraints.
         min_thrust: a lower bound f_min [N] on every drone's thrust (``thrust_low``), or None.
-        node_store: a :class:`NodeDerivatives` shared with the other problems of the same robot and plan, or
-            None. Used by this class's own evaluation (not a subclass's, whose quantities may depend on more
-            than the motion), without a crossing or a thrust bound.
     """
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,
                  samples_per_segment: int = 17, windows_per_segment: int = 4, crossing: int | None = None,
-                 min_thrust: float | None = None, node_store: NodeDerivatives | None = None):
+                 min_thrust: float | None = None):
         self.robot = robot
-        self.node_store = node_store
-        self._store_owner = None if node_store is None else node_store.owner()
+        self.node_store: NodeDerivatives | None = None  # (share_node_derivatives)
+        self._store_owner = None
         self.points = np.array(points, dtype=float)
         self.durations = np.asarray(durations, dtype=float)
         self.free = np.asarray(free, dtype=bool)
@@ -431,6 +429,14 @@ class MotionProblem:
         #: powers, their derivatives and J_phi's Gauss-Newton matrix (``Evaluation.power``...)
         self.power_model = False
         self._rows_names: list[str] | None = None
+
+    def share_node_derivatives(self, store: NodeDerivatives) -> None:
+        """Share the nodes' derivatives with the other problems of ``store`` (:class:`NodeDerivatives`), which
+        must be of the same robot and grid: an evaluation with derivatives keeps its nodes' numbers there, and
+        takes a motion's from there when every segment is in it. Only this class's own evaluation shares
+        (not a subclass's, whose quantities may depend on more than the motion), without a crossing or a
+        thrust bound."""
+        self.node_store, self._store_owner = store, store.owner()
 
     # ------------------------------------------------------------------ x <-> points
     def points_of(self, x) -> np.ndarray:

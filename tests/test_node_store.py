@@ -17,14 +17,17 @@ def test_the_whole_problem_at_the_travels_points_takes_their_derivatives_and_the
     normalisation = task.normalisation(grid)
     points, durations, is_way = task.via_layout
     points = points.copy()
+    shared = NodeDerivatives()
     rng = np.random.default_rng(7)
     way = np.flatnonzero(is_way)
     for a, b in zip(way[:-1], way[1:]):  # each travel moved somewhere, evaluated there with derivatives
         travel = travel_problem(task, points, durations, a, b, normalisation, grid)
+        travel.share_node_derivatives(shared)
         x = travel.x_of(points[a:b + 1]) + 0.01 * rng.standard_normal(travel.n_x)
         travel.evaluate(x, True)
         points[a:b + 1] = travel.points_of(x)
     whole = one_step_problem(task, grid, normalisation)
+    whole.share_node_derivatives(shared)
     x0 = whole.x_of(points)
     calls = []
     original = NodeDerivatives.get
@@ -40,6 +43,17 @@ def test_the_whole_problem_at_the_travels_points_takes_their_derivatives_and_the
     for name in ("constraints", "gradient", "jacobian", "hessian"):
         a, b = getattr(stored, name), getattr(fresh, name)
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * max(1.0, np.abs(b).max()), err_msg=name)
+
+
+def test_problems_share_only_when_given_a_store():
+    mission = load_mission("square")
+    task = WayPointTask.of(mission, mission.load_robot())
+    problem = one_step_problem(task, Grid())
+    assert problem.node_store is None
+    x = problem.x_of(problem.points)
+    first = problem.evaluate(x, True)
+    again = one_step_problem(task, Grid())  # the same problem again, no store: computed again
+    assert again.node_store is None and again.evaluate(x, True).gradient is not first.gradient
 
 
 def test_an_owner_replaces_only_its_own_entries_and_far_points_miss():

@@ -15,7 +15,7 @@ from functools import cached_property
 import numpy as np
 
 from planners.polynomial import PiecewisePolynomial, stop_points, with_via_points
-from planners.problem import MotionProblem, NodeDerivatives
+from planners.problem import MotionProblem
 from planners.report import MotionReport
 from planners.result import PlanResult
 from planners.solving import Grid
@@ -70,13 +70,7 @@ class WayPointTask:
         """The NLP of the motion through ``points`` (mask ``free`` of the unknown entries) on ``grid``."""
         return MotionProblem(self.robot, points, durations, free, self.alpha, normalisation,
                              samples_per_segment=grid.samples_per_segment,
-                             windows_per_segment=grid.windows_per_segment, node_store=self.node_store)
-
-    @cached_property
-    def node_store(self) -> NodeDerivatives:
-        """The nodes' derivatives the task's problems share (:class:`~planners.problem.NodeDerivatives`: the
-        2-step polish starts where the travels ended)."""
-        return NodeDerivatives()
+                             windows_per_segment=grid.windows_per_segment)
 
     def normalisation(self, grid: Grid) -> tuple[float, float]:
         """(J_e0, J_phi0) of the stop motion on ``grid`` (smoothed |.|, as the optimiser sees them, 3.26).
