@@ -17,7 +17,10 @@ partial derivatives with respect to the 5 n entries of the local motion jet are 
 *complex-step differentiation*: every function on that path is analytic and written to carry a
 complex perturbation, so Im(f(X + i h e)) / h is the derivative to machine precision (no
 subtractive cancellation, h = 1e-30). The chain rule through W then gives exact gradients
-with respect to P. The 5 n perturbed copies of all samples go through one batched call.
+with respect to P. The 5 n perturbed copies of all samples go through one batched call; their real parts
+are equal, so the batched 4 x 4 inverses and solves and the sines and cosines are computed once per node and
+carried to the copies (:func:`fpr.model.jets.complex_step_copies`). Problems of one plan can share their
+nodes' derivatives (:class:`NodeDerivatives`: the 2-step polish starts where its travels ended).
 
 Integrals use Simpson's rule on K equally spaced nodes per segment (the optimisation grid).
 Constraints are enforced on the same nodes, aggregated as the minimum over short windows
