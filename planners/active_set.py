@@ -7,7 +7,7 @@ The step QP of :mod:`planners.sqp` at a feasible point is
 with H positive definite (after the SQP's regularisation). On the planning problems it has a hundred
 or more variables, several hundred rows and a handful of active ones, and H is ill-conditioned
 (eigenvalues from 1e-7 to 1e2): ProxQP needs hundreds of iterations there and often stops at its
-iteration limit with an inexact step. Here one eigendecomposition of H serves a short sequence
+iteration limit with an inexact step. Here one Cholesky factor of H serves a short sequence
 of equality-constrained QPs on a working set W of rows held at their bound:
 
 * solve min q(d) s.t. G_W d = h_W (the Schur complement G_W H^-1 G_W^T for the multipliers);
@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import sparse
-from scipy.linalg import cho_solve_banded, cholesky_banded
+from scipy.linalg import cho_factor, cho_solve, cho_solve_banded, cholesky_banded
 
 #: Relative violation of a row (in row-scaled units) that counts as holding.
 ROW_TOLERANCE = 1e-10
@@ -34,7 +34,7 @@ CONDITION = 1e-7
 MAX_CHANGES = 60
 #: H is treated as banded (:func:`banded_solver`) when its bandwidth is at most this share of its size.
 BANDED_SHARE = 0.25
-#: ... and it has at least this many rows (below it one dense eigendecomposition is cheap).
+#: ... and it has at least this many rows (below it one dense Cholesky factorisation is cheap).
 BANDED_MIN_SIZE = 200
 
 
@@ -70,14 +70,20 @@ def solve_step_qp(hess, gradient, rows, lower, radius: float, working=None, shif
     if solve is None:
         if shift:
             hess = shifted(hess, shift)
-        # H = V diag(w) V^T; the range-space steps below lose about 1e-16 |H^-1 g| to cancellation: keep
-        # that below 1e-9 of the radius, else leave the QP to a solver that does not invert H
-        w, v = np.linalg.eigh(0.5 * (hess + hess.T))
-        if not w[0] >= CONDITION * max(float(np.abs(gradient).max()), 1e-300) / radius:
+        # the range-space steps below lose about 1e-16 |H^-1 g| to cancellation: keep that below 1e-9 of the
+        # radius, i.e. lambda_min(H) >= t = CONDITION |g|_inf / Delta, else leave the QP to a solver that does
+        # not invert H. H - t I has a Cholesky factor exactly when lambda_min(H) > t: two Cholesky
+        # factorisations (the test, then H's own for the solves) cost a fraction of H's eigendecomposition
+        sym = 0.5 * (hess + hess.T)
+        floor = CONDITION * max(float(np.abs(gradient).max()), 1e-300) / radius
+        try:
+            cho_factor(shifted(sym, -floor), check_finite=False)
+            factor = cho_factor(sym, check_finite=False)
+        except np.linalg.LinAlgError:
             return None
 
         def solve(y):
-            return v @ ((v.T @ y) / (w if np.ndim(y) == 1 else w[:, None]))
+            return cho_solve(factor, y, check_finite=False)
     elif not float(np.abs(solve(gradient)).max()) <= radius / CONDITION:
         # the same bound on the cancellation, with |H^-1 g| itself instead of |g| / lambda_min(H)
         return None
@@ -158,8 +164,8 @@ def banded_solver(hess, shift: float = 0.0):
     The planning problems' H is block-banded: a grid node's quantities depend on the two points of its
     segment only, and x holds the points' entries in order, so H couples entries of neighbouring points
     only (bandwidth about two points' entries, 40 for the FPR, whatever the mission's length). Factoring
-    it costs O(n b^2) and each solve O(n b) (b the bandwidth), where the eigendecomposition of the dense
-    route costs O(n^3) and each solve O(n^2). Used when n >= :data:`BANDED_MIN_SIZE` and
+    it costs O(n b^2) and each solve O(n b) (b the bandwidth), where the dense route's Cholesky
+    factorisations cost O(n^3) and each solve O(n^2). Used when n >= :data:`BANDED_MIN_SIZE` and
     b <= :data:`BANDED_SHARE` n; None also when the factorisation fails (H not positive definite to
     round-off): the dense route decides then.
     """

@@ -53,14 +53,15 @@ def smoothed_hessian(ev, width: float = POWER_WIDTH, share: float = MAJORISER_SH
     """
     if getattr(ev, "power", None) is None:
         return ev.hessian
-    pj = ev.power_jacobian
     weight = ev.power_weight * power_curvature(ev.power, width, share)
     # a long mission (planners.problem.SPARSE_FROM variables or more, where the evaluation's Jacobian is
     # sparse too): each P_k depends on one segment's entries only, so the sum over the powers is a sparse
     # product (the same sum to round-off; below, the dense product the planner's figures were measured with)
-    if pj.shape[1] >= SPARSE_FROM:
-        pj = getattr(ev, "power_jacobian_sparse", None)  # the evaluation's own CSR copy (no dense scan)
-        pj = sparse.csr_matrix(ev.power_jacobian) if pj is None else pj
+    pj = getattr(ev, "power_jacobian_sparse", None)  # the evaluation's own CSR copy (no dense array made)
+    if pj is None:
+        pj = ev.power_jacobian
+    if sparse.issparse(pj) or pj.shape[1] >= SPARSE_FROM:
+        pj = sparse.csr_matrix(pj)  # (a CSR matrix is kept as it is)
         weighted = pj.copy()
         weighted.data *= np.repeat(weight, np.diff(pj.indptr))  # row k times its weight
         return ev.rate_hessian + (pj.T @ weighted).toarray()

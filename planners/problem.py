@@ -17,7 +17,10 @@ partial derivatives with respect to the 5 n entries of the local motion jet are 
 *complex-step differentiation*: every function on that path is analytic and written to carry a
 complex perturbation, so Im(f(X + i h e)) / h is the derivative to machine precision (no
 subtractive cancellation, h = 1e-30). The chain rule through W then gives exact gradients
-with respect to P. The 5 n perturbed copies of all samples go through one batched call.
+with respect to P. The 5 n perturbed copies of all samples go through one batched call; their real parts
+are equal, so the batched 4 x 4 inverses and solves and the sines and cosines are computed once per node and
+carried to the copies (:func:`fpr.model.jets.complex_step_copies`). Problems of one plan can share their
+nodes' derivatives (:class:`NodeDerivatives`: the 2-step polish starts where its travels ended).
 
 Integrals use Simpson's rule on K equally spaced nodes per segment (the optimisation grid).
 Constraints are enforced on the same nodes, aggregated as the minimum over short windows
@@ -33,12 +36,15 @@ reported J_e uses the exact absolute value.
 from __future__ import annotations
 
 import functools
+import itertools
+import math
 from dataclasses import dataclass
 from itertools import product
 
 import numpy as np
 from scipy import sparse
 
+from fpr.model import jets
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
@@ -157,6 +163,18 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
     return np.stack(cols, axis=-1), names, details
 
 
+def _chain_basis(sensitivities, basis_by_node) -> np.ndarray:
+    """d q / d (the entries of a node's segment's two points) from d q / d (the node's motion jet).
+
+    ``sensitivities`` (N, Q, r, j): d q_i / d X[r, i, j] (r the derivative order, j the coordinate);
+    ``basis_by_node`` (N, r, 2 * 5): the Hermite weights. Returns (N, Q, 2, 5, j), the same sum over r as
+    ``einsum("iqrj,risk->iqskj")``, as one batched matrix product (a few times faster than einsum's loop).
+    """
+    n, q, r, j = sensitivities.shape
+    out = np.matmul(sensitivities.transpose(0, 1, 3, 2).reshape(n, q * j, r), basis_by_node)  # (N, Q j, 2 * 5)
+    return out.reshape(n, q, j, 2, -1).transpose(0, 1, 3, 4, 2)
+
+
 def _integrands(power, roll_rate, smoothing: float) -> np.ndarray:
     """[sum_i |P_i|, sum_i phi_i'^2] per sample from the drone powers F_i . r_i' and roll rates (N, n_d)."""
     if smoothing > 0:
@@ -211,14 +229,20 @@ class Evaluation:
         terms: [J_e, J_phi] on the grid (J_e with the smoothed |.|) [J, rad^2/s].
         constraints: windowed minima of the scaled constraint rows, shape (n_windows * R,).
         gradient: dJ/dx, shape (n_x,), or None.
-        jacobian: d constraints / dx, shape (n_windows * R, n_x), or None.
+        jacobian: d constraints / dx, shape (n_windows * R, n_x), or None (a property: the array given
+            as ``dense_jacobian``, or made from ``jacobian_sparse`` on first use when only that was given).
         hessian: Gauss-Newton approximation of d^2 J / dx^2 (positive semi-definite), or None.
         power, power_weight, power_jacobian: the drone powers P_k = F_i . r_i' at every node (K = N n_d,
             [W]), their weights a_e w_k in J (J = sum_k a_e w_k |P_k|_eps + a_phi J_phi) and their
-            derivatives (K, n_x): the SQP models the sum of |P_k| piecewise linearly (or None).
+            derivatives (K, n_x): the SQP models the sum of |P_k| piecewise linearly (or None;
+            ``power_jacobian`` is a property like ``jacobian``: ``dense_power_jacobian`` or made from
+            ``power_jacobian_sparse``).
         rate_hessian: the Gauss-Newton matrix of the a_phi J_phi part alone (or None).
         jacobian_sparse: ``jacobian`` as a scipy CSR matrix (same numbers), for problems of
-            :data:`SPARSE_FROM` variables or more (else None).
+            :data:`SPARSE_FROM` variables or more (else None). :class:`MotionProblem` gives those problems
+            the CSR matrix alone (the SQP's default route works on it; a dense copy of a long mission's
+            thousands of rows cost more than the rest of the derivatives' assembly), and ``jacobian`` makes
+            the dense array when asked for.
         power_jacobian_sparse: ``power_jacobian`` likewise (CSR from :data:`SPARSE_FROM` variables, else None).
     """
 
@@ -226,14 +250,31 @@ class Evaluation:
     terms: np.ndarray
     constraints: np.ndarray
     gradient: np.ndarray | None = None
-    jacobian: np.ndarray | None = None
+    dense_jacobian: np.ndarray | None = None
     hessian: np.ndarray | None = None
     power: np.ndarray | None = None
     power_weight: np.ndarray | None = None
-    power_jacobian: np.ndarray | None = None
+    dense_power_jacobian: np.ndarray | None = None
     rate_hessian: np.ndarray | None = None
     jacobian_sparse: object | None = None
     power_jacobian_sparse: object | None = None
+
+    @property
+    def jacobian(self) -> np.ndarray | None:
+        """d constraints / dx as an array (from ``jacobian_sparse`` on first use when only that was given)."""
+        return self._dense("dense_jacobian", "jacobian_sparse")
+
+    @property
+    def power_jacobian(self) -> np.ndarray | None:
+        """d P_k / dx as an array (from ``power_jacobian_sparse`` on first use when only that was given)."""
+        return self._dense("dense_power_jacobian", "power_jacobian_sparse")
+
+    def _dense(self, name: str, sparse_name: str):
+        dense = getattr(self, name)
+        if dense is None and getattr(self, sparse_name) is not None:
+            dense = getattr(self, sparse_name).toarray()
+            object.__setattr__(self, name, dense)  # kept: the same array on every access
+        return dense
 
     @property
     def violation(self) -> float:
@@ -260,6 +301,52 @@ def cached_evaluation(evaluate):
         return result
 
     return cached
+
+
+class NodeDerivatives:
+    """The grid nodes' quantities and their complex-step sensitivities, segment by segment, of the last
+    evaluation with derivatives of each :class:`MotionProblem` given this store
+    (:meth:`MotionProblem.share_node_derivatives`), for the problems of one plan to share
+    (:mod:`planners.methods.two_step`: one store per attempt, its travels and its polish).
+
+    A node's quantities and their derivatives with respect to its motion jet depend on its segment's two
+    points, its duration and the grid alone, not on the problem (its free entries, scaling, weights): a
+    problem whose every segment is one that another problem's last evaluation with derivatives had (the
+    2-step polish starts where the travels of step 2 ended, :mod:`planners.methods.two_step`) takes their
+    numbers instead of computing them again. Points match when each entry is within 4 ulp of the stored one
+    (a way through x and back, ``points_of(x_of(p))``, may change the last bit).
+    """
+
+    def __init__(self):
+        self._segments: dict = {}  # (samples per segment, duration's bytes) -> [(owner, points (2, 5, n), data)]
+        self._owned: dict = {}  # owner -> its keys in _segments
+        self._owners = itertools.count()
+
+    def owner(self) -> int:
+        """A new owner's number (a problem's; not its id(), which a later problem may get again)."""
+        return next(self._owners)
+
+    def put(self, owner: int, points, durations, k: int, data: list) -> None:
+        """Keep ``owner``'s evaluation (``data[i]`` for segment i), replacing its earlier one."""
+        for key in self._owned.pop(owner, ()):
+            self._segments[key] = [e for e in self._segments[key] if e[0] != owner]
+        keys = [(k, d.tobytes()) for d in durations]
+        for i, key in enumerate(keys):
+            self._segments.setdefault(key, []).append((owner, points[i:i + 2], data[i]))
+        self._owned[owner] = set(keys)
+
+    def get(self, points, durations, k: int) -> list | None:
+        """The data of every segment of a motion (``points``, ``durations``, ``k`` nodes per segment), or
+        None when one of them is not in the store."""
+        found = []
+        for i, d in enumerate(durations):
+            ends = points[i:i + 2]
+            hit = next((data for _, stored, data in self._segments.get((k, d.tobytes()), ())
+                        if np.all(np.abs(stored - ends) <= 4 * np.finfo(float).eps * np.abs(ends))), None)
+            if hit is None:
+                return None
+            found.append(hit)
+        return found
 
 
 class MotionProblem:
@@ -290,6 +377,8 @@ class MotionProblem:
                  samples_per_segment: int = 17, windows_per_segment: int = 4, crossing: int | None = None,
                  min_thrust: float | None = None):
         self.robot = robot
+        self.node_store: NodeDerivatives | None = None  # (share_node_derivatives)
+        self._store_owner = None
         self.points = np.array(points, dtype=float)
         self.durations = np.asarray(durations, dtype=float)
         self.free = np.asarray(free, dtype=bool)
@@ -344,6 +433,14 @@ class MotionProblem:
         self.power_model = False
         self._rows_names: list[str] | None = None
 
+    def share_node_derivatives(self, store: NodeDerivatives) -> None:
+        """Share the nodes' derivatives with the other problems of ``store`` (:class:`NodeDerivatives`), which
+        must be of the same robot and grid: an evaluation with derivatives keeps its nodes' numbers there, and
+        takes a motion's from there when every segment is in it. Only this class's own evaluation shares
+        (not a subclass's, whose quantities may depend on more than the motion), without a crossing or a
+        thrust bound."""
+        self.node_store, self._store_owner = store, store.owner()
+
     # ------------------------------------------------------------------ x <-> points
     def points_of(self, x) -> np.ndarray:
         """Points (m+1, 5, n) with the free entries set from x."""
@@ -397,13 +494,25 @@ class MotionProblem:
         the midpoints catch it on the optimisation grid instead of the dense check (and its grid refinement).
         Nodes and midpoints go through the robot kind's margins in one call.
         """
-        copies = motion.shape[1] // self.t.size
-        step = np.tile(0.5 * self.durations[self.segment] / (self.samples_per_segment - 1), copies)[:, None]
-        mid = sum(motion[k] * step**k / np.prod(np.arange(1, k + 1)) for k in range(N_DERIVS))
+        powers = self._half_step_powers(motion.shape[1] // self.t.size)
+        mid = motion[0] * powers[0]  # sum_k s^(k) (h/2)^k / k!, term by term in order (the bits of a plain sum)
+        for k in range(1, N_DERIVS):
+            term = motion[k] * powers[k]
+            term /= math.factorial(k)
+            mid += term
         margins = self.robot.kind.workspace_margins(np.concatenate([motion[0], mid]))
         n = motion.shape[1]
         # complex values (complex-step derivatives) compare by their real parts first
         return {name: np.where(col[n:].real < col[:n].real, col[n:], col[:n]) for name, col in margins.items()}
+
+    def _half_step_powers(self, copies: int) -> list:
+        """(h/2)^k, k = 0..4, of every node (h its segment's node spacing), tiled for ``copies`` copies of the
+        nodes: (N copies, 1) each, computed once per copy count."""
+        cache = self.__dict__.setdefault("_half_steps", {})
+        if copies not in cache:
+            step = np.tile(0.5 * self.durations[self.segment] / (self.samples_per_segment - 1), copies)[:, None]
+            cache[copies] = [step**k for k in range(N_DERIVS)]
+        return cache[copies]
 
     def _weights(self):
         return self.alpha / self.normalisation[0], (1.0 - self.alpha) / self.normalisation[1]
@@ -419,16 +528,8 @@ class MotionProblem:
             raw, rows = self._quantities(motion)
             grad = jac = hess = None
         else:
-            directions = list(product(range(n_r), range(n)))
-            big = np.repeat(motion[:, None].astype(complex), len(directions), axis=1)  # (5, D, N, n)
-            for d, (r, j) in enumerate(directions):
-                big[r, d, :, j] += 1j * COMPLEX_STEP
-            raw_c, rows_c = self._quantities(big.reshape(n_r, -1, n))
-            raw, rows = raw_c[:n_s].real, rows_c[:n_s].real
-            # sensitivities d q_i / d X[r, i, j], arranged (N, Q, r, j), then d q_i / d points (N, Q, 2 * 5 * n)
-            sens_raw = (raw_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
-            sens_rows = (rows_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
-            local = np.einsum("iqrj,risk->iqskj", sens_raw, self.basis).reshape(n_s, raw.shape[1], -1)
+            raw, rows, sens_raw, sens_rows = self._node_derivatives(points, motion)
+            local = _chain_basis(sens_raw, self._basis_by_node).reshape(n_s, raw.shape[1], -1)
             n_d = raw.shape[1] // 2  # raw holds [powers..., roll rates...]
             power, rate = raw[:, :n_d], raw[:, n_d:]
             smooth = np.sqrt(power * power + POWER_SMOOTHING**2)
@@ -471,7 +572,7 @@ class MotionProblem:
         if derivatives:
             sample = np.concatenate(picks)  # (W R,)
             column = np.tile(np.arange(rows.shape[1]), len(self.windows))
-            local = np.einsum("xrj,rxsk->xskj", sens_rows[sample, column], self.basis[:, sample])
+            local = _chain_basis(sens_rows[sample, column][:, None], self._basis_by_node[sample])[:, 0]
             width = 2 * N_DERIVS * n  # the entries of a segment's two points, in the points' flat order
             entries = self.segment[sample][:, None] * (N_DERIVS * n) + np.arange(width)
             jac, jac_sparse = self._scatter(entries, local.reshape(sample.size, width), True)
@@ -482,29 +583,59 @@ class MotionProblem:
         return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess,
                           jac_sparse, p_sparse)
 
+    def _node_derivatives(self, points, motion):
+        """Every node's quantities and their sensitivities to its motion jet by complex step (module docstring):
+        (raw (N, Q), rows (N, R), d raw / d X (N, Q, r, j), d rows / d X (N, R, r, j)), X[r, i, j] the r-th
+        derivative of coordinate j at node i; from ``node_store`` when it holds every segment."""
+        store = self.node_store if (type(self) is MotionProblem and self.crossing_sign is None
+                                    and self.min_thrust is None) else None
+        k = self.samples_per_segment
+        if store is not None:
+            found = store.get(points, self.durations, k)
+            if found is not None:
+                self._rows_names = found[0][4]
+                return tuple(np.concatenate([f[a] for f in found]) for a in range(4))
+        n_r, n_s, n = motion.shape
+        directions = list(product(range(n_r), range(n)))
+        big = np.repeat(motion[:, None].astype(complex), len(directions), axis=1)  # (5, D, N, n)
+        for d, (r, j) in enumerate(directions):
+            big[r, d, :, j] += 1j * COMPLEX_STEP
+        with jets.complex_step_copies(len(directions)):  # their matrices inverted once, not per copy
+            raw_c, rows_c = self._quantities(big.reshape(n_r, -1, n))
+        raw, rows = raw_c[:n_s].real, rows_c[:n_s].real
+        # sensitivities d q_i / d X[r, i, j], arranged (N, Q, r, j)
+        sens_raw = (raw_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+        sens_rows = (rows_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+        if store is not None:
+            names = self._rows_names
+            store.put(self._store_owner, points, self.durations, k,
+                      [(raw[a:a + k], rows[a:a + k], sens_raw[a:a + k], sens_rows[a:a + k], names)
+                       for a in range(0, n_s, k)])
+        return raw, rows, sens_raw, sens_rows
+
     def _scatter(self, entries, values, with_sparse: bool = False):
         """The (rows, n_x) derivatives with respect to x of rows whose derivatives with respect to the
         points' flat entries ``entries`` (rows, w) are ``values`` (rows, w): the free entries, scaled.
 
         The same numbers as filling a (rows, points.size) array and taking its free columns, without that
         array (each row touches one segment's two points: a long mission's would be mostly zeros). With
-        ``with_sparse``: (that array, the same as a CSR matrix or None below :data:`SPARSE_FROM` variables).
+        ``with_sparse``: (that array, None) below :data:`SPARSE_FROM` variables, else (None, the same numbers
+        as a CSR matrix): a long mission's dense array is not made (:class:`Evaluation` makes it when asked).
         """
         cols = self._column[entries]
         hit = cols >= 0
-        out = np.zeros((entries.shape[0], self.n_x))
         row, col = np.nonzero(hit)
         col = cols[row, col]
         value = values[hit] * self.scale[col]
+        shape = (entries.shape[0], self.n_x)
+        if with_sparse and self.n_x >= SPARSE_FROM:
+            # row by row, columns increasing (a row's entries are its segment's, in the points' order): the
+            # CSR arrays directly, without scipy's conversion from coordinates
+            indptr = np.concatenate([[0], np.cumsum(hit.sum(axis=1))])
+            return None, sparse.csr_matrix((value, col, indptr), shape=shape)
+        out = np.zeros(shape)
         out[row, col] = value
-        if not with_sparse:
-            return out
-        if self.n_x < SPARSE_FROM:
-            return out, None
-        # row by row, columns increasing (a row's entries are its segment's, in the points' order): the CSR
-        # arrays directly, without scipy's conversion from coordinates
-        indptr = np.concatenate([[0], np.cumsum(hit.sum(axis=1))])
-        return out, sparse.csr_matrix((value, col, indptr), shape=out.shape)
+        return (out, None) if with_sparse else out
 
     def _assemble(self, curvature, local) -> np.ndarray:
         """Sum over nodes i and quantities q of c_iq grad q_i grad q_i^T, for the free entries in x's scaling.
@@ -522,6 +653,12 @@ class MotionProblem:
         hit, flat, scales = self._assembly_pattern
         h = np.bincount(flat, blocks[hit], minlength=self.n_x * self.n_x).reshape(self.n_x, self.n_x)
         return h * scales
+
+    @functools.cached_property
+    def _basis_by_node(self) -> np.ndarray:
+        """The Hermite weights node by node, (N, r, 2 * 5) (r: the derivative orders of ``basis``): :func:`_chain_basis`'s layout of ``basis``."""
+        b = self.basis
+        return np.ascontiguousarray(b.transpose(1, 0, 2, 3).reshape(b.shape[1], b.shape[0], -1))
 
     @functools.cached_property
     def _assembly_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -135,7 +135,7 @@ class PowerNlp(SmallNlp):
         grad = p / smooth + 0.2 * x
         hess = np.diag(1 / np.maximum(smooth, 1e-2)) + 0.2 * np.eye(2)  # the planner's majoriser
         return Evaluation(j, np.zeros(2), c, grad, np.array([[-1.0, 0.0]]), hess, power=p,
-                          power_weight=np.ones(2), power_jacobian=np.eye(2), rate_hessian=0.2 * np.eye(2))
+                          power_weight=np.ones(2), dense_power_jacobian=np.eye(2), rate_hessian=0.2 * np.eye(2))
 
 
 def test_composite_model_of_absolute_values():

@@ -198,7 +198,7 @@ def _roll_rows(m, gen, sel, roll_acceleration):
         m_cc, m_cr = m[..., chain[:, None], chain], m[..., chain[:, None], rolls]
         m_rc, m_rr = m[..., rolls[:, None], chain], m[..., rolls[:, None], rolls]
     rhs = gen[..., chain] - np.einsum("...ij,...j->...i", m_cr, roll_acceleration)
-    a_chain = np.linalg.solve(m_cc, rhs[..., None])[..., 0]
+    a_chain = jets.solve_matrices(m_cc, rhs[..., None])[..., 0]
     return (np.einsum("...ij,...j->...i", m_rr, roll_acceleration) + np.einsum("...ij,...j->...i", m_rc, a_chain)
             - gen[..., rolls])
 

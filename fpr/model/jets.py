@@ -14,7 +14,9 @@ Example:
     >>> phi.order, phi.shape, float(phi.d[2][0])              # phi''(0) = -s''(0)
     (2, (5,), -2.0)
 """
+import contextvars
 import math
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -61,6 +63,71 @@ def inexact(x) -> np.ndarray:
     return x if x.dtype.kind in "fc" else x.astype(float)  # inexact (np.issubdtype, cheaper)
 
 
+_COPIES = contextvars.ContextVar("complex_step_copies", default=0)
+
+
+@contextmanager
+def complex_step_copies(count: int):
+    """Within the block, complex batches whose leading axis is ``count`` copies of one batch (copy-major)
+    with equal real parts (complex-step copies: each copy's perturbation is in its imaginary part only, e.g.
+    :meth:`planners.problem.MotionProblem.evaluate`'s) have their matrices inverted once, not once per copy
+    (:func:`inverse`, :func:`solve_matrices`). A batch whose real parts differ is inverted as it is."""
+    token = _COPIES.set(int(count))
+    try:
+        yield
+    finally:
+        _COPIES.reset(token)
+
+
+def _shared_real(a):
+    """``(count, real part of one copy (B, n, n), imaginary parts (count, B, n, n))`` of a complex batch of
+    matrices (..., n, n) made of :func:`complex_step_copies`' copies with equal real parts, else None."""
+    count = _COPIES.get()
+    if count < 2 or not np.iscomplexobj(a) or a.ndim < 3 or a.shape[0] % count:
+        return None
+    re = a.real.reshape((count, -1) + a.shape[-2:])
+    if not (re == re[:1]).all():
+        return None
+    return count, re[0], a.imag.reshape(re.shape)
+
+
+def inverse(a):
+    """``np.linalg.inv`` of a batch of matrices (..., n, n).
+
+    Complex-step copies with one real part R (:func:`complex_step_copies`) are inverted from R^-1 once:
+    (R + i h I)^-1 = R^-1 - i h R^-1 I R^-1 (the h^2 terms vanish in floating point, as in the complex
+    arithmetic itself).
+    """
+    shared = _shared_real(a)
+    if shared is None:
+        return np.linalg.inv(a)
+    count, re, im = shared
+    r = np.linalg.inv(re)
+    out = np.empty(im.shape, a.dtype)
+    out.real = r
+    out.imag = -np.matmul(np.matmul(r, im), r)
+    return out.reshape(a.shape)
+
+
+def solve_matrices(a, b):
+    """``np.linalg.solve(a, b)`` for a batch of matrices a (..., n, n) and right-hand sides b (..., n, k).
+
+    With complex-step copies (:func:`complex_step_copies`, a's real part R shared): x = R^-1 Re b
+    + i R^-1 (Im b - Im a R^-1 Re b), from one inversion per copy's batch (as :func:`inverse`).
+    """
+    shared = _shared_real(a)
+    if shared is None:
+        return np.linalg.solve(a, b)
+    count, re, im = shared
+    r = np.linalg.inv(re)
+    b = np.broadcast_to(b, a.shape[:-1] + b.shape[-1:]).reshape(im.shape[:-1] + b.shape[-1:])
+    x_re = np.matmul(r, b.real)
+    out = np.empty(x_re.shape, np.result_type(a, b))
+    out.real = x_re
+    out.imag = np.matmul(r, b.imag - np.matmul(im, x_re))
+    return out.reshape(a.shape[:-1] + b.shape[-1:])
+
+
 def _atan2_value(y, x):
     """``arctan2`` that also takes complex-step arguments ``a + i h b`` (h tiny): the real part is
     the angle of the real parts, the imaginary part its first-order change (exact for h -> 0)."""
@@ -68,6 +135,20 @@ def _atan2_value(y, x):
         return np.arctan2(y, x)
     yr, xr = np.real(y), np.real(x)
     return np.arctan2(yr, xr) + 1j * (xr * np.imag(y) - yr * np.imag(x)) / (xr * xr + yr * yr)
+
+
+def _shared_sin_cos(x):
+    """``(np.sin(x), np.cos(x))`` of a real array; when its leading axis is :func:`complex_step_copies`' copies
+    of one block (the real parts of complex-step copies), from that block's (the same bits, a fraction of the
+    work)."""
+    count = _COPIES.get()
+    if count > 1 and x.ndim and x.shape[0] % count == 0:
+        blocks = x.reshape((count, -1) + x.shape[1:])
+        if (blocks == blocks[:1]).all():
+            s, c = np.sin(blocks[0]), np.cos(blocks[0])
+            return (np.broadcast_to(s, blocks.shape).reshape(x.shape),
+                    np.broadcast_to(c, blocks.shape).reshape(x.shape))
+    return np.sin(x), np.cos(x)
 
 
 def sin_cos_value(a):
@@ -78,7 +159,7 @@ def sin_cos_value(a):
     if not np.iscomplexobj(a):
         return np.sin(a), np.cos(a)
     x, b = a.real, a.imag
-    s, c = np.sin(x), np.cos(x)
+    s, c = _shared_sin_cos(x)
     sin, cos = np.empty(a.shape, a.dtype), np.empty(a.shape, a.dtype)
     sin.real, sin.imag = s, c * b
     cos.real, cos.imag = c, -(s * b)
@@ -399,7 +480,7 @@ def solve(A, b):
     nd = max(dA.ndim, dB.ndim) - 1
     dA, dB = _pad(dA, nd), _pad(dB, nd)
     K = min([k for k in (kA, kB) if k is not None], default=0)
-    inv = np.linalg.inv(dA[0])
+    inv = inverse(dA[0])
     if kA is None:
         x = np.matmul(inv, dB[:K + 1])
     else:

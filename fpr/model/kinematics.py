@@ -12,21 +12,22 @@ from __future__ import annotations
 import numpy as np
 
 from fpr.model.errors import ShapeError, SingularityError, WorkspaceError
-from fpr.model.jets import inexact
+from fpr.model.jets import inexact, sin_cos_value
 from fpr.model.parameters import Margins
 from fpr.model.parameters import margins as default_margins
 
 
 def u(a) -> np.ndarray:
-    """Unit vector (cos a, sin a), shape (..., 2)."""
-    a = inexact(a)
-    return np.stack([np.cos(a), np.sin(a)], axis=-1)
+    """Unit vector (cos a, sin a), shape (..., 2) (complex-step arguments: :func:`fpr.model.jets.sin_cos_value`,
+    numpy's values bit for bit without its complex sine and cosine)."""
+    sin, cos = sin_cos_value(inexact(a))
+    return np.stack([cos, sin], axis=-1)
 
 
 def u_perp(a) -> np.ndarray:
-    """du/da = (-sin a, cos a), shape (..., 2)."""
-    a = inexact(a)
-    return np.stack([-np.sin(a), np.cos(a)], axis=-1)
+    """du/da = (-sin a, cos a), shape (..., 2) (complex-step arguments as :func:`u`)."""
+    sin, cos = sin_cos_value(inexact(a))
+    return np.stack([-sin, cos], axis=-1)
 
 
 def last_axis(x, n: int, name: str) -> np.ndarray:

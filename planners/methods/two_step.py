@@ -27,7 +27,7 @@ from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
 from planners.options import PlanOptions
 from planners.polynomial import PiecewisePolynomial
-from planners.problem import MotionProblem
+from planners.problem import MotionProblem, NodeDerivatives
 from planners.report import evaluate_motion
 from planners.result import PlanResult
 from planners.solving import GRID_FEASIBILITY, Grid, solve_refining, solve_stage
@@ -57,6 +57,7 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
 
     def attempt(grid: Grid, previous: PiecewisePolynomial | None):
         normalisation = task.normalisation(grid)
+        shared = NodeDerivatives()  # the travels' last evaluations, where the polish starts
         step1 = step1_problem(task, grid, normalisation)
         start = task.stop.points if previous is None else previous.points[_way_mask(task, previous)]
         x, stage = solve_stage(step1, step1.x_of(start), "step 1" + grid.suffix, **options.solve_arguments)
@@ -70,6 +71,7 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
             if previous is not None:  # a refinement restarts from the earlier via points
                 points[a + 1:b] = previous.points[a + 1:b]
             travel = travel_problem(task, points, durations, a, b, normalisation, grid)
+            travel.share_node_derivatives(shared)
             x, stage = solve_stage(travel, travel.x_of(points[a:b + 1]), f"step 2, travel {j + 1}{grid.suffix}",
                                    **options.solve_arguments)
             stages.append(stage)
@@ -77,7 +79,7 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
         # one travel: step 2 was the 1-step NLP already; no via points: step 1 was
         whole_differs = len(task.way_times) > 1 and task.n_via.sum() > 0
         if options.polish and whole_differs and all(st.violation_end <= GRID_FEASIBILITY for st in stages):
-            points = _polish(task, grid, points, stages, options, normalisation)
+            points = _polish(task, grid, points, stages, options, normalisation, shared)
         return PiecewisePolynomial(points, durations), stages
 
     trajectory, report, stages = solve_refining(
@@ -86,12 +88,16 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
     return task.result("two-step", trajectory, is_way, report, reference, stages)
 
 
-def _polish(task: WayPointTask, grid: Grid, points, stages: list, options: PlanOptions, normalisation):
+def _polish(task: WayPointTask, grid: Grid, points, stages: list, options: PlanOptions, normalisation,
+            shared: NodeDerivatives | None = None):
     """The 1-step NLP solved from the 2-step ``points`` (appends its stage); the better points.
 
     ``normalisation``: the steps' (J_e0, J_phi0) on ``grid`` (:meth:`WayPointTask.normalisation`, not
-    computed again)."""
+    computed again); ``shared``: the travels' :class:`~planners.problem.NodeDerivatives` (its first evaluation
+    with derivatives, at the points where the travels ended, takes their numbers), or None."""
     whole = one_step_problem(task, grid, normalisation)
+    if shared is not None:
+        whole.share_node_derivatives(shared)
     x0 = whole.x_of(points)
     before = whole.evaluate(x0)
     x, stage = solve_stage(whole, x0, "polish (one-step)" + grid.suffix, **options.solve_arguments)
