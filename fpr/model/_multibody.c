@@ -850,8 +850,8 @@ static int points(const Model *m, const double *q, const double *spec, npy_intp 
     if (spec_len != 1 + 4 * (npy_intp)n) return 0;
     for (int k = 0; k < n; k++) {
         const double *p = spec + 1 + 4 * k;
+        if (!(p[0] >= 0 && p[0] < m->nj)) return 0;  /* on the double: a cast of 1e10 is undefined */
         const int j = (int)p[0];
-        if (!(p[0] >= 0 && j < m->nj)) return 0;
         double t[3];
         mat_vec(o[j].R, p + 1, t);
         for (int d = 0; d < 3; d++) positions[3 * k + d] = t[d] + o[j].p[d];
