@@ -28,3 +28,56 @@ def test_points_refuse_a_joint_out_of_range(plant, joint):
     spec[1] = joint
     with pytest.raises(ValueError):
         kernel.points(plant._plant_constants, plant.qc, spec)
+
+
+def _integer_fields(constants):
+    """Indices of the constants vector's integer fields (fpr/model/multibody.py, model_constants' layout):
+    nj, nq, nv, closures, max_iter; per joint type, parent, idx_q, idx_v; per closure its two joints."""
+    nj, nv, nc = int(constants[0]), int(constants[2]), int(constants[3])
+    fields = [0, 1, 2, 3, 8]
+    joints = 11 + nv
+    for i in range(nj - 1):
+        fields += [joints + 32 * i + k for k in range(4)]
+    closures = joints + 32 * (nj - 1)
+    for c in range(nc):
+        fields += [closures + 10 * c, closures + 10 * c + 4]
+    return fields
+
+
+@pytest.mark.parametrize("bad", [0.5, -0.5, np.nan, np.inf, -np.inf, 1e10, -1e10, 2.0**32 + 1.0, 1e300])
+def test_integer_fields_of_the_constants_must_be_whole_numbers_in_range(plant, bad):
+    """Every integer field of the constants vector, set to a non-whole number or one out of int's range (whose
+    cast is undefined), makes the constants refused."""
+    constants = plant._plant_constants
+    for index in _integer_fields(constants):
+        corrupted = constants.copy()
+        corrupted[index] = constants[index] + bad if bad in (0.5, -0.5) else bad
+        with pytest.raises(ValueError):
+            kernel.rigid_terms(corrupted, plant.qc, plant.vc)
+
+
+@pytest.mark.parametrize("bad", [0.5, np.nan, 1e10, -1e10, 2.0**31, 1e300])
+def test_velocity_and_frame_terms_specs_refuse_non_whole_counts(bad):
+    """The counts of the velocity and frame_terms specs (n, rows, nq, the number of blocks or frames, a block's
+    first row and joint) out of range or not whole: a ValueError, not an undefined cast or an int overflow."""
+    from fpr.model.constrained import _minimal_cache
+    robot = fpr.load("prototype")
+    plant = Plant.from_minimal(robot, hover_configuration(robot, robot.kind.reference_chain))
+    constants, spec = _minimal_cache(plant.closed).velocity_spec
+    n, rows, nq = int(spec[0]), int(spec[1]), int(spec[2])
+    blocks = 3 + nq * n
+    q, vc = np.zeros(n), np.zeros(rows)
+    assert kernel.velocity(constants, spec, q, vc) is not None
+    for index in (0, 1, 2, blocks, blocks + 1, blocks + 2):
+        corrupted = spec.copy()
+        corrupted[index] = spec[index] + bad if bad == 0.5 else bad
+        with pytest.raises(ValueError):
+            kernel.velocity(constants, corrupted, q, vc)
+    robot._build_attitude_constants()
+    constants, spec = robot._attitude_terms
+    count = 2 + int(spec[1]) * int(spec[0])
+    for index in (0, count):
+        corrupted = spec.copy()
+        corrupted[index] = spec[index] + bad if bad == 0.5 else bad
+        with pytest.raises(ValueError):
+            kernel.frame_terms(constants, corrupted, np.zeros(robot.nq), np.zeros(robot.nq))

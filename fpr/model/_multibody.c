@@ -35,6 +35,7 @@
 #include <Python.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
+#include <limits.h>
 #include <math.h>
 #include <string.h>
 
@@ -198,29 +199,33 @@ static inline void axis_matrix(const double *a, double angle, double *R)
 }
 
 /* ---------------------------------------------------------------- the model from its constants */
+/* *out = x when x is a whole number in [lo, hi], checked on the double (casting NaN or a double beyond int's
+ * range is undefined: INT_MIN on x86); 0 otherwise */
+static inline int whole(double x, int lo, int hi, int *out)
+{
+    if (!(x >= lo && x <= hi) || x != floor(x)) return 0;
+    *out = (int)x;
+    return 1;
+}
+
 static int parse(const double *k, npy_intp len, Model *m)
 {
-    if (len < HEADER) return 0;
-    m->nj = (int)k[0], m->nq = (int)k[1], m->nv = (int)k[2], m->nc = (int)k[3];
-    if (m->nj < 1 || m->nj > MAXJ || m->nv < 1 || m->nv > MAXV || m->nq < m->nv || m->nq > 2 * MAXV
-        || m->nc < 0 || 3 * m->nc > MAXR
+    if (len < HEADER || !whole(k[0], 1, MAXJ, &m->nj) || !whole(k[2], 1, MAXV, &m->nv)
+        || !whole(k[1], m->nv, 2 * MAXV, &m->nq) || !whole(k[3], 0, MAXR / 3, &m->nc)
         || len != HEADER + m->nv + JOINT * (m->nj - 1) + CONSTRAINT * m->nc)
         return 0;
     memcpy(m->gravity, k + 4, sizeof m->gravity);
-    m->mu = k[7], m->max_iter = (int)k[8], m->abs_acc = k[9], m->rel_acc = k[10];
-    if (!(m->mu > 0) || m->max_iter < 1) return 0;
+    m->mu = k[7], m->abs_acc = k[9], m->rel_acc = k[10];
+    if (!(m->mu > 0) || !whole(k[8], 1, INT_MAX, &m->max_iter)) return 0;
     m->armature = k + HEADER;
     const double *c = k + HEADER + m->nv;
     int nq = 0, nv = 0;
     for (int i = 1; i < m->nj; i++, c += JOINT) {
         Joint *j = &m->joints[i];
-        j->type = (int)c[0], j->parent = (int)c[1], j->iq = (int)c[2], j->iv = (int)c[3];
-        if ((j->type != REVOLUTE && j->type != FREEFLYER && j->type != PRISMATIC) || j->parent < 0
-            || j->parent >= i)
-            return 0;
+        if (!whole(c[0], REVOLUTE, PRISMATIC, &j->type) || !whole(c[1], 0, i - 1, &j->parent)) return 0;
         j->nvj = j->type == FREEFLYER ? 6 : 1;
         const int nqj = j->type == FREEFLYER ? 7 : 1;
-        if (j->iq < 0 || j->iq + nqj > m->nq || j->iv < 0 || j->iv + j->nvj > m->nv) return 0;
+        if (!whole(c[2], 0, m->nq - nqj, &j->iq) || !whole(c[3], 0, m->nv - j->nvj, &j->iv)) return 0;
         nq += nqj, nv += j->nvj;
         memcpy(j->axis, c + 4, sizeof j->axis);
         memcpy(j->placement.R, c + 7, sizeof j->placement.R);
@@ -232,8 +237,7 @@ static int parse(const double *k, npy_intp len, Model *m)
     if (nq != m->nq || nv != m->nv) return 0;
     for (int i = 0; i < m->nc; i++, c += CONSTRAINT) {
         Closure *cl = &m->closures[i];
-        cl->j1 = (int)c[0], cl->j2 = (int)c[4];
-        if (cl->j1 < 0 || cl->j1 >= m->nj || cl->j2 < 0 || cl->j2 >= m->nj) return 0;
+        if (!whole(c[0], 0, m->nj - 1, &cl->j1) || !whole(c[4], 0, m->nj - 1, &cl->j2)) return 0;
         memcpy(cl->p1, c + 1, sizeof cl->p1);
         memcpy(cl->p2, c + 5, sizeof cl->p2);
         cl->kp = c[8], cl->kd = c[9];
@@ -605,14 +609,16 @@ static int dexp_inverse(const Model *m, const double *theta, const double *v, do
 static int velocity(const Model *m, const double *spec, npy_intp spec_len, const double *q, const double *vc,
                     npy_intp vc_len, double *v)
 {
-    const int n = (int)spec[0], rows = (int)spec[1], nqm = (int)spec[2];
-    if (n < 1 || n > MAXV || rows < n || rows > 2 * MAXV || nqm != m->nq || m->nq != m->nv || vc_len != rows
+    int n, rows, nqm, blocks;
+    if (spec_len < 3 || !whole(spec[0], 1, MAXV, &n) || !whole(spec[1], n, 2 * MAXV, &rows)
+        || !whole(spec[2], m->nq, m->nq, &nqm) || m->nq != m->nv || vc_len != rows
         || spec_len < 3 + (npy_intp)nqm * n + 1)
         return -1;
     const double *T = spec + 3;
-    const int blocks = (int)T[nqm * n];
+    if (!whole(T[nqm * n], 0, rows, &blocks)
+        || spec_len != 3 + (npy_intp)nqm * n + 1 + 2 * blocks + (npy_intp)rows * n)
+        return -1;
     const double *block = T + nqm * n + 1, *constant = block + 2 * blocks;
-    if (blocks < 0 || spec_len != 3 + (npy_intp)nqm * n + 1 + 2 * blocks + (npy_intp)rows * n) return -1;
     double qp[MAXV], K[2 * MAXV * MAXV], A[MAXV * MAXV], R[MAXV * MAXV];
     for (int i = 0; i < nqm; i++) {
         double t = 0.0;
@@ -634,8 +640,8 @@ static int velocity(const Model *m, const double *spec, npy_intp spec_len, const
     }
     memcpy(K, constant, sizeof(double) * rows * n);
     for (int b = 0; b < blocks; b++) {
-        const int first = (int)block[2 * b], joint = (int)block[2 * b + 1];
-        if (first < 0 || first + 6 > rows || joint < 1 || joint >= m->nj) return -1;
+        int first, joint;
+        if (!whole(block[2 * b], 0, rows - 6, &first) || !whole(block[2 * b + 1], 1, m->nj - 1, &joint)) return -1;
         double J[6][MAXV];
         memset(J, 0, sizeof J);
         for (int s = joint; s > 0; s = m->joints[s].parent) {
@@ -909,14 +915,15 @@ static PyObject *py_velocity(PyObject *self, PyObject *args)
     if (!model_of(ko, &m)) return NULL;
     npy_intp spec_len = 0;
     const double *spec = constants_of(so, &spec_len);
-    if (spec == NULL || spec_len < 4) {
-        PyErr_SetString(PyExc_ValueError, "velocity: the spec must be a contiguous float64 vector");
+    int n, rows;
+    if (spec == NULL || spec_len < 4 || !whole(spec[0], 1, MAXV, &n) || !whole(spec[1], 1, 2 * MAXV, &rows)) {
+        PyErr_SetString(PyExc_ValueError, "velocity: the spec must be a contiguous float64 vector (n, rows, ...)");
         return NULL;
     }
-    PyArrayObject *q = input_of(qo, (npy_intp)spec[0], "q"), *vc = q ? input_of(vo, (npy_intp)spec[1], "vc") : NULL;
+    PyArrayObject *q = input_of(qo, n, "q"), *vc = q ? input_of(vo, rows, "vc") : NULL;
     PyObject *result = NULL;
     if (vc != NULL) {
-        npy_intp dims[1] = {(npy_intp)spec[0]};
+        npy_intp dims[1] = {n};
         PyArrayObject *v = (PyArrayObject *)PyArray_SimpleNew(1, dims, NPY_DOUBLE);
         if (v != NULL) {
             const int status = velocity(&m, spec, spec_len, DATA(q), DATA(vc), PyArray_SIZE(vc), DATA(v));
@@ -945,10 +952,11 @@ static PyObject *py_frame_terms(PyObject *self, PyObject *args)
     if (!model_of(ko, &m)) return NULL;
     npy_intp spec_len = 0;
     const double *spec = constants_of(so, &spec_len);
-    const int n = spec != NULL && spec_len >= 3 ? (int)spec[0] : -1;
-    const int count = n > 0 && n <= MAXV && spec[1] == m.nq && m.nq == m.nv && spec_len >= 3 + (npy_intp)m.nq * n
-                          ? (int)spec[2 + m.nq * n] : -1;
-    if (count < 0 || count > 8 || spec_len != 3 + (npy_intp)m.nq * n + 13 * (npy_intp)count) {
+    int n = -1, count = -1;
+    if (spec != NULL && spec_len >= 3 && whole(spec[0], 1, MAXV, &n) && spec[1] == m.nq && m.nq == m.nv
+        && spec_len >= 3 + (npy_intp)m.nq * n && !whole(spec[2 + m.nq * n], 0, 8, &count))
+        count = -1;
+    if (count < 0 || spec_len != 3 + (npy_intp)m.nq * n + 13 * (npy_intp)count) {
         PyErr_SetString(PyExc_ValueError, "frame_terms: the spec does not fit the model");
         return NULL;
     }
