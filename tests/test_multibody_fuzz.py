@@ -81,3 +81,19 @@ def test_velocity_and_frame_terms_specs_refuse_non_whole_counts(bad):
         corrupted[index] = spec[index] + bad if bad == 0.5 else bad
         with pytest.raises(ValueError):
             kernel.frame_terms(constants, corrupted, np.zeros(robot.nq), np.zeros(robot.nq))
+
+
+def test_joints_sharing_configuration_or_velocity_entries_are_refused(plant):
+    """Two joints on the same idx_v (or idx_q), the counts still adding up to nv (nq): refused, rather than
+    leaving an entry of v no joint owns, its column of M and its nle read uninitialised."""
+    constants = plant._plant_constants
+    nv = int(constants[2])
+    joints = 11 + nv
+    one_degree = [i for i in range(int(constants[0]) - 1) if constants[joints + 32 * i] != 1]
+    assert len(one_degree) >= 2
+    a, b = one_degree[:2]
+    for field in (2, 3):  # idx_q, idx_v
+        corrupted = constants.copy()
+        corrupted[joints + 32 * b + field] = constants[joints + 32 * a + field]
+        with pytest.raises(ValueError):
+            kernel.rigid_terms(corrupted, plant.qc, plant.vc)

@@ -220,12 +220,17 @@ static int parse(const double *k, npy_intp len, Model *m)
     m->armature = k + HEADER;
     const double *c = k + HEADER + m->nv;
     int nq = 0, nv = 0;
+    unsigned char taken_q[2 * MAXV] = {0}, taken_v[MAXV] = {0};  /* the joints' q and v must not overlap */
     for (int i = 1; i < m->nj; i++, c += JOINT) {
         Joint *j = &m->joints[i];
         if (!whole(c[0], REVOLUTE, PRISMATIC, &j->type) || !whole(c[1], 0, i - 1, &j->parent)) return 0;
         j->nvj = j->type == FREEFLYER ? 6 : 1;
         const int nqj = j->type == FREEFLYER ? 7 : 1;
         if (!whole(c[2], 0, m->nq - nqj, &j->iq) || !whole(c[3], 0, m->nv - j->nvj, &j->iv)) return 0;
+        for (int e = 0; e < nqj; e++)
+            if (taken_q[j->iq + e]++) return 0;
+        for (int e = 0; e < j->nvj; e++)
+            if (taken_v[j->iv + e]++) return 0;
         nq += nqj, nv += j->nvj;
         memcpy(j->axis, c + 4, sizeof j->axis);
         memcpy(j->placement.R, c + 7, sizeof j->placement.R);
@@ -234,7 +239,7 @@ static int parse(const double *k, npy_intp len, Model *m)
         memcpy(j->lever, c + 20, sizeof j->lever);
         memcpy(j->inertia, c + 23, sizeof j->inertia);
     }
-    if (nq != m->nq || nv != m->nv) return 0;
+    if (nq != m->nq || nv != m->nv) return 0;  /* with no overlap: every q and v belongs to one joint */
     for (int i = 0; i < m->nc; i++, c += CONSTRAINT) {
         Closure *cl = &m->closures[i];
         if (!whole(c[0], 0, m->nj - 1, &cl->j1) || !whole(c[4], 0, m->nj - 1, &cl->j2)) return 0;
