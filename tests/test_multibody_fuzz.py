@@ -97,3 +97,12 @@ def test_joints_sharing_configuration_or_velocity_entries_are_refused(plant):
         corrupted[joints + 32 * b + field] = constants[joints + 32 * a + field]
         with pytest.raises(ValueError):
             kernel.rigid_terms(corrupted, plant.qc, plant.vc)
+
+
+def test_too_many_rotor_speeds_raise_a_value_error(plant):
+    """More rotor speeds than the steps hold (64): a ValueError, not NULL without an exception (SystemError)."""
+    nv = plant.vc.size
+    w = np.zeros(65)
+    with pytest.raises(ValueError, match="rotor speeds"):
+        kernel.steps(plant._plant_constants, np.zeros((65, nv)), np.ones(3), plant.qc, plant.vc, w, w, 400.0, 1e-3,
+                     1)

@@ -785,7 +785,11 @@ static PyObject *py_steps(PyObject *self, PyObject *args)
     if ((q = copy_of(qo, m.nq, "q")) == NULL || (v = copy_of(vo, m.nv, "v")) == NULL) goto done;
     if ((w = copy_of(wo, -1, "w")) == NULL) goto done;
     const npy_intp nw = PyArray_SIZE(w);
-    if (nw > 4 * MAXJ || (wc = copy_of(wco, nw, "w_command")) == NULL
+    if (nw > 4 * MAXJ) {
+        PyErr_Format(PyExc_ValueError, "steps: at most %d rotor speeds", 4 * MAXJ);
+        goto done;
+    }
+    if ((wc = copy_of(wco, nw, "w_command")) == NULL
         || (g = input_of(go, nw * m.nv, "force_map_t")) == NULL || (dec = input_of(deco, 3, "decay")) == NULL)
         goto done;
     if (fo != Py_None) {  /* the points' spec (as points()) and their forces */
