@@ -58,8 +58,9 @@ def test_integer_fields_of_the_constants_must_be_whole_numbers_in_range(plant, b
 
 @pytest.mark.parametrize("bad", [0.5, np.nan, 1e10, -1e10, 2.0**31, 1e300])
 def test_velocity_and_frame_terms_specs_refuse_non_whole_counts(bad):
-    """The counts of the velocity and frame_terms specs (n, rows, nq, the number of blocks or frames, a block's
-    first row and joint) out of range or not whole: a ValueError, not an undefined cast or an int overflow."""
+    """The counts of the velocity and frame_terms specs (n, rows, nq, the number of blocks or frames, a
+    block's first row and joint) out of range or not whole: a ValueError, not an undefined cast or an int
+    overflow."""
     from fpr.model.constrained import _minimal_cache
     robot = fpr.load("prototype")
     plant = Plant.from_minimal(robot, hover_configuration(robot, robot.kind.reference_chain))
@@ -100,9 +101,11 @@ def test_joints_sharing_configuration_or_velocity_entries_are_refused(plant):
 
 
 def test_too_many_rotor_speeds_raise_a_value_error(plant):
-    """More rotor speeds than the steps hold (64): a ValueError, not NULL without an exception (SystemError)."""
+    """More rotor speeds than the steps hold (64): a ValueError, not NULL without an exception set (a
+    SystemError)."""
     nv = plant.vc.size
     w = np.zeros(65)
     with pytest.raises(ValueError, match="rotor speeds"):
-        kernel.steps(plant._plant_constants, np.zeros((65, nv)), np.ones(3), plant.qc, plant.vc, w, w, 400.0, 1e-3,
-                     1)
+        kernel.steps(plant._plant_constants, np.zeros((65, nv)), np.ones(3), plant.qc, plant.vc, w, w, 400.0,
+                     1e-3, 1)
+
