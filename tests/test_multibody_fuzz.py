@@ -109,3 +109,24 @@ def test_too_many_rotor_speeds_raise_a_value_error(plant):
         kernel.steps(plant._plant_constants, np.zeros((65, nv)), np.ones(3), plant.qc, plant.vc, w, w, 400.0,
                      1e-3, 1)
 
+
+def test_rotor_speeds_and_their_map_must_pair_up():
+    """w_command of another shape than w (a transposed (4, n_d) command against (n_d, 4) speeds) or the
+    force map not transposed ((nv, 4 n_d)): a ValueError, rather than the sizes alone matching and rotors
+    paired with the wrong commands or map rows."""
+    robot = fpr.load("fpr")
+    plant = Plant.from_minimal(robot, hover_configuration(robot, robot.kind.reference_chain))
+    plant._export()
+    force_map_t, decay = plant._lean_constants(1e-3)[3], plant._lean_constants(1e-3)[0]
+    w = np.arange(robot.n_drones * 4, dtype=float).reshape(robot.n_drones, 4)
+    assert robot.n_drones > 1 and force_map_t.shape == (w.size, plant.vc.size)
+
+    def run(force_map_t, w_command):
+        return kernel.steps(plant._plant_constants, force_map_t, decay, plant.qc, plant.vc, w, w_command,
+                            400.0, 1e-3, 1)
+
+    run(force_map_t, w)
+    with pytest.raises(ValueError, match="shape"):
+        run(force_map_t, np.ascontiguousarray(w.T))
+    with pytest.raises(ValueError, match="shape"):
+        run(np.ascontiguousarray(force_map_t.T), w)

@@ -792,6 +792,12 @@ static PyObject *py_steps(PyObject *self, PyObject *args)
     if ((wc = copy_of(wco, nw, "w_command")) == NULL
         || (g = input_of(go, nw * m.nv, "force_map_t")) == NULL || (dec = input_of(deco, 3, "decay")) == NULL)
         goto done;
+    /* the speeds pair up entry by entry (a transposed command would pair a rotor with another's command) and the
+     * map's rows are the speeds' */
+    if (!PyArray_SAMESHAPE(w, wc) || PyArray_NDIM(g) != 2 || PyArray_DIM(g, 0) != nw) {
+        PyErr_SetString(PyExc_ValueError, "steps: w_command must have w's shape and force_map_t (w.size, nv)");
+        goto done;
+    }
     if (fo != Py_None) {  /* the points' spec (as points()) and their forces */
         npy_intp spec_len = 0;
         const double *spec = constants_of(po, &spec_len);
