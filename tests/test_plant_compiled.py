@@ -212,6 +212,20 @@ def test_observed_positions_and_closure_error_are_the_python_ones(name):
 
 
 @pytest.mark.parametrize("name", ROBOTS)
+def test_a_nan_configuration_has_a_nan_closure_error_on_every_path(name):
+    """A NaN in the closed chain's configuration: the closure error is NaN from the compiled points() and from
+    both Python paths (closure_error, drone_positions_and_closure_error), not 0.0 (max(0.0, nan))."""
+    robot = fpr.load(name)
+    plant = Plant.from_minimal(robot, hover_configuration(robot, robot.kind.reference_chain))
+    plant._export()
+    plant.qc = plant.qc.copy()
+    plant.qc[:] = np.nan
+    assert np.isnan(kernel.points(plant._plant_constants, plant.qc, plant._point_spec)[1])
+    assert np.isnan(plant.closure_error())
+    assert np.isnan(plant.drone_positions_and_closure_error()[1])
+
+
+@pytest.mark.parametrize("name", ROBOTS)
 def test_minimal_model_terms_are_pinocchio_s(name):
     """The minimal model exported (the FPR's root a composite of 3 prismatic and 3 revolute joints, split into
     massless parts): M and nle equal Pinocchio's CRBA and RNEA."""

@@ -300,7 +300,9 @@ class Plant:
         error = 0.0
         for j1, p1, j2, p2 in self._closure_points:
             a, b = point(j1, p1), point(j2, p2)
-            error = max(error, math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2))
+            e = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+            if e > error or e != e:  # NaN stays NaN, as in the compiled points() (max(0.0, nan) is 0.0)
+                error = e
         return positions, error
 
     def observe(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
