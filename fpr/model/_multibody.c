@@ -1,9 +1,11 @@
 /* The plant's step (fpr/sim/plant.py, Plant._python_steps and, with a wind, Plant._python_wind_step) in C
- * (issue 13): the same RKMK4 steps of the closed chain's constraint dynamics, without the interpreter and the per-call cost of ~20 small Pinocchio and
- * numpy calls per stage.
+ * (issue 13): the same RKMK4 steps of the closed chain's constraint dynamics, without the interpreter and the
+ * per-call cost of ~20 small Pinocchio and numpy calls per stage.
  *
- * The multibody algorithms are written here for the joints the closed chains are built of (revolute about
- * any axis, free flyer), on the model's numbers exported once by plant_constants (fpr/sim/plant.py):
+ * The multibody algorithms are written here for the joints the models are built of (revolute and prismatic
+ * about any axis, free flyer; a composite exported as its sub-joints), on the model's numbers exported once by
+ * model_constants (fpr/model/multibody.py; every integer field a whole number in range, the joints' q and v
+ * entries not overlapping, else refused):
  *   - nle(q, v) by the recursive Newton-Euler algorithm (gravity as the base's acceleration), bodies' twists
  *     and accelerations in their own frames, Pinocchio's conventions (motion = [linear, angular]);
  *   - M(q) by the composite rigid-body algorithm on world-frame inertias and motion subspaces;
@@ -23,13 +25,19 @@
  * steps(constants, force_map_t, decay, q, v, w, w_command, w_max, dt, steps[, points, forces])
  *   -> (q, v, w, w_cmd, done, status)
  *   w_command is saturated to [0, w_max] first (w_cmd, as Plant.saturate); forces (world axes, one row per point
- *   of the spec `points`, as points() takes it) push on those points (a wind). status 0: all steps done; 1: the state became non-finite in step done + 1; 2: a matrix was not positive
- *   definite in step done + 1 at a finite state (the integrator failed); 3: step done + 1 turns a free flyer by more than the
- *   series covers (the caller runs it in Python). q, v, w: the state after `done` steps.
+ *   of the spec `points`, as points() takes it) push on those points (a wind); w_command has w's shape (any,
+ *   at most 64 speeds) and force_map_t is (w.size, nv). status 0: all steps done; 1: the state became
+ *   non-finite in step done + 1; 2: a matrix was not positive definite in step done + 1 at a finite state (the
+ *   integrator failed); 3: step done + 1 turns a free flyer by more than the series covers (the caller runs it
+ *   in Python). q, v, w: the state after `done` steps.
  * points(constants, q, spec) -> (positions (n, 3), closure error): world positions of points on joints (spec:
  *   n, then joint, x, y, z per point) and the largest distance between a closure's two points, at q.
- * dynamics(constants, q, v, tau) -> a; rigid_terms(constants, q, v) -> (M, nle); integrate(constants, q, theta) -> q; dexp_inverse(constants, theta, v) -> x
- *   (None beyond the series' range): the parts, for the tests.
+ * velocity(constants, spec, q, vc) -> v or None and frame_terms(constants, spec, q, v) -> (M, nle, Jacobians): the
+ *   minimal model's measured velocity and attitude terms (see each function).
+ * dynamics(constants, q, v, tau) -> a; rigid_terms(constants, q, v) -> (M, nle); integrate(constants, q, theta)
+ *   -> q; dexp_inverse(constants, theta, v) -> x (None beyond the series' range): the parts, for the tests.
+ * A malformed input (a constants vector or spec that does not fit, a wrong size or shape) raises a ValueError
+ * (TypeError for what is not a number); nothing is read out of range.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -737,7 +745,8 @@ static int model_of(PyObject *obj, Model *m)
     npy_intp len = 0;
     const double *k = constants_of(obj, &len);
     if (k == NULL || !parse(k, len, m)) {
-        PyErr_SetString(PyExc_ValueError, "the plant's constants do not describe a model (fpr.sim.plant)");
+        PyErr_SetString(PyExc_ValueError,
+                        "the constants do not describe a model (fpr.model.multibody.model_constants)");
         return 0;
     }
     return 1;
