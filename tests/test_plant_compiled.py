@@ -195,6 +195,21 @@ def test_constants_refuse_what_the_c_code_does_not_know():
                         np.zeros(closed.model.nv), np.zeros(closed.model.nv))
 
 
+@pytest.mark.parametrize("settings", [{"mu": 0.0}, {"max_iter": 0}])
+def test_proximal_settings_the_c_code_does_not_take_run_the_python_steps(settings):
+    """A closed chain built with mu = 0 or max_iter = 0 (Pinocchio takes both): no constants, so the default
+    plant runs its Python steps (not a ValueError from the C code's checks at every step)."""
+    robot = fpr.load("prototype")
+    q = hover_configuration(robot, robot.kind.reference_chain)
+    w = hover_speeds(robot, q)
+    closed = build_closed_chain(robot, **settings)
+    assert plant_constants(closed) is None
+    plants = [Plant(closed, Plant.from_minimal(robot, q).qc, w=w) for _ in range(2)]
+    plants[1].compiled_step = False
+    for plant in plants:
+        plant.advance(w, DT, 3)
+    np.testing.assert_array_equal(plants[0].qc, plants[1].qc)
+
 @pytest.mark.parametrize("name", ROBOTS)
 def test_observed_positions_and_closure_error_are_the_python_ones(name):
     """observe() with the compiled plant: the drones' centres and the closure error equal the Python path's (one
