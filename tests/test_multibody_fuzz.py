@@ -130,3 +130,21 @@ def test_rotor_speeds_and_their_map_must_pair_up():
         run(force_map_t, np.ascontiguousarray(w.T))
     with pytest.raises(ValueError, match="shape"):
         run(np.ascontiguousarray(force_map_t.T), w)
+
+
+def test_frame_terms_take_a_frame_per_drone_of_the_attitude_model():
+    """frame_terms takes as many frames as the spec holds (the attitude model's compiled part takes 16 drones;
+    frame_terms took 8, so a robot of 9 to 16 drones raised a ValueError at every attitude_model): the
+    prototype's drone frame 17 times gives 17 equal Jacobians, the one of the single-frame spec."""
+    robot = fpr.load("prototype")
+    robot._build_attitude_constants()
+    constants, spec = robot._attitude_terms
+    count = 2 + int(spec[1]) * int(spec[0])
+    assert spec[count] == 1
+    many = np.concatenate([spec[:count], [17], np.tile(spec[count + 1:], 17)])
+    q, v = np.full(robot.nq, 0.1), np.full(robot.nq, 0.2)
+    _, _, (one,) = kernel.frame_terms(constants, spec, q, v)
+    _, _, jacobians = kernel.frame_terms(constants, many, q, v)
+    assert len(jacobians) == 17
+    for jacobian in jacobians:
+        np.testing.assert_array_equal(jacobian, one)

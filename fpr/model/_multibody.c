@@ -965,9 +965,9 @@ static PyObject *py_velocity(PyObject *self, PyObject *args)
 }
 
 /* (M, nle, (J_f...)) at the model's state (T q, T v): the mass matrix, the bias forces and the LOCAL Jacobians
- * of frames (spec: n, T's rows nq, T (nq x n), the number of frames, per frame its joint, rotation (9, row-major)
- * and translation (3) in the joint's frame), as Pinocchio's crba (mirrored), nonLinearEffects and
- * getFrameJacobian(LOCAL) give them. */
+ * of frames (spec: n, T's rows nq, T (nq x n), the number of frames (any: one per drone of the robot,
+ * fpr/model/_attitude.c taking 16), per frame its joint, rotation (9, row-major) and translation (3) in the joint's
+ * frame), as Pinocchio's crba (mirrored), nonLinearEffects and getFrameJacobian(LOCAL) give them. */
 static PyObject *py_frame_terms(PyObject *self, PyObject *args)
 {
     PyObject *ko, *so, *qo, *vo;
@@ -978,7 +978,7 @@ static PyObject *py_frame_terms(PyObject *self, PyObject *args)
     const double *spec = constants_of(so, &spec_len);
     int n = -1, count = -1;
     if (spec != NULL && spec_len >= 3 && whole(spec[0], 1, MAXV, &n) && spec[1] == m.nq && m.nq == m.nv
-        && spec_len >= 3 + (npy_intp)m.nq * n && !whole(spec[2 + m.nq * n], 0, 8, &count))
+        && spec_len >= 3 + (npy_intp)m.nq * n && !whole(spec[2 + m.nq * n], 0, INT_MAX, &count))
         count = -1;
     if (count < 0 || spec_len != 3 + (npy_intp)m.nq * n + 13 * (npy_intp)count) {
         PyErr_SetString(PyExc_ValueError, "frame_terms: the spec does not fit the model");
