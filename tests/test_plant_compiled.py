@@ -195,6 +195,21 @@ def test_constants_refuse_what_the_c_code_does_not_know():
                         np.zeros(closed.model.nv), np.zeros(closed.model.nv))
 
 
+@pytest.mark.parametrize("settings", [{"mu": 0.0}, {"max_iter": 0}])
+def test_proximal_settings_the_c_code_does_not_take_run_the_python_steps(settings):
+    """A closed chain built with mu = 0 or max_iter = 0 (Pinocchio takes both): no constants, so the default
+    plant runs its Python steps (not a ValueError from the C code's checks at every step)."""
+    robot = fpr.load("prototype")
+    q = hover_configuration(robot, robot.kind.reference_chain)
+    w = hover_speeds(robot, q)
+    closed = build_closed_chain(robot, **settings)
+    assert plant_constants(closed) is None
+    plants = [Plant(closed, Plant.from_minimal(robot, q).qc, w=w) for _ in range(2)]
+    plants[1].compiled_step = False
+    for plant in plants:
+        plant.advance(w, DT, 3)
+    np.testing.assert_array_equal(plants[0].qc, plants[1].qc)
+
 @pytest.mark.parametrize("name", ROBOTS)
 def test_observed_positions_and_closure_error_are_the_python_ones(name):
     """observe() with the compiled plant: the drones' centres and the closure error equal the Python path's (one
@@ -209,6 +224,20 @@ def test_observed_positions_and_closure_error_are_the_python_ones(name):
     np.testing.assert_allclose(positions, reference_positions, rtol=0, atol=1e-15)
     assert abs(closure - reference_closure) < 1e-15
     assert 0 < reference_closure < 1e-6
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_a_nan_configuration_has_a_nan_closure_error_on_every_path(name):
+    """A NaN in the closed chain's configuration: the closure error is NaN from the compiled points() and from
+    both Python paths (closure_error, drone_positions_and_closure_error), not 0.0 (max(0.0, nan))."""
+    robot = fpr.load(name)
+    plant = Plant.from_minimal(robot, hover_configuration(robot, robot.kind.reference_chain))
+    plant._export()
+    plant.qc = plant.qc.copy()
+    plant.qc[:] = np.nan
+    assert np.isnan(kernel.points(plant._plant_constants, plant.qc, plant._point_spec)[1])
+    assert np.isnan(plant.closure_error())
+    assert np.isnan(plant.drone_positions_and_closure_error()[1])
 
 
 @pytest.mark.parametrize("name", ROBOTS)
@@ -290,3 +319,69 @@ def test_compiled_steps_in_a_wind_follow_the_python_steps(name):
     np.testing.assert_allclose(compiled.qc, python.qc, rtol=0, atol=1e-10)
     np.testing.assert_allclose(compiled.vc, python.vc, rtol=0, atol=1e-9)
     assert np.abs(compiled.qc - calm.qc).max() > 1e-3
+
+
+def _hand_built_model(inner=None):
+    """A model of every joint the C code knows, in depth-first order (Pinocchio's CRBA needs it): RZ on the
+    universe, PX on it, a composite (RX, RY) on that (``inner``: the RY's placement inside it), RY on the
+    composite, a free flyer on the universe and PZ on it; random placements, inertias and armature."""
+    rng = np.random.default_rng(3)
+    pin.seed(3)  # pin.Inertia.Random, pin.SE3.Random
+    model = pin.Model()
+    parent = 0
+    for kind, on_universe in ((pin.JointModelRZ(), True), (pin.JointModelPX(), False), ("composite", False),
+                              (pin.JointModelRY(), False), (pin.JointModelFreeFlyer(), True),
+                              (pin.JointModelPZ(), False)):
+        if kind == "composite":
+            kind = pin.JointModelComposite()
+            kind.addJoint(pin.JointModelRX())
+            kind.addJoint(pin.JointModelRY(), pin.SE3.Identity() if inner is None else inner)
+        placement = pin.SE3(pin.exp3(rng.normal(size=3)), rng.normal(size=3))
+        parent = model.addJoint(0 if on_universe else parent, kind, placement, f"j{model.njoints}")
+        model.appendBodyToJoint(parent, pin.Inertia.Random(), pin.SE3.Identity())
+    model.armature = 0.1 * np.abs(rng.normal(size=model.nv))
+    return model, rng
+
+
+def test_a_hand_built_model_and_its_closures_are_pinocchio_s():
+    """Joints on the universe and on other joints, prismatic joints, a composite, a free flyer: M, nle and
+    the group's exponential equal Pinocchio's; 3D closures with joint1 the universe (as the prototype's),
+    joint2 the universe, both on bodies, and two at once: the constrained acceleration equals
+    constraintDynamics' at random states off the closures. A composite with a non-identity inner placement
+    is refused."""
+    model, rng = _hand_built_model()
+    assert model_constants(_hand_built_model(pin.SE3.Random())[0]) is None
+    data = model.createData()
+    settings = pin.ProximalSettings(1e-12, 1e-12, 1e-9, 200)
+
+    def closure(j1, j2):
+        p1, p2 = (pin.SE3(np.eye(3), rng.normal(size=3)) for _ in range(2))
+        cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, j1, p1, j2, p2,
+                                      pin.ReferenceFrame.LOCAL)
+        cm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(10.0, 3.0))
+        return cm
+
+    for pairs in ((), ((0, 4),), ((6, 0),), ((4, 6),), ((4, 6), (0, 6))):
+        constraints = pin.StdVec_RigidConstraintModel()
+        datas = pin.StdVec_RigidConstraintData()
+        for j1, j2 in pairs:
+            constraints.append(closure(j1, j2))
+            datas.append(constraints[-1].createData())
+        constants, _ = model_constants(model, constraints, settings)
+        q = pin.randomConfiguration(model, -np.ones(model.nq), np.ones(model.nq))
+        v, tau, theta = rng.normal(size=model.nv), rng.normal(size=model.nv), 0.1 * rng.normal(size=model.nv)
+        mass, nle = kernel.rigid_terms(constants, q, v)
+        reference = pin.crba(model, data, q)
+        reference = np.triu(reference) + np.triu(reference, 1).T
+        np.testing.assert_allclose(mass, reference, rtol=0, atol=1e-14 * np.abs(reference).max())
+        reference = pin.nonLinearEffects(model, data, q, v)
+        np.testing.assert_allclose(nle, reference, rtol=0, atol=1e-14 * np.abs(reference).max())
+        reference = pin.integrate(model, q, theta)
+        np.testing.assert_allclose(kernel.integrate(constants, q, theta), reference, rtol=0, atol=1e-15)
+        if pairs:
+            pin.initConstraintDynamics(model, data, constraints, datas)
+            reference = pin.constraintDynamics(model, data, q, v, tau, constraints, datas, settings)
+        else:
+            reference = pin.aba(model, data, q, v, tau)
+        np.testing.assert_allclose(kernel.dynamics(constants, q, v, tau), reference, rtol=0,
+                                   atol=1e-12 * np.abs(reference).max())

@@ -1,7 +1,8 @@
 /* Small dense helpers shared by the compiled parts of the closed loop's tick (controllers/_alloc.c,
- * fpr/model/_attitude.c, fpr/sim/_watch.c): the constants vectors the Python side builds, float64 views of numpy
- * arrays of any strides, and a Cholesky factor and solve (the same loops, so the same bits, wherever they run). Included after Python.h and numpy's arrayobject.h, not
- * linked: each extension gets its own static copy. */
+ * fpr/model/_attitude.c, fpr/model/_multibody.c, fpr/sim/_watch.c): the constants vectors the Python side builds,
+ * float64 views of numpy arrays of any strides, and a Cholesky factor and solve (the same loops, so the same
+ * bits, wherever they run). Included after Python.h and numpy's arrayobject.h, not linked: each extension gets
+ * its own static copy. */
 #ifndef FPR_DENSE_H
 #define FPR_DENSE_H
 

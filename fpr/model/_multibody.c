@@ -1,9 +1,11 @@
 /* The plant's step (fpr/sim/plant.py, Plant._python_steps and, with a wind, Plant._python_wind_step) in C
- * (issue 13): the same RKMK4 steps of the closed chain's constraint dynamics, without the interpreter and the per-call cost of ~20 small Pinocchio and
- * numpy calls per stage.
+ * (issue 13): the same RKMK4 steps of the closed chain's constraint dynamics, without the interpreter and the
+ * per-call cost of ~20 small Pinocchio and numpy calls per stage.
  *
- * The multibody algorithms are written here for the joints the closed chains are built of (revolute about
- * any axis, free flyer), on the model's numbers exported once by plant_constants (fpr/sim/plant.py):
+ * The multibody algorithms are written here for the joints the models are built of (revolute and prismatic
+ * about any axis, free flyer; a composite exported as its sub-joints), on the model's numbers exported once by
+ * model_constants (fpr/model/multibody.py; every integer field a whole number in range, the joints' q and v
+ * entries not overlapping, else refused):
  *   - nle(q, v) by the recursive Newton-Euler algorithm (gravity as the base's acceleration), bodies' twists
  *     and accelerations in their own frames, Pinocchio's conventions (motion = [linear, angular]);
  *   - M(q) by the composite rigid-body algorithm on world-frame inertias and motion subspaces;
@@ -23,18 +25,25 @@
  * steps(constants, force_map_t, decay, q, v, w, w_command, w_max, dt, steps[, points, forces])
  *   -> (q, v, w, w_cmd, done, status)
  *   w_command is saturated to [0, w_max] first (w_cmd, as Plant.saturate); forces (world axes, one row per point
- *   of the spec `points`, as points() takes it) push on those points (a wind). status 0: all steps done; 1: the state became non-finite in step done + 1; 2: a matrix was not positive
- *   definite in step done + 1 at a finite state (the integrator failed); 3: step done + 1 turns a free flyer by more than the
- *   series covers (the caller runs it in Python). q, v, w: the state after `done` steps.
+ *   of the spec `points`, as points() takes it) push on those points (a wind); w_command has w's shape (any,
+ *   at most 64 speeds) and force_map_t is (w.size, nv). status 0: all steps done; 1: the state became
+ *   non-finite in step done + 1; 2: a matrix was not positive definite in step done + 1 at a finite state (the
+ *   integrator failed); 3: step done + 1 turns a free flyer by more than the series covers (the caller runs it
+ *   in Python). q, v, w: the state after `done` steps.
  * points(constants, q, spec) -> (positions (n, 3), closure error): world positions of points on joints (spec:
  *   n, then joint, x, y, z per point) and the largest distance between a closure's two points, at q.
- * dynamics(constants, q, v, tau) -> a; rigid_terms(constants, q, v) -> (M, nle); integrate(constants, q, theta) -> q; dexp_inverse(constants, theta, v) -> x
- *   (None beyond the series' range): the parts, for the tests.
+ * velocity(constants, spec, q, vc) -> v or None and frame_terms(constants, spec, q, v) -> (M, nle, Jacobians): the
+ *   minimal model's measured velocity and attitude terms (see each function).
+ * dynamics(constants, q, v, tau) -> a; rigid_terms(constants, q, v) -> (M, nle); integrate(constants, q, theta)
+ *   -> q; dexp_inverse(constants, theta, v) -> x (None beyond the series' range): the parts, for the tests.
+ * A malformed input (a constants vector or spec that does not fit, a wrong size or shape) raises a ValueError
+ * (TypeError for what is not a number); nothing is read out of range.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
+#include <limits.h>
 #include <math.h>
 #include <string.h>
 
@@ -198,29 +207,38 @@ static inline void axis_matrix(const double *a, double angle, double *R)
 }
 
 /* ---------------------------------------------------------------- the model from its constants */
+/* *out = x when x is a whole number in [lo, hi], checked on the double (casting NaN or a double beyond int's
+ * range is undefined: INT_MIN on x86); 0 otherwise */
+static inline int whole(double x, int lo, int hi, int *out)
+{
+    if (!(x >= lo && x <= hi) || x != floor(x)) return 0;
+    *out = (int)x;
+    return 1;
+}
+
 static int parse(const double *k, npy_intp len, Model *m)
 {
-    if (len < HEADER) return 0;
-    m->nj = (int)k[0], m->nq = (int)k[1], m->nv = (int)k[2], m->nc = (int)k[3];
-    if (m->nj < 1 || m->nj > MAXJ || m->nv < 1 || m->nv > MAXV || m->nq < m->nv || m->nq > 2 * MAXV
-        || m->nc < 0 || 3 * m->nc > MAXR
+    if (len < HEADER || !whole(k[0], 1, MAXJ, &m->nj) || !whole(k[2], 1, MAXV, &m->nv)
+        || !whole(k[1], m->nv, 2 * MAXV, &m->nq) || !whole(k[3], 0, MAXR / 3, &m->nc)
         || len != HEADER + m->nv + JOINT * (m->nj - 1) + CONSTRAINT * m->nc)
         return 0;
     memcpy(m->gravity, k + 4, sizeof m->gravity);
-    m->mu = k[7], m->max_iter = (int)k[8], m->abs_acc = k[9], m->rel_acc = k[10];
-    if (!(m->mu > 0) || m->max_iter < 1) return 0;
+    m->mu = k[7], m->abs_acc = k[9], m->rel_acc = k[10];
+    if (!(m->mu > 0) || !whole(k[8], 1, INT_MAX, &m->max_iter)) return 0;
     m->armature = k + HEADER;
     const double *c = k + HEADER + m->nv;
     int nq = 0, nv = 0;
+    unsigned char taken_q[2 * MAXV] = {0}, taken_v[MAXV] = {0};  /* the joints' q and v must not overlap */
     for (int i = 1; i < m->nj; i++, c += JOINT) {
         Joint *j = &m->joints[i];
-        j->type = (int)c[0], j->parent = (int)c[1], j->iq = (int)c[2], j->iv = (int)c[3];
-        if ((j->type != REVOLUTE && j->type != FREEFLYER && j->type != PRISMATIC) || j->parent < 0
-            || j->parent >= i)
-            return 0;
+        if (!whole(c[0], REVOLUTE, PRISMATIC, &j->type) || !whole(c[1], 0, i - 1, &j->parent)) return 0;
         j->nvj = j->type == FREEFLYER ? 6 : 1;
         const int nqj = j->type == FREEFLYER ? 7 : 1;
-        if (j->iq < 0 || j->iq + nqj > m->nq || j->iv < 0 || j->iv + j->nvj > m->nv) return 0;
+        if (!whole(c[2], 0, m->nq - nqj, &j->iq) || !whole(c[3], 0, m->nv - j->nvj, &j->iv)) return 0;
+        for (int e = 0; e < nqj; e++)
+            if (taken_q[j->iq + e]++) return 0;
+        for (int e = 0; e < j->nvj; e++)
+            if (taken_v[j->iv + e]++) return 0;
         nq += nqj, nv += j->nvj;
         memcpy(j->axis, c + 4, sizeof j->axis);
         memcpy(j->placement.R, c + 7, sizeof j->placement.R);
@@ -229,11 +247,10 @@ static int parse(const double *k, npy_intp len, Model *m)
         memcpy(j->lever, c + 20, sizeof j->lever);
         memcpy(j->inertia, c + 23, sizeof j->inertia);
     }
-    if (nq != m->nq || nv != m->nv) return 0;
+    if (nq != m->nq || nv != m->nv) return 0;  /* with no overlap: every q and v belongs to one joint */
     for (int i = 0; i < m->nc; i++, c += CONSTRAINT) {
         Closure *cl = &m->closures[i];
-        cl->j1 = (int)c[0], cl->j2 = (int)c[4];
-        if (cl->j1 < 0 || cl->j1 >= m->nj || cl->j2 < 0 || cl->j2 >= m->nj) return 0;
+        if (!whole(c[0], 0, m->nj - 1, &cl->j1) || !whole(c[4], 0, m->nj - 1, &cl->j2)) return 0;
         memcpy(cl->p1, c + 1, sizeof cl->p1);
         memcpy(cl->p2, c + 5, sizeof cl->p2);
         cl->kp = c[8], cl->kd = c[9];
@@ -605,14 +622,16 @@ static int dexp_inverse(const Model *m, const double *theta, const double *v, do
 static int velocity(const Model *m, const double *spec, npy_intp spec_len, const double *q, const double *vc,
                     npy_intp vc_len, double *v)
 {
-    const int n = (int)spec[0], rows = (int)spec[1], nqm = (int)spec[2];
-    if (n < 1 || n > MAXV || rows < n || rows > 2 * MAXV || nqm != m->nq || m->nq != m->nv || vc_len != rows
+    int n, rows, nqm, blocks;
+    if (spec_len < 3 || !whole(spec[0], 1, MAXV, &n) || !whole(spec[1], n, 2 * MAXV, &rows)
+        || !whole(spec[2], m->nq, m->nq, &nqm) || m->nq != m->nv || vc_len != rows
         || spec_len < 3 + (npy_intp)nqm * n + 1)
         return -1;
     const double *T = spec + 3;
-    const int blocks = (int)T[nqm * n];
+    if (!whole(T[nqm * n], 0, rows, &blocks)
+        || spec_len != 3 + (npy_intp)nqm * n + 1 + 2 * blocks + (npy_intp)rows * n)
+        return -1;
     const double *block = T + nqm * n + 1, *constant = block + 2 * blocks;
-    if (blocks < 0 || spec_len != 3 + (npy_intp)nqm * n + 1 + 2 * blocks + (npy_intp)rows * n) return -1;
     double qp[MAXV], K[2 * MAXV * MAXV], A[MAXV * MAXV], R[MAXV * MAXV];
     for (int i = 0; i < nqm; i++) {
         double t = 0.0;
@@ -634,8 +653,8 @@ static int velocity(const Model *m, const double *spec, npy_intp spec_len, const
     }
     memcpy(K, constant, sizeof(double) * rows * n);
     for (int b = 0; b < blocks; b++) {
-        const int first = (int)block[2 * b], joint = (int)block[2 * b + 1];
-        if (first < 0 || first + 6 > rows || joint < 1 || joint >= m->nj) return -1;
+        int first, joint;
+        if (!whole(block[2 * b], 0, rows - 6, &first) || !whole(block[2 * b + 1], 1, m->nj - 1, &joint)) return -1;
         double J[6][MAXV];
         memset(J, 0, sizeof J);
         for (int s = joint; s > 0; s = m->joints[s].parent) {
@@ -726,7 +745,8 @@ static int model_of(PyObject *obj, Model *m)
     npy_intp len = 0;
     const double *k = constants_of(obj, &len);
     if (k == NULL || !parse(k, len, m)) {
-        PyErr_SetString(PyExc_ValueError, "the plant's constants do not describe a model (fpr.sim.plant)");
+        PyErr_SetString(PyExc_ValueError,
+                        "the constants do not describe a model (fpr.model.multibody.model_constants)");
         return 0;
     }
     return 1;
@@ -774,9 +794,19 @@ static PyObject *py_steps(PyObject *self, PyObject *args)
     if ((q = copy_of(qo, m.nq, "q")) == NULL || (v = copy_of(vo, m.nv, "v")) == NULL) goto done;
     if ((w = copy_of(wo, -1, "w")) == NULL) goto done;
     const npy_intp nw = PyArray_SIZE(w);
-    if (nw > 4 * MAXJ || (wc = copy_of(wco, nw, "w_command")) == NULL
+    if (nw > 4 * MAXJ) {
+        PyErr_Format(PyExc_ValueError, "steps: at most %d rotor speeds", 4 * MAXJ);
+        goto done;
+    }
+    if ((wc = copy_of(wco, nw, "w_command")) == NULL
         || (g = input_of(go, nw * m.nv, "force_map_t")) == NULL || (dec = input_of(deco, 3, "decay")) == NULL)
         goto done;
+    /* the speeds pair up entry by entry (a transposed command would pair a rotor with another's command) and the
+     * map's rows are the speeds' */
+    if (!PyArray_SAMESHAPE(w, wc) || PyArray_NDIM(g) != 2 || PyArray_DIM(g, 0) != nw) {
+        PyErr_SetString(PyExc_ValueError, "steps: w_command must have w's shape and force_map_t (w.size, nv)");
+        goto done;
+    }
     if (fo != Py_None) {  /* the points' spec (as points()) and their forces */
         npy_intp spec_len = 0;
         const double *spec = constants_of(po, &spec_len);
@@ -850,8 +880,8 @@ static int points(const Model *m, const double *q, const double *spec, npy_intp 
     if (spec_len != 1 + 4 * (npy_intp)n) return 0;
     for (int k = 0; k < n; k++) {
         const double *p = spec + 1 + 4 * k;
+        if (!(p[0] >= 0 && p[0] < m->nj)) return 0;  /* on the double: a cast of 1e10 is undefined */
         const int j = (int)p[0];
-        if (!(p[0] >= 0 && j < m->nj)) return 0;
         double t[3];
         mat_vec(o[j].R, p + 1, t);
         for (int d = 0; d < 3; d++) positions[3 * k + d] = t[d] + o[j].p[d];
@@ -909,14 +939,15 @@ static PyObject *py_velocity(PyObject *self, PyObject *args)
     if (!model_of(ko, &m)) return NULL;
     npy_intp spec_len = 0;
     const double *spec = constants_of(so, &spec_len);
-    if (spec == NULL || spec_len < 4) {
-        PyErr_SetString(PyExc_ValueError, "velocity: the spec must be a contiguous float64 vector");
+    int n, rows;
+    if (spec == NULL || spec_len < 4 || !whole(spec[0], 1, MAXV, &n) || !whole(spec[1], 1, 2 * MAXV, &rows)) {
+        PyErr_SetString(PyExc_ValueError, "velocity: the spec must be a contiguous float64 vector (n, rows, ...)");
         return NULL;
     }
-    PyArrayObject *q = input_of(qo, (npy_intp)spec[0], "q"), *vc = q ? input_of(vo, (npy_intp)spec[1], "vc") : NULL;
+    PyArrayObject *q = input_of(qo, n, "q"), *vc = q ? input_of(vo, rows, "vc") : NULL;
     PyObject *result = NULL;
     if (vc != NULL) {
-        npy_intp dims[1] = {(npy_intp)spec[0]};
+        npy_intp dims[1] = {n};
         PyArrayObject *v = (PyArrayObject *)PyArray_SimpleNew(1, dims, NPY_DOUBLE);
         if (v != NULL) {
             const int status = velocity(&m, spec, spec_len, DATA(q), DATA(vc), PyArray_SIZE(vc), DATA(v));
@@ -934,9 +965,9 @@ static PyObject *py_velocity(PyObject *self, PyObject *args)
 }
 
 /* (M, nle, (J_f...)) at the model's state (T q, T v): the mass matrix, the bias forces and the LOCAL Jacobians
- * of frames (spec: n, T's rows nq, T (nq x n), the number of frames, per frame its joint, rotation (9, row-major)
- * and translation (3) in the joint's frame), as Pinocchio's crba (mirrored), nonLinearEffects and
- * getFrameJacobian(LOCAL) give them. */
+ * of frames (spec: n, T's rows nq, T (nq x n), the number of frames (any: one per drone of the robot,
+ * fpr/model/_attitude.c taking 16), per frame its joint, rotation (9, row-major) and translation (3) in the joint's
+ * frame), as Pinocchio's crba (mirrored), nonLinearEffects and getFrameJacobian(LOCAL) give them. */
 static PyObject *py_frame_terms(PyObject *self, PyObject *args)
 {
     PyObject *ko, *so, *qo, *vo;
@@ -945,10 +976,11 @@ static PyObject *py_frame_terms(PyObject *self, PyObject *args)
     if (!model_of(ko, &m)) return NULL;
     npy_intp spec_len = 0;
     const double *spec = constants_of(so, &spec_len);
-    const int n = spec != NULL && spec_len >= 3 ? (int)spec[0] : -1;
-    const int count = n > 0 && n <= MAXV && spec[1] == m.nq && m.nq == m.nv && spec_len >= 3 + (npy_intp)m.nq * n
-                          ? (int)spec[2 + m.nq * n] : -1;
-    if (count < 0 || count > 8 || spec_len != 3 + (npy_intp)m.nq * n + 13 * (npy_intp)count) {
+    int n = -1, count = -1;
+    if (spec != NULL && spec_len >= 3 && whole(spec[0], 1, MAXV, &n) && spec[1] == m.nq && m.nq == m.nv
+        && spec_len >= 3 + (npy_intp)m.nq * n && !whole(spec[2 + m.nq * n], 0, INT_MAX, &count))
+        count = -1;
+    if (count < 0 || spec_len != 3 + (npy_intp)m.nq * n + 13 * (npy_intp)count) {
         PyErr_SetString(PyExc_ValueError, "frame_terms: the spec does not fit the model");
         return NULL;
     }

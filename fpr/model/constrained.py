@@ -242,16 +242,19 @@ class ClosedChainModel:
                                       self.settings)
 
     def closure_error(self, qc) -> float:
-        """Norm of the loop-closure error (placement log for a weld, distance for a point) [m, rad]."""
+        """Norm of the loop-closure error (placement log for a weld, distance for a point) [m, rad]; NaN when
+        a closure's is (a non-finite configuration)."""
         pin.framesForwardKinematics(self.model, self.data, qc)
         err = 0.0
         for cm in self.constraints:
             m1 = self.data.oMi[cm.joint1_id] * cm.joint1_placement
             m2 = self.data.oMi[cm.joint2_id] * cm.joint2_placement
             if cm.type == pin.ContactType.CONTACT_6D:
-                err = max(err, float(np.linalg.norm(pin.log6(m1.inverse() * m2).vector)))
+                e = float(np.linalg.norm(pin.log6(m1.inverse() * m2).vector))
             else:
-                err = max(err, float(np.linalg.norm(m1.translation - m2.translation)))
+                e = float(np.linalg.norm(m1.translation - m2.translation))
+            if e > err or e != e:  # not max(): max(0.0, nan) is 0.0
+                err = e
         return err
 
     def energy(self, qc, vc) -> float:

@@ -43,7 +43,9 @@ def model_constants(model: pin.Model, constraints=(), settings=None) -> tuple[np
     """A Pinocchio model as the constants vector of ``fpr/model/_multibody.c`` and the map from its joint ids to
     the vector's, or None when it holds what that code does not know: a joint other than a revolute or
     prismatic joint along a frame axis, a free flyer or a composite of the one-degree ones; a loop closure
-    other than a 3D point contact; more than 16 joints, 48 velocities or 4 closures.
+    other than a 3D point contact; more than 16 joints, 48 velocities or 4 closures; closures under proximal
+    settings that code does not take (mu <= 0 or max_iter < 1; Pinocchio's solve with max_iter = 0 is not its
+    iterations').
 
     A composite joint becomes its sub-joints in a row, the body on the last (the same kinematics and
     dynamics: the inner parts have no mass).
@@ -73,8 +75,10 @@ def model_constants(model: pin.Model, constraints=(), settings=None) -> tuple[np
         ids[i] = len(rows)
     if len(rows) + 1 > _MAX_JOINTS:
         return None
-    if settings is None:
+    if settings is None or not constraints:  # unused without closures (the C code reads valid ones)
         settings = pin.ProximalSettings(1e-12, 1e-9, 1)
+    elif not (settings.mu > 0 and settings.max_iter >= 1):
+        return None
     values = [len(rows) + 1, model.nq, model.nv, len(constraints), *model.gravity.linear,
               settings.mu, settings.max_iter, settings.absolute_accuracy, settings.relative_accuracy,
               *model.armature]

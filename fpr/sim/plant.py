@@ -23,8 +23,8 @@ prototype (5 s, yaw rate 0.5 rad/s, hinge rate 2 rad/s): energy drift 8.6e-3 J a
 plain RK4, 1.6e-5 J for RKMK4 (2.8e-3 J at dt = 5 ms), for 1.7 times the cost per step;
 semi-implicit Euler gains 19 J.
 
-Without wind the steps run in C when built (``fpr/model/_multibody.c``, :attr:`Plant.compiled_step`): the same
-method on the same model, its dynamics written there and equal to Pinocchio's to round-off.
+The steps run in C when built (``fpr/model/_multibody.c``, :attr:`Plant.compiled_step`), with or without wind:
+the same method on the same model, its dynamics written there and equal to Pinocchio's to round-off.
 """
 
 from __future__ import annotations
@@ -143,9 +143,10 @@ class Plant:
         time: simulated time [s].
     """
 
-    #: the steps without wind compiled (``fpr/model/_multibody.c``): None (default) when built and the model fits
-    #: (:func:`~fpr.model.multibody.model_constants`), else the Python steps; False: always the Python steps (the
-    #: reference, on Pinocchio's ``constraintDynamics``); True: the compiled ones, an error when they cannot run.
+    #: the steps compiled (``fpr/model/_multibody.c``, with or without wind): None (default) when built and the
+    #: model fits (:func:`~fpr.model.multibody.model_constants`), else the Python steps; False: always the Python
+    #: steps (the reference, on Pinocchio's ``constraintDynamics``); True: the compiled ones, an error when they
+    #: cannot run.
     compiled_step: bool | None = None
 
     def __init__(self, closed: ClosedChainModel, qc, vc=None, w=None, time: float = 0.0, reference=None,
@@ -300,7 +301,9 @@ class Plant:
         error = 0.0
         for j1, p1, j2, p2 in self._closure_points:
             a, b = point(j1, p1), point(j2, p2)
-            error = max(error, math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2))
+            e = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+            if e > error or e != e:  # NaN stays NaN, as in the compiled points() (max(0.0, nan) is 0.0)
+                error = e
         return positions, error
 
     def observe(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
