@@ -502,8 +502,9 @@ class Plant:
             self.step(w_command, dt, wind)
 
     def _lean_constants(self, dt: float) -> tuple:
-        """What :meth:`_python_steps` and :meth:`_compiled_steps` read, looked up once per dt: the lag's decay at (0, dt/2, dt), dt/2, the
-        RK4 weights (dt/6, dt/3, dt/3, dt/6), G^T, the Pinocchio objects and functions, two stage buffers."""
+        """What :meth:`_python_steps` and :meth:`_compiled_steps` read, looked up once per dt: the lag's decay at
+        (0, dt/2, dt), dt/2, the RK4 weights (dt/6, dt/3, dt/3, dt/6), G^T, the Pinocchio objects and functions,
+        two stage buffers, G^T in C order."""
         constants = self._step_constants.get(dt)
         if constants is None:
             lag = self.robot.rotor_constants.time_constant
@@ -515,7 +516,7 @@ class Plant:
                 decay[:, None], 0.5 * dt, np.array([dt / 6.0, dt / 3.0, dt / 3.0, dt / 6.0]),
                 self._rotor_map.T,
                 closed.model, closed.data, closed.settings, closed.constraints, closed.constraint_datas,
-                np.empty((4, nv)), np.empty((4, nv)))
+                np.empty((4, nv)), np.empty((4, nv)), np.ascontiguousarray(self._rotor_map.T))
         return constants
 
     def _compiles_forces(self) -> bool:
@@ -555,7 +556,7 @@ class Plant:
         The C code saturates w_cmd to [0, w_max] as :meth:`saturate` does (a saturated command is unchanged)."""
         push = () if wind_forces is None else (self._point_spec, wind_forces)
         constants = self._lean_constants(dt)
-        force_map_t, decay = constants[3], constants[0]
+        force_map_t, decay = constants[11], constants[0]  # G^T C-contiguous: the C code reads it without a copy
         while steps > 0:
             q, v, w, w_cmd, done, status = kernel(self._plant_constants, force_map_t, decay, self.qc, self.vc,
                                                   self._w, w_cmd, self._max_speed, dt, steps, *push)
@@ -589,7 +590,7 @@ class Plant:
         (:class:`PlantDivergedError` with the time of the last finite state otherwise).
         """
         constants = self._lean_constants(dt)
-        decay, half, weights, force_map_t, model, data, settings, cms, cds, k_v, k_q = constants
+        decay, half, weights, force_map_t, model, data, settings, cms, cds, k_v, k_q, _ = constants
         dynamics, integrate, d_integrate = pin.constraintDynamics, pin.integrate, pin.dIntegrate
         arg1, gesv, isfinite = pin.ArgumentPosition.ARG1, _gesv, math.isfinite
         w_cmd = w_cmd.reshape(-1)
