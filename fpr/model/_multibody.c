@@ -317,21 +317,61 @@ static void add_world_inertia(const Joint *j, const SE3 *o, double *Y)
         }
 }
 
+/* world placements o (the universe's the identity) and the joints' placements relative to their parents li
+ * (NULL: not kept) at q */
+static void placements(const Model *m, const double *q, SE3 *o, SE3 *li)
+{
+    SE3 local;
+    memset(&o[0], 0, sizeof o[0]);
+    o[0].R[0] = o[0].R[4] = o[0].R[8] = 1.0;
+    for (int i = 1; i < m->nj; i++) {
+        SE3 *l = li != NULL ? &li[i] : &local;
+        joint_placement(&m->joints[i], q, l);
+        compose(&o[m->joints[i].parent], l, &o[i]);
+    }
+}
+
+/* the world motion subspace at placements o: one column per velocity (6 per free flyer) */
+static void world_columns(const Model *m, const SE3 *o, double (*cols)[6])
+{
+    for (int i = 1; i < m->nj; i++) {
+        const Joint *j = &m->joints[i];
+        if (j->type == FREEFLYER)
+            for (int k = 0; k < 6; k++) {
+                double e[6] = {0, 0, 0, 0, 0, 0};
+                e[k] = 1.0;
+                act_motion(&o[i], e, cols[j->iv + k]);
+            }
+        else {
+            double e[6];
+            subspace(j, 1.0, e);
+            act_motion(&o[i], e, cols[j->iv]);
+        }
+    }
+}
+
+/* out = T x, T (rows x n) row-major */
+static void map_rows(const double *T, int rows, int n, const double *x, double *out)
+{
+    for (int i = 0; i < rows; i++) {
+        double t = 0.0;
+        for (int k = 0; k < n; k++) t += T[i * n + k] * x[k];
+        out[i] = t;
+    }
+}
+
 /* kinematics, nle (RNEA) and M (CRBA) at (q, v) into w */
 static void rigid_terms(const Model *m, const double *q, const double *v, Work *w)
 {
     double f[MAXJ][6];
     SE3 li[MAXJ];
-    memset(w->o[0].R, 0, sizeof w->o[0].R);
-    w->o[0].R[0] = w->o[0].R[4] = w->o[0].R[8] = 1.0;
-    memset(w->o[0].p, 0, sizeof w->o[0].p);
+    placements(m, q, w->o, li);
+    world_columns(m, w->o, w->cols);
     memset(w->v[0], 0, sizeof w->v[0]);
     w->a[0][0] = -m->gravity[0], w->a[0][1] = -m->gravity[1], w->a[0][2] = -m->gravity[2];
     w->a[0][3] = w->a[0][4] = w->a[0][5] = 0.0;
     for (int i = 1; i < m->nj; i++) {
         const Joint *j = &m->joints[i];
-        joint_placement(j, q, &li[i]);
-        compose(&w->o[j->parent], &li[i], &w->o[i]);
         double vj[6], t[6], h[6], c[6];
         if (j->type == FREEFLYER)
             memcpy(vj, v + j->iv, sizeof vj);
@@ -351,18 +391,6 @@ static void rigid_terms(const Model *m, const double *q, const double *v, Work *
         cross(w->v[i], h, n2);
         f[i][0] += l[0], f[i][1] += l[1], f[i][2] += l[2];
         f[i][3] += n1[0] + n2[0], f[i][4] += n1[1] + n2[1], f[i][5] += n1[2] + n2[2];
-        /* world motion subspace */
-        if (j->type == FREEFLYER)
-            for (int k = 0; k < 6; k++) {
-                double e[6] = {0, 0, 0, 0, 0, 0};
-                e[k] = 1.0;
-                act_motion(&w->o[i], e, w->cols[j->iv + k]);
-            }
-        else {
-            double e[6];
-            subspace(j, 1.0, e);
-            act_motion(&w->o[i], e, w->cols[j->iv]);
-        }
         memset(w->Y[i], 0, sizeof w->Y[i]);
         add_world_inertia(j, &w->o[i], w->Y[i]);
     }
@@ -633,24 +661,11 @@ static int velocity(const Model *m, const double *spec, npy_intp spec_len, const
         return -1;
     const double *block = T + nqm * n + 1, *constant = block + 2 * blocks;
     double qp[MAXV], K[2 * MAXV * MAXV], A[MAXV * MAXV], R[MAXV * MAXV];
-    for (int i = 0; i < nqm; i++) {
-        double t = 0.0;
-        for (int k = 0; k < n; k++) t += T[i * n + k] * q[k];
-        qp[i] = t;
-    }
-    SE3 o[MAXJ], li;
+    map_rows(T, nqm, n, q, qp);
+    SE3 o[MAXJ];
     double cols[MAXV][6];
-    memset(&o[0], 0, sizeof o[0]);
-    o[0].R[0] = o[0].R[4] = o[0].R[8] = 1.0;
-    for (int i = 1; i < m->nj; i++) {
-        const Joint *j = &m->joints[i];
-        if (j->type == FREEFLYER) return -1;
-        joint_placement(j, qp, &li);
-        compose(&o[j->parent], &li, &o[i]);
-        double e[6];
-        subspace(j, 1.0, e);
-        act_motion(&o[i], e, cols[j->iv]);
-    }
+    placements(m, qp, o, NULL);  /* nq == nv: no free flyer */
+    world_columns(m, o, cols);
     memcpy(K, constant, sizeof(double) * rows * n);
     for (int b = 0; b < blocks; b++) {
         int first, joint;
@@ -869,13 +884,8 @@ static PyObject *py_dynamics(PyObject *self, PyObject *args)
 static int points(const Model *m, const double *q, const double *spec, npy_intp spec_len, double *positions,
                   double *closure)
 {
-    SE3 o[MAXJ], li;
-    memset(&o[0], 0, sizeof o[0]);
-    o[0].R[0] = o[0].R[4] = o[0].R[8] = 1.0;
-    for (int i = 1; i < m->nj; i++) {
-        joint_placement(&m->joints[i], q, &li);
-        compose(&o[m->joints[i].parent], &li, &o[i]);
-    }
+    SE3 o[MAXJ];
+    placements(m, q, o, NULL);
     const int n = (int)spec[0];
     if (spec_len != 1 + 4 * (npy_intp)n) return 0;
     for (int k = 0; k < n; k++) {
@@ -996,11 +1006,8 @@ static PyObject *py_frame_terms(PyObject *self, PyObject *args)
         return NULL;
     }
     double qp[MAXV], vp[MAXV];
-    for (int i = 0; i < m.nq; i++) {
-        double a = 0.0, b = 0.0;
-        for (int k = 0; k < n; k++) a += T[i * n + k] * DATA(q)[k], b += T[i * n + k] * DATA(v)[k];
-        qp[i] = a, vp[i] = b;
-    }
+    map_rows(T, m.nq, n, DATA(q), qp);
+    map_rows(T, m.nq, n, DATA(v), vp);
     Py_DECREF(q), Py_DECREF(v);
     Work work;
     rigid_terms(&m, qp, vp, &work);
