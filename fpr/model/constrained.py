@@ -29,7 +29,7 @@ from scipy.linalg import lapack
 
 from fpr.model.compiled import choose
 from fpr.model.errors import check_shape
-from fpr.model.multibody import kernel as _multibody, model_constants
+from fpr.model.multibody import kernel as _multibody
 
 _posv = lapack.dposv
 
@@ -298,11 +298,10 @@ class _MinimalCache:
     def _velocity_spec(self, closed, r) -> tuple[np.ndarray, np.ndarray] | None:
         """The compiled velocity's inputs (``fpr/model/_multibody.c``, ``velocity``): the minimal model's constants
         and the spec of K (its hinge Jacobian blocks and the constant rows, T), or None when not built or the
-        minimal model does not fit (:func:`~fpr.model.multibody.model_constants`)."""
-        exported = None if _multibody is None else model_constants(r.model)
-        if exported is None or r.model.nq != r.model.nv:
+        minimal model does not fit (``Robot.multibody``)."""
+        if r.multibody is None:
             return None
-        constants, ids = exported
+        constants, ids = r.multibody
         blocks = [x for iv, hinge in self.freeflyer_rows for x in (iv, ids[hinge])]
         spec = [r.nq, closed.model.nv, r.model.nq, *r.T.reshape(-1), len(self.freeflyer_rows), *blocks,
                 *self.velocity_rows.reshape(-1)]

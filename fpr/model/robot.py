@@ -254,6 +254,16 @@ class Robot:
         """m_i, mass of each drone, shape (n_d,) [kg]."""
         return np.array([self.model.inertias[j].mass for j in self.hinge_joint_ids], dtype=float)
 
+    @cached_property
+    def multibody(self) -> tuple[np.ndarray, dict] | None:
+        """The minimal model exported for ``fpr/model/_multibody.c`` (:func:`~fpr.model.multibody.model_constants`:
+        its constants and joint-id map), or None when the extension is not built or the model does not fit it
+        (nq != nv included: the compiled velocity and frame terms map T q into the model's q). Exported once for
+        the attitude model and the closed chain's measured velocity."""
+        if _multibody is None or self.model.nq != self.model.nv:
+            return None
+        return model_constants(self.model)
+
     def _uniform(self, quantity: str, values: np.ndarray, plural: str) -> float:
         if np.ptp(values) > 1e-12 * max(1.0, float(np.abs(values).max())):
             raise NotUniformError(quantity, values, f"use robot.{plural}, one value per drone")
@@ -444,7 +454,7 @@ class Robot:
                                      self.T_inv.reshape(-1)]).astype(float)
         constants = self.__dict__["_attitude_constants"] = (
             np.ascontiguousarray(self.T_inv[attitude].T), rows[:, 2].copy(), rows[:, 3:].reshape(-1).copy(), vector)
-        exported = None if _multibody is None or self.model.nq != self.model.nv else model_constants(self.model)
+        exported = self.multibody
         terms = None
         if exported is not None:
             frames = [self.model.frames[f] for f in self.drone_frame_ids]
