@@ -79,16 +79,25 @@ def complex_step_copies(count: int):
         _COPIES.reset(token)
 
 
-def _shared_real(a):
-    """``(count, real part of one copy (B, n, n), imaginary parts (count, B, n, n))`` of a complex batch of
-    matrices (..., n, n) made of :func:`complex_step_copies`' copies with equal real parts, else None."""
+def _equal_copies(x):
+    """A real array whose leading axis is :func:`complex_step_copies`' copies of one block, as (count, block...),
+    when all the copies are equal; else None."""
     count = _COPIES.get()
-    if count < 2 or not np.iscomplexobj(a) or a.ndim < 3 or a.shape[0] % count:
+    if count < 2 or x.ndim == 0 or x.shape[0] % count:
         return None
-    re = a.real.reshape((count, -1) + a.shape[-2:])
-    if not (re == re[:1]).all():
+    blocks = x.reshape((count, -1) + x.shape[1:])
+    return blocks if (blocks == blocks[:1]).all() else None
+
+
+def _shared_real(a):
+    """``(count, real part of one copy, imaginary parts (count, ...))`` of a complex batch of matrices
+    (..., n, n) made of :func:`complex_step_copies`' copies with equal real parts, else None."""
+    if not np.iscomplexobj(a) or a.ndim < 3:
         return None
-    return count, re[0], a.imag.reshape(re.shape)
+    re = _equal_copies(a.real)
+    if re is None:
+        return None
+    return re.shape[0], re[0], a.imag.reshape(re.shape)
 
 
 def inverse(a):
@@ -141,13 +150,11 @@ def _shared_sin_cos(x):
     """``(np.sin(x), np.cos(x))`` of a real array; when its leading axis is :func:`complex_step_copies`' copies
     of one block (the real parts of complex-step copies), from that block's (the same bits, a fraction of the
     work)."""
-    count = _COPIES.get()
-    if count > 1 and x.ndim and x.shape[0] % count == 0:
-        blocks = x.reshape((count, -1) + x.shape[1:])
-        if (blocks == blocks[:1]).all():
-            s, c = np.sin(blocks[0]), np.cos(blocks[0])
-            return (np.broadcast_to(s, blocks.shape).reshape(x.shape),
-                    np.broadcast_to(c, blocks.shape).reshape(x.shape))
+    blocks = _equal_copies(x)
+    if blocks is not None:
+        s, c = np.sin(blocks[0]), np.cos(blocks[0])
+        return (np.broadcast_to(s, blocks.shape).reshape(x.shape),
+                np.broadcast_to(c, blocks.shape).reshape(x.shape))
     return np.sin(x), np.cos(x)
 
 
