@@ -15,4 +15,5 @@ setup(ext_modules=[Extension(name, [source], include_dirs=[numpy.get_include(), 
                    for name, source in (("controllers._alloc", "controllers/_alloc.c"),
                                         ("fpr.model._attitude", "fpr/model/_attitude.c"),
                                         ("fpr.sim._watch", "fpr/sim/_watch.c"),
-                                        ("fpr.model._multibody", "fpr/model/_multibody.c"))])
+                                        ("fpr.model._multibody", "fpr/model/_multibody.c"),
+                                        ("fpr.model._jets", "fpr/model/_jets.c"))])

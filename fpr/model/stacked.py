@@ -38,17 +38,22 @@ from fpr.model.jets import Jet
 
 class _Linear:
     """x -> x @ K + k0 on the last axis for a constant K (and constant k0). Takes arrays and Jets (k0 on the
-    value). Complex x (complex-step copies) multiply a complex copy of K (one BLAS call)."""
+    value). Complex x (complex-step copies) is read as real pairs (re, im) and multiplies K (x) I_2, a real matrix
+    (one real BLAS call: K is real, so no complex products, each of whose four real ones would meet a zero)."""
 
     def __init__(self, k, k0=None):
         self.k = np.ascontiguousarray(k, dtype=float)
-        self.k_complex = self.k.astype(complex)
+        self.k_pairs = np.kron(self.k, np.eye(2))
         self.k0 = np.zeros(self.k.shape[1]) if k0 is None else np.asarray(k0, dtype=float).reshape(-1)
         self.size = self.k.shape[1]
 
     def __call__(self, x):
         d = x.d if isinstance(x, Jet) else x
-        out = d @ (self.k_complex if np.iscomplexobj(d) else self.k)
+        if np.iscomplexobj(d):
+            d = np.ascontiguousarray(d, dtype=complex)
+            out = (d.view(float) @ self.k_pairs).view(complex)
+        else:
+            out = d @ self.k
         if isinstance(x, Jet):
             out[0] += self.k0
             return Jet(out)
