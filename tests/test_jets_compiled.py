@@ -118,6 +118,16 @@ def test_inverse_is_numpy_s_and_singular_matrices_raise_as_numpy_does(reference)
     _close(want[1], got[1], 1e-13)
 
 
+def test_solve_matrices_is_numpy_s(reference):
+    """Real batches A x = B (several right-hand sides): numpy's solve to round-off, and A x = B holds."""
+    rng = np.random.default_rng(5)
+    a = rng.normal(size=(40, 5, 5)) + 3 * np.eye(5)
+    b = rng.normal(size=(40, 5, 3))
+    want, got = reference(lambda: jets.solve_matrices(a, b))
+    _close(want, got, 1e-12)
+    assert np.abs(a @ got - b).max() < 1e-12
+
+
 def test_compiled_switch_true_requires_the_kernel(monkeypatch):
     """compiled = True without the kernel says how to build it."""
     monkeypatch.setattr(jets, "_KERNEL", None)

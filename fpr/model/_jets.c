@@ -12,11 +12,12 @@
  *   inv: (Si, n, n) the inverse of the value of A, a: (Ka+1, Sa, n, n) A's jet, b: (Kb+1, Sb, n, k),
  *   out: (K+1, S, n, k): x[p] = inv @ (b[p] - sum_{q=1..p} C(p, q) a[q] @ x[p - q]) (b[p] = 0 beyond Kb), the
  *   jet of A^-1 b.
- * inverse(a, out, S, n) -> bool
- *   a, out: (S, n, n) float64: out[s] = a[s]^-1 by Gauss-Jordan elimination with partial pivoting (LAPACK's
- *   getrf + getri pivot the same way; the results agree to round-off). False, out unfinished, when a pivot is
- *   exactly 0 (a singular matrix): the caller then asks numpy, which raises as it does.
- * product and solve return None; all three raise ValueError on arrays that do not match (the Python side checks
+ * gauss_jordan(a, b, out, S, n, k) -> bool
+ *   a: (S, n, n), b: (S, n, k) or None (the identity: k = n), out: (S, n, k), float64: out[s] = a[s]^-1 b[s] by
+ *   Gauss-Jordan elimination with partial pivoting (LAPACK's getrf pivots the same way; the results agree to
+ *   round-off). False, out unfinished, when a pivot is exactly 0 (a singular matrix): the caller then asks
+ *   numpy, which raises as it does.
+ * product and solve return None; all raise ValueError on arrays that do not match (the Python side checks
  * first: jets.py).
  */
 #include <math.h>
@@ -139,18 +140,19 @@ static void solve(const double *inv, const double *a, const double *b, double *o
     }
 }
 
-/* ------------------------------------------------------------------ inverse */
-static int inverse_real(const double *a, double *out, npy_intp S, int n)
+/* ------------------------------------------------------------------ inverse and solve */
+/* out[s] = a[s]^-1 b[s] (b NULL: the identity, out (S, n, n); else b and out (S, n, k)) by Gauss-Jordan elimination
+ * with partial pivoting; 0, out unfinished, at an exactly zero pivot. */
+static int gauss_jordan(const double *a, const double *b, double *out, npy_intp S, int n, int k)
 {
     double w[MAX_DIM * 2 * MAX_DIM];
-    int cols = 2 * n;
+    int cols = n + k;
     for (npy_intp s = 0; s < S; s++) {
-        const double *x = a + s * n * n;
-        for (int i = 0; i < n; i++)
-            for (int j = 0; j < n; j++) {
-                w[i * cols + j] = x[i * n + j];
-                w[i * cols + n + j] = i == j ? 1.0 : 0.0;
-            }
+        const double *x = a + s * n * n, *y = b ? b + s * n * k : NULL;
+        for (int i = 0; i < n; i++) {
+            for (int j = 0; j < n; j++) w[i * cols + j] = x[i * n + j];
+            for (int j = 0; j < k; j++) w[i * cols + n + j] = y ? y[i * k + j] : (i == j ? 1.0 : 0.0);
+        }
         for (int c = 0; c < n; c++) {
             int pivot = c;
             for (int i = c + 1; i < n; i++)
@@ -171,9 +173,9 @@ static int inverse_real(const double *a, double *out, npy_intp S, int n)
                 for (int j = 0; j < cols; j++) w[i * cols + j] -= f * w[c * cols + j];
             }
         }
-        double *o = out + s * n * n;
+        double *o = out + s * n * k;
         for (int i = 0; i < n; i++)
-            for (int j = 0; j < n; j++) o[i * n + j] = w[i * cols + n + j];
+            for (int j = 0; j < k; j++) o[i * k + j] = w[i * cols + n + j];
     }
     return 1;
 }
@@ -242,26 +244,32 @@ static PyObject *py_solve(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
-static PyObject *py_inverse(PyObject *self, PyObject *args)
+static PyObject *py_gauss_jordan(PyObject *self, PyObject *args)
 {
-    PyObject *oa, *oo;
-    Py_ssize_t S, n;
-    if (!PyArg_ParseTuple(args, "OOnn", &oa, &oo, &S, &n)) return NULL;
-    Operand a, o;
-    if (!operand(oa, 0, &a) || !operand(oo, 0, &o)) return NULL;
-    if (n < 1 || n > MAX_DIM || S < 1 || a.size != S * n * n || o.size != S * n * n) {
-        PyErr_SetString(PyExc_ValueError, "inverse: sizes do not match");
+    PyObject *oa, *ob, *oo;
+    Py_ssize_t S, n, k;
+    if (!PyArg_ParseTuple(args, "OOOnnn", &oa, &ob, &oo, &S, &n, &k)) return NULL;
+    Operand a, b = {NULL, NULL, 0}, o;
+    if (!operand(oa, 0, &a) || (ob != Py_None && !operand(ob, 0, &b)) || !operand(oo, 0, &o)) return NULL;
+    if (ob == Py_None && k != n) {
+        PyErr_SetString(PyExc_ValueError, "gauss_jordan: an inverse has k = n");
+        return NULL;
+    }
+    if (n < 1 || n > MAX_DIM || k < 1 || k > MAX_DIM || S < 1 || a.size != S * n * n || o.size != S * n * k
+        || (ob != Py_None && b.size != S * n * k)) {
+        PyErr_SetString(PyExc_ValueError, "gauss_jordan: sizes do not match");
         return NULL;
     }
     int ok;
     Py_BEGIN_ALLOW_THREADS
-    ok = inverse_real((const double *)a.data, (double *)o.data, S, (int)n);
+    ok = gauss_jordan((const double *)a.data, ob == Py_None ? NULL : (const double *)b.data, (double *)o.data, S,
+                      (int)n, (int)k);
     Py_END_ALLOW_THREADS
     return PyBool_FromLong(ok);
 }
 
 static PyMethodDef methods[] = {
-    {"inverse", py_inverse, METH_VARARGS, "Inverses of a batch of small matrices into out, or False (C source)."},
+    {"gauss_jordan", py_gauss_jordan, METH_VARARGS, "A^-1 b (b None: A^-1) of small matrices into out, or False."},
     {"product", py_product, METH_VARARGS, "Leibniz sum of jet products into out (see the C source)."},
     {"solve", py_solve, METH_VARARGS, "The jet of A^-1 b into out (see the C source)."},
     {NULL, NULL, 0, NULL},

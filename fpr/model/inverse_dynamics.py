@@ -171,7 +171,9 @@ def roll_torques(robot, q, v, thrust, roll_acceleration, external=None) -> np.nd
         gen = gen + np.concatenate([ext, np.zeros(ext.shape[:-1] + (gen.shape[-1] - ext.shape[-1],))], axis=-1)
     sin, cos = jets.sin_cos_value(q @ sel.T)  # every drone at once
     force = np.stack([-sin, cos], axis=-1) * thrust[..., None]  # thrust along each body z
-    gen = gen + np.einsum("...din,...di->...n", centre_jacobians, force)
+    batch, rows = force.shape[:-2], force.shape[-2] * force.shape[-1]  # sum_d J_d^T f_d, one product per sample
+    pushed = jets.small_matmul(force.reshape(batch + (1, rows)), centre_jacobians.reshape(batch + (rows, -1)))
+    gen = gen + pushed[..., 0, :]
     return _roll_rows(m, gen, sel, roll_acceleration)
 
 
@@ -193,14 +195,14 @@ def _roll_rows(m, gen, sel, roll_acceleration):
     chain = np.setdiff1d(np.arange(m.shape[-1]), rolls)
     if np.array_equal(rolls, np.arange(len(chain), m.shape[-1])):  # [chain..., rolls...]: views, no copies
         chain, rolls = slice(0, len(chain)), slice(len(chain), None)
-        m_cc, m_cr, m_rc, m_rr = m[..., chain, chain], m[..., chain, rolls], m[..., rolls, chain], m[..., rolls, rolls]
-    else:
-        m_cc, m_cr = m[..., chain[:, None], chain], m[..., chain[:, None], rolls]
-        m_rc, m_rr = m[..., rolls[:, None], chain], m[..., rolls[:, None], rolls]
-    rhs = gen[..., chain] - np.einsum("...ij,...j->...i", m_cr, roll_acceleration)
-    a_chain = jets.solve_matrices(m_cc, rhs[..., None])[..., 0]
-    return (np.einsum("...ij,...j->...i", m_rr, roll_acceleration) + np.einsum("...ij,...j->...i", m_rc, a_chain)
-            - gen[..., rolls])
+    # M_cr phi'' and M_rr phi'' as M [0; phi''], M_rc a_c as M [a_c; 0]: whole-M products of one call each
+    known = np.zeros(m.shape[:-1], np.result_type(m, roll_acceleration))
+    known[..., rolls] = roll_acceleration
+    pushed = jets.small_matmul(m, known[..., None])[..., 0]
+    a_chain = jets.solve_matrices(m[..., chain, chain] if isinstance(chain, slice) else m[..., chain[:, None], chain],
+                                  (gen[..., chain] - pushed[..., chain])[..., None])[..., 0]
+    known[..., chain], known[..., rolls] = a_chain, 0.0
+    return pushed[..., rolls] + jets.small_matmul(m, known[..., None])[..., 0][..., rolls] - gen[..., rolls]
 
 
 def inverse_dynamics(robot, motion, external=None) -> MotionInputs:

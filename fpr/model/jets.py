@@ -158,16 +158,23 @@ def _shared_real(a):
     return re.shape[0], re[0], a.imag.reshape(re.shape)
 
 
-def _small_inverse(a):
-    """``np.linalg.inv`` of a real batch (..., n, n), n <= 32, by _jets.c (about 5 times faster than numpy's on
-    batches of 4 x 4 matrices, the same to round-off); numpy's for other batches and singular matrices (which
-    numpy then reports as it does)."""
+def _small_solve(a, b=None):
+    """``np.linalg.solve(a, b)`` (``b`` None: ``np.linalg.inv(a)``) of a real batch a (..., n, n), b (..., n, k),
+    n, k <= 32, by _jets.c's Gauss-Jordan elimination (about 3 times faster than numpy's on batches of 4 x 4
+    matrices, the same to round-off); numpy's for other batches and singular matrices (which numpy then reports
+    as it does)."""
     kernel = _kernel()
+    numpy_s = (lambda: np.linalg.inv(a)) if b is None else (lambda: np.linalg.solve(a, b))
     if kernel is None or a.dtype.char != "d" or a.ndim < 2 or not 1 <= a.shape[-1] <= 32 or a.size == 0:
-        return np.linalg.inv(a)
-    out = np.empty(a.shape)
-    if not kernel.inverse(np.ascontiguousarray(a), out, a.size // (a.shape[-1] ** 2), a.shape[-1]):
-        return np.linalg.inv(a)
+        return numpy_s()
+    if b is not None:
+        if (b.dtype.char != "d" or b.ndim != a.ndim or b.shape[:-1] != a.shape[:-1] or not 1 <= b.shape[-1] <= 32):
+            return numpy_s()
+        b = np.ascontiguousarray(b)
+    out = np.empty(a.shape if b is None else b.shape)
+    n = a.shape[-1]
+    if not kernel.gauss_jordan(np.ascontiguousarray(a), b, out, a.size // (n * n), n, out.shape[-1]):
+        return numpy_s()
     return out
 
 
@@ -180,9 +187,9 @@ def inverse(a):
     """
     shared = _shared_real(a)
     if shared is None:
-        return _small_inverse(a)
+        return _small_solve(a)
     count, re, im = shared
-    r = _small_inverse(re)
+    r = _small_solve(re)
     out = np.empty(im.shape, a.dtype)
     out.real = r
     out.imag = -small_matmul(small_matmul(r, im), r)
@@ -197,9 +204,9 @@ def solve_matrices(a, b):
     """
     shared = _shared_real(a)
     if shared is None:
-        return np.linalg.solve(a, b)
+        return _small_solve(a, b) if np.ndim(b) == np.ndim(a) else np.linalg.solve(a, b)
     count, re, im = shared
-    r = _small_inverse(re)
+    r = _small_solve(re)
     b = np.broadcast_to(b, a.shape[:-1] + b.shape[-1:]).reshape(im.shape[:-1] + b.shape[-1:])
     x_re = small_matmul(r, np.ascontiguousarray(b.real))
     out = np.empty(x_re.shape, np.result_type(a, b))
