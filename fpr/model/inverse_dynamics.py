@@ -25,6 +25,7 @@ exact (tested).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -177,6 +178,20 @@ def roll_torques(robot, q, v, thrust, roll_acceleration, external=None) -> np.nd
     return _roll_rows(m, gen, sel, roll_acceleration)
 
 
+@functools.lru_cache(maxsize=32)
+def _roll_layout(shape, data):
+    """(chain, rolls) indices of a roll selection S (its shape and bytes: a cache key) that selects coordinates,
+    as slices when the rolls come last ([chain..., rolls...]: views, no copies); None for another S."""
+    sel = np.frombuffer(data).reshape(shape)
+    rolls = np.flatnonzero(np.any(sel != 0, axis=0))
+    if not (len(rolls) == len(sel) and np.array_equal(sel[:, rolls], np.eye(len(sel)))):
+        return None
+    chain = np.setdiff1d(np.arange(shape[1]), rolls)
+    if np.array_equal(rolls, np.arange(len(chain), shape[1])):
+        return slice(0, len(chain)), slice(len(chain), None)
+    return chain, rolls
+
+
 def _roll_rows(m, gen, sel, roll_acceleration):
     """tau = (S M^-1 S^T)^-1 (phi'' - S M^-1 g) by the partition of M into the chain (c) and the rolls (r).
 
@@ -186,15 +201,14 @@ def _roll_rows(m, gen, sel, roll_acceleration):
     chain's size, one right-hand side). S is a selection of coordinates on the robots of this package; another
     S falls back on the formula as written.
     """
-    rolls = np.flatnonzero(np.any(sel != 0, axis=0))
-    if not (len(rolls) == len(sel) and np.array_equal(sel[:, rolls], np.eye(len(sel)))):
+    sel = np.asarray(sel, dtype=float)
+    layout = _roll_layout(sel.shape, sel.tobytes())
+    if layout is None:
         rhs = np.concatenate([gen[..., None], np.broadcast_to(sel.T, m.shape[:-2] + sel.T.shape)], axis=-1)
         sol = np.linalg.solve(m, rhs)  # M^-1 [g, S^T]
         a_tau = np.einsum("ij,...jk->...ik", sel, sol[..., 1:])
         return np.linalg.solve(a_tau, (roll_acceleration - sol[..., 0] @ sel.T)[..., None])[..., 0]
-    chain = np.setdiff1d(np.arange(m.shape[-1]), rolls)
-    if np.array_equal(rolls, np.arange(len(chain), m.shape[-1])):  # [chain..., rolls...]: views, no copies
-        chain, rolls = slice(0, len(chain)), slice(len(chain), None)
+    chain, rolls = layout
     # M_cr phi'' and M_rr phi'' as M [0; phi''], M_rc a_c as M [a_c; 0]: whole-M products of one call each
     known = np.zeros(m.shape[:-1], np.result_type(m, roll_acceleration))
     known[..., rolls] = roll_acceleration
