@@ -1,10 +1,12 @@
-"""The optional compiled parts of the closed loop's tick (``setup.py``'s C extensions) and the switch that
-chooses between each and its Python reference.
+"""The optional compiled parts of the closed loop's tick and of the planner (``setup.py``'s C extensions) and the
+switch that chooses between each and its Python reference.
 
 Every compiled part has a switch (``Allocator(compiled=...)``, ``CascadedController.compiled_inner``,
-``Robot.compiled_attitude``, ``Watch.compiled_screen``) read the same way by :func:`choose`: None (the default)
-uses the compiled part when it was built and fits the robot, else the Python reference; False always uses the
-Python reference; True requires the compiled part (a RuntimeError that says how to build it otherwise).
+``Robot.compiled_attitude``, ``Watch.compiled_screen``, ``Plant.compiled_step``,
+``ClosedChainModel.compiled_velocity``, ``fpr.model.jets.compiled``) read the same way by :func:`choose`: None
+(the default) uses the compiled part when it was built and fits the robot, else the Python reference; False
+always uses the Python reference; True requires the compiled part (a RuntimeError that says how to build it
+otherwise).
 """
 
 from __future__ import annotations
