@@ -53,6 +53,12 @@ from planners.solving import Grid, solve_refining, solve_stage
 #: across it; the travel times are optimised anyway, the fraction only changes where they start.
 CROSSING_STARTS = ((1.2, 1.0), (1.3, 1.0), (1.1, 1.0), (1.2, 0.75), (1.3, 0.75))
 
+#: A solve that stops infeasible on its grid by at most this (the SQP's scaled violation) is continued on a finer
+#: grid from where it stopped, as a feasible one that fails the dense check is (:func:`optimise_crossing`): near
+#: the singularity the SQP can stall a hair from the feasible set ("locally infeasible" at 1e-6, the constraint
+#: Jacobian nearly rank-deficient), and whether it does is decided by round-off.
+REFINE_BELOW = 1e-4
+
 #: Violations are compared between starts relative to these sizes (per unit of the report).
 FEASIBILITY_SCALE = {"m": 0.1, "rad": 0.1, "rad/s": 100.0, "N": 1.0}
 
@@ -283,8 +289,9 @@ def optimise_crossing(robot, start, end, duration: float, n_via=(2, 2), *, alpha
     From :func:`first_guess` (total ``duration`` [s] times ``starts[0][1]``, crossing with the drone at
     polar angle ``starts[0][0]``), one NLP frees the crossing state (q1_s, xi_s', xi_s'' on the criterion's
     line, xi_s''', xi_s''''), the via points and both travel times. As for the other methods
-    (:func:`planners.solving.solve_refining`), a result that holds on the optimisation grid but not on
-    the dense grid is solved again on a grid twice as fine (at most ``max_refinements`` times). A start
+    (:func:`planners.solving.solve_refining`), a result that holds on the optimisation grid (to
+    :data:`REFINE_BELOW`) but not on the dense grid is solved again on a grid twice as fine (at most
+    ``max_refinements`` times). A start
     that ends infeasible is followed by the next of ``starts``; the first feasible result is
     returned, else the one with the least (relative) violation. Every solve is in ``stages``.
     """
@@ -304,7 +311,8 @@ def optimise_crossing(robot, start, end, duration: float, n_via=(2, 2), *, alpha
             return trajectory, [stage]
 
         trajectory, report, stages = solve_refining(
-            solve, lambda motion: crossing_report(robot, motion, n_via, dense_rate), grid, max_refinements)
+            solve, lambda motion: crossing_report(robot, motion, n_via, dense_rate), grid, max_refinements,
+            refine_below=REFINE_BELOW)
         all_stages += stages
         outcome = CrossingOutcome("optimised crossing", trajectory, n_via, report,
                                   crossing_report(robot, guess, n_via, dense_rate))

@@ -198,7 +198,8 @@ def kkt_with_best_multipliers(ev):
     return kkt_residual(ev.gradient, ev.constraints, ev.jacobian, lam)
 
 
-def solve_refining(attempt: Callable, check: Callable, grid: Grid, max_refinements: int):
+def solve_refining(attempt: Callable, check: Callable, grid: Grid, max_refinements: int,
+                   refine_below: float = GRID_FEASIBILITY):
     """Solve on ``grid``, then again on finer grids while the dense check fails but the grid's holds.
 
     Args:
@@ -208,20 +209,22 @@ def solve_refining(attempt: Callable, check: Callable, grid: Grid, max_refinemen
         check: ``check(trajectory) -> MotionReport`` (:func:`planners.report.evaluate_motion`).
         grid: the first grid.
         max_refinements: at most this many refined attempts after the first.
+        refine_below: a grid violation (the stages' ``violation_end``) up to which a finer grid is tried.
 
     Returns:
         (trajectory, report, stages): the last attempt's motion and dense-grid report, and the stages
         of every attempt in order. It stops at the first attempt whose motion passes the dense check,
-        or whose stages end with a grid violation above :data:`GRID_FEASIBILITY` (a finer grid would
-        not help), or after ``max_refinements`` refinements.
+        or whose stages end with a grid violation above ``refine_below`` (:data:`GRID_FEASIBILITY` by
+        default: a finer grid would not help), or after ``max_refinements`` refinements.
     """
     stages, previous = [], None
     for _ in range(max_refinements + 1):
         trajectory, new = attempt(grid, previous)
         stages += new
         report = check(trajectory)
-        if report.feasible or not all(st.violation_end <= GRID_FEASIBILITY for st in new):
+        if report.feasible or not all(st.violation_end <= refine_below for st in new):
             break
-        # feasible on the optimisation grid but not between its nodes: refine the grid, start from this motion
+        # feasible (or nearly) on the optimisation grid but not between its nodes: refine the grid, start from
+        # this motion
         grid, previous = grid.refined(), trajectory
     return trajectory, report, stages

@@ -394,3 +394,33 @@ def test_the_planned_crossing_is_c5_there_so_the_rotor_speeds_do_not_step(crossi
     inputs = idyn.inverse_dynamics(proto, res.trajectory.evaluate(np.array([ts - 1e-9, ts + 1e-9]), order=6))
     assert abs(inputs.roll_acceleration[0, 0] - inputs.roll_acceleration[1, 0]) < 0.5  # rad/s^2
     assert np.abs(inputs.rotor_speed[0] - inputs.rotor_speed[1]).max() < 5.0  # rad/s
+
+
+def test_a_solve_that_stalls_next_to_the_feasible_set_is_refined_not_dropped():
+    """solve_refining: an attempt whose stage ends infeasible on its grid by a hair (the crossing's SQP stalls at
+    ~1e-6 near the singularity, round-off deciding) is continued on a finer grid up to ``refine_below``; above
+    it, or with the default threshold, the loop stops there as before."""
+    from types import SimpleNamespace
+
+    from planners.solving import GRID_FEASIBILITY, Grid, solve_refining
+
+    def run(first_violation, **kwargs):
+        calls = []
+
+        def attempt(grid, previous):
+            calls.append((grid, previous))
+            violation = first_violation if previous is None else 0.0
+            return f"motion {len(calls)}", [SimpleNamespace(violation_end=violation)]
+
+        def check(motion):  # the dense check passes on the refined attempt's motion only
+            return SimpleNamespace(feasible=motion != "motion 1")
+
+        trajectory, report, stages = solve_refining(attempt, check, Grid(), 2, **kwargs)
+        return calls, trajectory, report
+
+    calls, trajectory, report = run(5 * GRID_FEASIBILITY, refine_below=1e-4)
+    assert len(calls) == 2 and calls[1][1] == "motion 1" and calls[1][0] == Grid().refined()
+    assert trajectory == "motion 2" and report.feasible
+    for violation, kwargs in ((5 * GRID_FEASIBILITY, {}), (1e-3, {"refine_below": 1e-4})):
+        calls, trajectory, report = run(violation, **kwargs)
+        assert len(calls) == 1 and trajectory == "motion 1" and not report.feasible
