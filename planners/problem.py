@@ -45,6 +45,7 @@ import numpy as np
 from scipy import sparse
 
 from fpr.model import jets
+from fpr.model.dual import Dual
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
@@ -373,6 +374,10 @@ class MotionProblem:
         min_thrust: a lower bound f_min [N] on every drone's thrust (``thrust_low``), or None.
     """
 
+    #: How :meth:`_node_derivatives` differentiates: "dual" (forward-mode dual numbers, :mod:`fpr.model.dual`:
+    #: the value once, the directions as real tangents) or "complex" (the complex step, the reference).
+    derivatives = "dual"
+
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,
                  samples_per_segment: int = 17, windows_per_segment: int = 4, crossing: int | None = None,
                  min_thrust: float | None = None):
@@ -597,6 +602,29 @@ class MotionProblem:
                 return tuple(np.concatenate([f[a] for f in found]) for a in range(4))
         n_r, n_s, n = motion.shape
         directions = list(product(range(n_r), range(n)))
+        if self._dual_derivatives():
+            seeded = Dual.seeded(motion, [(r, slice(None), j) for r, j in directions])
+            raw_d, rows_d = self._quantities(seeded)
+            raw, rows = raw_d.value, rows_d.value
+            # d q_i / d X[r, i, j] from the tangent of direction (r, j), arranged (N, Q, r, j)
+            sens_raw = raw_d.tangents.reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+            sens_rows = rows_d.tangents.reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+        else:
+            raw, rows, sens_raw, sens_rows = self._complex_step(motion, directions)
+        if store is not None:
+            names = self._rows_names
+            store.put(self._store_owner, points, self.durations, k,
+                      [(raw[a:a + k], rows[a:a + k], sens_raw[a:a + k], sens_rows[a:a + k], names)
+                       for a in range(0, n_s, k)])
+        return raw, rows, sens_raw, sens_rows
+
+    def _dual_derivatives(self) -> bool:
+        """Whether :meth:`_node_derivatives` takes dual numbers (:data:`DERIVATIVES`) for this problem."""
+        return self.derivatives == "dual"
+
+    def _complex_step(self, motion, directions):
+        """:meth:`_node_derivatives`' quantities and sensitivities by complex step (the reference)."""
+        n_r, n_s, n = motion.shape
         big = np.repeat(motion[:, None].astype(complex), len(directions), axis=1)  # (5, D, N, n)
         for d, (r, j) in enumerate(directions):
             big[r, d, :, j] += 1j * COMPLEX_STEP
@@ -606,11 +634,6 @@ class MotionProblem:
         # sensitivities d q_i / d X[r, i, j], arranged (N, Q, r, j)
         sens_raw = (raw_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
         sens_rows = (rows_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
-        if store is not None:
-            names = self._rows_names
-            store.put(self._store_owner, points, self.durations, k,
-                      [(raw[a:a + k], rows[a:a + k], sens_raw[a:a + k], sens_rows[a:a + k], names)
-                       for a in range(0, n_s, k)])
         return raw, rows, sens_raw, sens_rows
 
     def _scatter(self, entries, values, with_sparse: bool = False):
