@@ -607,8 +607,8 @@ class MotionProblem:
             raw_d, rows_d = self._quantities(seeded)
             raw, rows = raw_d.value, rows_d.value
             # d q_i / d X[r, i, j] from the tangent of direction (r, j), arranged (N, Q, r, j)
-            sens_raw = raw_d.tangents.reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
-            sens_rows = rows_d.tangents.reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+            sens_raw = raw_d.full_tangents(len(directions)).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+            sens_rows = rows_d.full_tangents(len(directions)).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
         else:
             raw, rows, sens_raw, sens_rows = self._complex_step(motion, directions)
         if store is not None:

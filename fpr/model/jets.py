@@ -21,7 +21,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from fpr.model.compiled import choose, load_extension
-from fpr.model.dual import Dual, empty, lift
+from fpr.model.dual import Dual, empty, gather
 from fpr.model.errors import ModelArgumentError
 
 _MAXK = 16
@@ -106,8 +106,9 @@ def _wsum(w, terms):
     if isinstance(terms, Dual):
         t = terms.tangents
         if t.shape[1] == 0 or t.size == 0:
-            return Dual(np.zeros(t.shape[2:]), np.zeros(t.shape[:1] + t.shape[2:]))
-        return Dual(_wsum(w, terms.value), np.matmul(w, t.reshape(t.shape[:2] + (-1,))).reshape(t.shape[:1] + t.shape[2:]))
+            return Dual(np.zeros(t.shape[2:]), np.zeros(t.shape[:1] + t.shape[2:]), terms.lo)
+        return Dual(_wsum(w, terms.value), np.matmul(w, t.reshape(t.shape[:2] + (-1,))).reshape(t.shape[:1] + t.shape[2:]),
+                    terms.lo)
     terms = np.asarray(terms)
     if terms.shape[0] == 0 or terms.size == 0:
         return np.tensordot(w, terms, axes=(0, 0))  # empty sums: tensordot's zeros of the right shape
@@ -201,7 +202,7 @@ def inverse(a):
     """
     if isinstance(a, Dual):  # d(A^-1) = -A^-1 dA A^-1
         r = _small_solve(a.value)
-        return Dual(r, -small_matmul(small_matmul(r, a.tangents), r))
+        return Dual(r, -small_matmul(small_matmul(r, a.tangents), r), a.lo)
     shared = _shared_real(a)
     if shared is None:
         return _small_solve(a)
@@ -262,7 +263,7 @@ def sin_cos_value(a):
     their cost (no complex transcendental functions)."""
     if isinstance(a, Dual):
         s, c = np.sin(a.value), np.cos(a.value)
-        return Dual(s, a.tangents * c), Dual(c, a.tangents * -s)
+        return Dual(s, a.tangents * c, a.lo), Dual(c, a.tangents * -s, a.lo)
     if not np.iscomplexobj(a):
         return np.sin(a), np.cos(a)
     x, b = a.real, a.imag
@@ -638,24 +639,23 @@ def _jet_product(da, db, K):
 def _dual_product(da, db, K):
     """:func:`_compiled_product` of jets of which one or both are Duals: d(AB) = dA B + A dB."""
     av, bv = _value(da), _value(db)
-    value = _jet_product(av, bv, K)
-    t = 0.0
+    parts = []
     if isinstance(da, Dual):
-        t = _jet_product(_batch(da), bv[:, None], K)
+        parts.append((np.swapaxes(_jet_product(_batch(da), bv[:, None], K), 0, 1), da.lo))
     if isinstance(db, Dual):
-        t = t + _jet_product(av[:, None], _batch(db), K)
-    return Dual(value, np.swapaxes(t, 0, 1))
+        parts.append((np.swapaxes(_jet_product(av[:, None], _batch(db), K), 0, 1), db.lo))
+    return gather(_jet_product(av, bv, K), parts)
 
 
 def _dual_leibniz(da, db, K):
     """:func:`_leibniz`'s elementwise product of jets of which one or both are Duals."""
     av, bv = _value(da), _value(db)
-    t = 0.0
+    parts = []
     if isinstance(da, Dual):
-        t = _leibniz(_batch(da), bv[:K + 1, None], K)
+        parts.append((np.swapaxes(_leibniz(_batch(da), bv[:K + 1, None], K), 0, 1), da.lo))
     if isinstance(db, Dual):
-        t = t + _leibniz(av[:K + 1, None], _batch(db), K)
-    return Dual(_leibniz(av, bv, K), np.swapaxes(t, 0, 1))
+        parts.append((np.swapaxes(_leibniz(av[:K + 1, None], _batch(db), K), 0, 1), db.lo))
+    return gather(_leibniz(av, bv, K), parts)
 
 
 def _dual_jet_solve(dA, kA, dB, K):
@@ -664,24 +664,28 @@ def _dual_jet_solve(dA, kA, dB, K):
     av, bv = _value(dA), _value(dB)
     inv = _small_solve(av[0])
     x = _jet_solve(inv, av if kA is not None else None, bv, K)
-    directions = (dA if isinstance(dA, Dual) else dB).directions
-    rhs = np.zeros((K + 1, directions) + x.shape[1:])
+    parts = []
     if isinstance(dB, Dual):
-        rhs[:min(K + 1, dB.shape[0])] += _batch(dB)[:K + 1]
+        db = dB.tangents[:, :K + 1]
+        if db.shape[1] < K + 1:  # b's orders beyond its own are 0
+            db = np.concatenate([db, np.zeros(db.shape[:1] + (K + 1 - db.shape[1],) + db.shape[2:])], axis=1)
+        parts.append((db, dB.lo))
     if isinstance(dA, Dual):
-        rhs -= _jet_product(_batch(dA), x[:, None], K)
-    t = _jet_solve(inv[None], av[:K + 1, None] if kA is not None else None, rhs, K)
-    return Dual(x, np.swapaxes(t, 0, 1))
+        parts.append((-np.swapaxes(_jet_product(_batch(dA), x[:, None], K), 0, 1), dA.lo))
+    rhs = gather(x, parts)
+    t = _jet_solve(inv[None], av[:K + 1, None] if kA is not None else None, _batch(rhs), K)
+    return Dual(x, np.swapaxes(t, 0, 1), rhs.lo)
 
 
 def _dual_solve_matrices(a, b):
     """:func:`solve_matrices` of Duals: x = A^-1 b by one real inverse, dx = A^-1 (db - dA x)."""
     inv = _small_solve(_value(a))
     x = small_matmul(inv, _value(b))
-    t = b.tangents if isinstance(b, Dual) else 0.0
+    parts = [(b.tangents, b.lo)] if isinstance(b, Dual) else []
     if isinstance(a, Dual):
-        t = t - small_matmul(a.tangents, x)
-    return Dual(x, small_matmul(inv, t))
+        parts.append((-small_matmul(a.tangents, x), a.lo))
+    rhs = gather(x, parts)
+    return Dual(x, small_matmul(inv, rhs.tangents), rhs.lo)
 
 
 def _compiled_solve(inv, dA, dB, K):

@@ -34,7 +34,7 @@ def signed_speeds(w2) -> np.ndarray:
         sign = np.sign(w2.value)
         root = np.sqrt(sign * w2.value)
         scale = np.divide(0.5, root, out=np.zeros(root.shape), where=sign != 0.0)
-        return Dual(sign * root, w2.tangents * scale)
+        return Dual(sign * root, w2.tangents * scale, w2.lo)
     w2 = np.asarray(w2)
     if not np.iscomplexobj(w2):
         sign = np.sign(w2)
