@@ -602,7 +602,7 @@ class MotionProblem:
                 return tuple(np.concatenate([f[a] for f in found]) for a in range(4))
         n_r, n_s, n = motion.shape
         directions = list(product(range(n_r), range(n)))
-        if self._dual_derivatives():
+        if self._dual_derivatives(motion):
             seeded = Dual.seeded(motion, [(r, slice(None), j) for r, j in directions])
             raw_d, rows_d = self._quantities(seeded)
             raw, rows = raw_d.value, rows_d.value
@@ -618,9 +618,11 @@ class MotionProblem:
                        for a in range(0, n_s, k)])
         return raw, rows, sens_raw, sens_rows
 
-    def _dual_derivatives(self) -> bool:
-        """Whether :meth:`_node_derivatives` takes dual numbers (:data:`DERIVATIVES`) for this problem."""
-        return self.derivatives == "dual"
+    def _dual_derivatives(self, motion) -> bool:
+        """Whether :meth:`_node_derivatives` takes dual numbers (:attr:`derivatives`) at this motion: not for a
+        complex motion (a caller's own complex step through the problem) nor a singularity crossing (the
+        prototype's 5th and 6th derivatives: complex step, the reference)."""
+        return self.derivatives == "dual" and self.crossing_sign is None and not np.iscomplexobj(motion)
 
     def _complex_step(self, motion, directions):
         """:meth:`_node_derivatives`' quantities and sensitivities by complex step (the reference)."""

@@ -70,6 +70,9 @@ class Dual:
         out[self.lo:self.hi] = self.tangents
         return out
 
+    def __array__(self, dtype=None, copy=None):
+        raise TypeError("a Dual is not an array: take its .value (or make the code take Duals)")
+
     def __len__(self):
         return len(self.value)
 
@@ -164,6 +167,8 @@ class Dual:
     def __pow__(self, p):
         if p == 2:
             return multiply(self, self)
+        if p in (0, 1):
+            return Dual(np.ones(self.shape), np.zeros(self.tangents.shape), self.lo) if p == 0 else self
         return Dual(self.value ** p, self.tangents * (p * self.value ** (p - 1)), self.lo)
 
     def __matmul__(self, other):
