@@ -39,16 +39,15 @@ import functools
 import itertools
 import math
 from dataclasses import dataclass
-from itertools import product
 
 import numpy as np
 from scipy import sparse
 
 from fpr.model import jets
-from fpr.model.dual import Dual
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
+from planners.sensitivities import by_complex_step, by_dual_numbers
 
 COMPLEX_STEP = 1e-30
 POWER_SMOOTHING = 1e-2  # [W]
@@ -600,22 +599,15 @@ class MotionProblem:
             if found is not None:
                 self._rows_names = found[0][4]
                 return tuple(np.concatenate([f[a] for f in found]) for a in range(4))
-        n_r, n_s, n = motion.shape
-        directions = list(product(range(n_r), range(n)))
         if self._dual_derivatives(motion):
-            seeded = Dual.seeded(motion, [(r, slice(None), j) for r, j in directions])
-            raw_d, rows_d = self._quantities(seeded)
-            raw, rows = raw_d.value, rows_d.value
-            # d q_i / d X[r, i, j] from the tangent of direction (r, j), arranged (N, Q, r, j)
-            sens_raw = raw_d.full_tangents(len(directions)).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
-            sens_rows = rows_d.full_tangents(len(directions)).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
+            raw, rows, sens_raw, sens_rows = by_dual_numbers(self._quantities, motion)
         else:
-            raw, rows, sens_raw, sens_rows = self._complex_step(motion, directions)
+            raw, rows, sens_raw, sens_rows = by_complex_step(self._quantities, motion, COMPLEX_STEP)
         if store is not None:
             names = self._rows_names
             store.put(self._store_owner, points, self.durations, k,
                       [(raw[a:a + k], rows[a:a + k], sens_raw[a:a + k], sens_rows[a:a + k], names)
-                       for a in range(0, n_s, k)])
+                       for a in range(0, motion.shape[1], k)])
         return raw, rows, sens_raw, sens_rows
 
     def _dual_derivatives(self, motion) -> bool:
@@ -623,20 +615,6 @@ class MotionProblem:
         complex motion (a caller's own complex step through the problem) nor a singularity crossing (the
         prototype's 5th and 6th derivatives: complex step, the reference)."""
         return self.derivatives == "dual" and self.crossing_sign is None and not np.iscomplexobj(motion)
-
-    def _complex_step(self, motion, directions):
-        """:meth:`_node_derivatives`' quantities and sensitivities by complex step (the reference)."""
-        n_r, n_s, n = motion.shape
-        big = np.repeat(motion[:, None].astype(complex), len(directions), axis=1)  # (5, D, N, n)
-        for d, (r, j) in enumerate(directions):
-            big[r, d, :, j] += 1j * COMPLEX_STEP
-        with jets.complex_step_copies(len(directions)):  # their matrices inverted once, not per copy
-            raw_c, rows_c = self._quantities(big.reshape(n_r, -1, n))
-        raw, rows = raw_c[:n_s].real, rows_c[:n_s].real
-        # sensitivities d q_i / d X[r, i, j], arranged (N, Q, r, j)
-        sens_raw = (raw_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
-        sens_rows = (rows_c.imag / COMPLEX_STEP).reshape(n_r, n, n_s, -1).transpose(2, 3, 0, 1)
-        return raw, rows, sens_raw, sens_rows
 
     def _scatter(self, entries, values, with_sparse: bool = False):
         """The (rows, n_x) derivatives with respect to x of rows whose derivatives with respect to the

@@ -149,6 +149,7 @@ def test_the_bench_times_the_copies_a_derivative_evaluation_sends(moving, monkey
     original = problem._inputs
     problem._inputs = lambda motion: seen.append(motion) or original(motion)
     problem.evaluate(x0, True)
-    [copies] = sent
-    np.testing.assert_array_equal(copies, seen[0])
-    assert doc["copies"] == copies.shape[1] == 20 * doc["nodes"] and doc["nodes"] == 21
+    [copies] = sent  # the Dual motion (planners.problem.MotionProblem.derivatives): its value and its tangents
+    np.testing.assert_array_equal(copies.value, seen[0].value)
+    np.testing.assert_array_equal(copies.tangents, seen[0].tangents)
+    assert doc["copies"] == copies.tangents.shape[0] * copies.shape[1] == 20 * doc["nodes"] and doc["nodes"] == 21

@@ -14,13 +14,13 @@ Example:
     >>> phi.order, phi.shape, float(phi.d[2][0])              # phi''(0) = -s''(0)
     (2, (5,), -2.0)
 """
-import contextvars
 import math
-from contextlib import contextmanager
 
 import numpy as np
 
 from fpr.model.compiled import choose, load_extension
+from fpr.model.complex_step import complex_step_copies, shared_real as _shared_real
+from fpr.model.complex_step import shared_sin_cos as _shared_sin_cos
 from fpr.model.dual import Dual, empty, gather
 from fpr.model.errors import ModelArgumentError
 
@@ -136,43 +136,6 @@ def inexact(x) -> np.ndarray:
     return x if x.dtype.kind in "fc" else x.astype(float)  # inexact (np.issubdtype, cheaper)
 
 
-_COPIES = contextvars.ContextVar("complex_step_copies", default=0)
-
-
-@contextmanager
-def complex_step_copies(count: int):
-    """Within the block, complex batches whose leading axis is ``count`` copies of one batch (copy-major)
-    with equal real parts (complex-step copies: each copy's perturbation is in its imaginary part only, e.g.
-    :meth:`planners.problem.MotionProblem.evaluate`'s) have their matrices inverted once, not once per copy
-    (:func:`inverse`, :func:`solve_matrices`). A batch whose real parts differ is inverted as it is."""
-    token = _COPIES.set(int(count))
-    try:
-        yield
-    finally:
-        _COPIES.reset(token)
-
-
-def _equal_copies(x):
-    """A real array whose leading axis is :func:`complex_step_copies`' copies of one block, as (count, block...),
-    when all the copies are equal; else None."""
-    count = _COPIES.get()
-    if count < 2 or x.ndim == 0 or x.shape[0] % count:
-        return None
-    blocks = x.reshape((count, -1) + x.shape[1:])
-    return blocks if (blocks == blocks[:1]).all() else None
-
-
-def _shared_real(a):
-    """``(count, real part of one copy, imaginary parts (count, ...))`` of a complex batch of matrices
-    (..., n, n) made of :func:`complex_step_copies`' copies with equal real parts, else None."""
-    if not np.iscomplexobj(a) or a.ndim < 3:
-        return None
-    re = _equal_copies(a.real)
-    if re is None:
-        return None
-    return re.shape[0], re[0], a.imag.reshape(re.shape)
-
-
 def _small_solve(a, b=None):
     """``np.linalg.solve(a, b)`` (``b`` None: ``np.linalg.inv(a)``) of a real batch a (..., n, n), b (..., n, k),
     n, k <= 32, by _jets.c's Gauss-Jordan elimination (about 3 times faster than numpy's on batches of 4 x 4
@@ -242,18 +205,6 @@ def _atan2_value(y, x):
         return np.arctan2(y, x)
     yr, xr = np.real(y), np.real(x)
     return np.arctan2(yr, xr) + 1j * (xr * np.imag(y) - yr * np.imag(x)) / (xr * xr + yr * yr)
-
-
-def _shared_sin_cos(x):
-    """``(np.sin(x), np.cos(x))`` of a real array; when its leading axis is :func:`complex_step_copies`' copies
-    of one block (the real parts of complex-step copies), from that block's (the same bits, a fraction of the
-    work)."""
-    blocks = _equal_copies(x)
-    if blocks is not None:
-        s, c = np.sin(blocks[0]), np.cos(blocks[0])
-        return (np.broadcast_to(s, blocks.shape).reshape(x.shape),
-                np.broadcast_to(c, blocks.shape).reshape(x.shape))
-    return np.sin(x), np.cos(x)
 
 
 def sin_cos_value(a):
