@@ -172,3 +172,20 @@ def test_directions_carried_and_widened():
     np.testing.assert_array_equal(where.full_tangents(6)[:, 1], 0.0)
     cat = np.concatenate([g, narrow, np.ones(2)])
     assert cat.shape == (8,) and (cat.lo, cat.hi) == (0, 5)
+
+
+def test_auto_takes_dual_numbers_on_large_problems_only(square):
+    """"auto" (the default): dual numbers from DUAL_FROM on (where they are faster), complex step below, and
+    always for a complex motion (a caller's own complex step) whatever the setting."""
+    from planners.problem import DUAL_FROM
+
+    grid = Grid()
+    big = one_step_problem(square, grid)
+    points, durations, is_way = square.via_layout
+    way = np.flatnonzero(is_way)
+    small = travel_problem(square, points.copy(), durations, way[0], way[1], square.normalisation(grid), grid)
+    motion = {p: p.motion(p.points) for p in (big, small)}
+    assert MotionProblem.derivatives == "auto" and small.t.size < DUAL_FROM[1] <= big.t.size
+    assert big._dual_derivatives(motion[big]) and not small._dual_derivatives(motion[small])
+    small.derivatives = "dual"
+    assert small._dual_derivatives(motion[small]) and not small._dual_derivatives(motion[small] + 0j)
