@@ -376,11 +376,12 @@ class MotionProblem:
     """
 
     #: How :meth:`_node_derivatives` differentiates: "dual" (forward-mode dual numbers, :mod:`fpr.model.dual`:
-    #: the value once, the directions as real tangents), "complex" (the complex step, the reference) or "auto":
-    #: dual numbers from :data:`DUAL_FROM` (directions, nodes) on, the complex step below. The dual pass costs
-    #: less per node and more per evaluation (its Python calls: about 2.2 ms against 1 ms): measured on the FPR
-    #: (20 directions) it is faster from about 70 nodes on (the square's one-step NLP, 136 nodes: 6.8 against
-    #: 8.1 ms; a travel of 34 nodes: 3.4 against 2.7 ms); on the prototype (10 directions) from about 480.
+    #: the value once, the directions as real tangents), "complex" (the complex step, the reference) or
+    #: "auto": dual numbers from :data:`DUAL_FROM` (directions, nodes) on, the complex step below. The dual
+    #: pass costs less per node and more per evaluation (its Python calls: about 2.2 ms against 1 ms):
+    #: measured on the FPR (20 directions) it is faster from about 70 nodes on (the square's one-step NLP, 136
+    #: nodes: 6.8 against 8.1 ms; a travel of 34 nodes: 3.4 against 2.7 ms); on the prototype (10 directions)
+    #: from about 480.
     derivatives = "auto"
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,
@@ -617,8 +618,8 @@ class MotionProblem:
         return raw, rows, sens_raw, sens_rows
 
     def _dual_derivatives(self, motion) -> bool:
-        """Whether :meth:`_node_derivatives` takes dual numbers (:attr:`derivatives`) at this motion: not for a
-        complex motion (a caller's own complex step through the problem) nor a singularity crossing (the
+        """Whether :meth:`_node_derivatives` takes dual numbers (:attr:`derivatives`) at this motion: not for
+        a complex motion (a caller's own complex step through the problem) nor a singularity crossing (the
         prototype's 5th and 6th derivatives: complex step, the reference)."""
         if self.derivatives == "complex" or self.crossing_sign is not None or np.iscomplexobj(motion):
             return False

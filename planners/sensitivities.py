@@ -1,12 +1,12 @@
 """A motion's node quantities and their sensitivities to each node's motion jet, the two ways
 :meth:`planners.problem.MotionProblem._node_derivatives` takes them.
 
-Both take ``quantities`` (the problem's ``_quantities``: motion (5, N, n) -> (raw (N, Q), rows (N, R))) and the
-motion, and return (raw, rows, d raw / d X (N, Q, r, j), d rows / d X (N, R, r, j)), X[r, i, j] the r-th
+Both take ``quantities`` (the problem's ``_quantities``: motion (5, N, n) -> (raw (N, Q), rows (N, R))) and
+the motion, and return (raw, rows, d raw / d X (N, Q, r, j), d rows / d X (N, R, r, j)), X[r, i, j] the r-th
 derivative of coordinate j at node i, for the D = 5 n directions (r, j):
 
-* :func:`by_dual_numbers`: one pass on dual numbers (:mod:`fpr.model.dual`), the value once and the D directions
-  as real tangents (each quantity carrying only the directions it depends on);
+* :func:`by_dual_numbers`: one pass on dual numbers (:mod:`fpr.model.dual`), the value once and the D
+  directions as real tangents (each quantity carrying only the directions it depends on);
 * :func:`by_complex_step`: D complex-step copies of the motion (copy-major along the node axis), each with one
   entry perturbed by i h, under :func:`fpr.model.jets.complex_step_copies` (the reference).
 """
@@ -24,8 +24,8 @@ def _arranged(per_direction, n_r, n, n_s):
 
 
 def seeded_motion(motion, step: float | None = None):
-    """What the quantities take: the Dual motion seeded with the D directions, or with a ``step``, the complex-step
-    copies (5, D N, n) (module docstring)."""
+    """What the quantities take: the Dual motion seeded with the D directions, or with a ``step``, the
+    complex-step copies (5, D N, n) (module docstring)."""
     n_r, _, n = motion.shape
     directions = list(product(range(n_r), range(n)))
     if step is None:

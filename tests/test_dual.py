@@ -1,5 +1,5 @@
-"""Dual numbers (fpr.model.dual): the planner's node sensitivities by dual numbers equal the complex step's, and
-every Dual operation the models use equals the complex step's derivative."""
+"""Dual numbers (fpr.model.dual): the planner's node sensitivities by dual numbers equal the complex step's,
+and every Dual operation the models use equals the complex step's derivative."""
 
 import numpy as np
 import pytest
@@ -60,7 +60,8 @@ def test_two_step_travel_dual_equals_complex_step(square):
     grid = Grid()
     points, durations, is_way = square.via_layout
     way = np.flatnonzero(is_way)
-    travel = travel_problem(square, points.copy(), durations, way[0], way[1], square.normalisation(grid), grid)
+    travel = travel_problem(square, points.copy(), durations, way[0], way[1], square.normalisation(grid),
+                            grid)
     x = travel.x_of(points[way[0]:way[1] + 1])
     _assert_same(*_both(travel, x + 0.01 * np.random.default_rng(2).standard_normal(x.size)))
 

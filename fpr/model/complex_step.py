@@ -1,11 +1,11 @@
-"""Complex-step copies (:func:`complex_step_copies`): batches made of copies of one batch whose real parts are equal
-(each copy's perturbation in its imaginary part only), so that their real work is done once
-(:func:`fpr.model.jets.inverse`, :func:`fpr.model.jets.solve_matrices`, :func:`fpr.model.jets.sin_cos_value`)."""
+"""Complex-step copies (:func:`complex_step_copies`): batches made of copies of one batch whose real parts are
+equal (each copy's perturbation in its imaginary part only), so that their real work is done once
+(:func:`fpr.model.jets.inverse`, :func:`fpr.model.jets.solve_matrices`,
+:func:`fpr.model.jets.sin_cos_value`)."""
 import contextvars
 from contextlib import contextmanager
 
 import numpy as np
-
 
 _COPIES = contextvars.ContextVar("complex_step_copies", default=0)
 
@@ -15,7 +15,8 @@ def complex_step_copies(count: int):
     """Within the block, complex batches whose leading axis is ``count`` copies of one batch (copy-major)
     with equal real parts (complex-step copies: each copy's perturbation is in its imaginary part only, e.g.
     :meth:`planners.problem.MotionProblem.evaluate`'s) have their matrices inverted once, not once per copy
-    (:func:`fpr.model.jets.inverse`, :func:`fpr.model.jets.solve_matrices`). A batch whose real parts differ is inverted as it is."""
+    (:func:`fpr.model.jets.inverse`, :func:`fpr.model.jets.solve_matrices`). A batch whose real parts differ
+    is inverted as it is."""
     token = _COPIES.set(int(count))
     try:
         yield
@@ -24,8 +25,8 @@ def complex_step_copies(count: int):
 
 
 def equal_copies(x):
-    """A real array whose leading axis is :func:`complex_step_copies`' copies of one block, as (count, block...),
-    when all the copies are equal; else None."""
+    """A real array whose leading axis is :func:`complex_step_copies`' copies of one block, as
+    (count, block...), when all the copies are equal; else None."""
     count = _COPIES.get()
     if count < 2 or x.ndim == 0 or x.shape[0] % count:
         return None
@@ -45,9 +46,9 @@ def shared_real(a):
 
 
 def shared_sin_cos(x):
-    """``(np.sin(x), np.cos(x))`` of a real array; when its leading axis is :func:`complex_step_copies`' copies
-    of one block (the real parts of complex-step copies), from that block's (the same bits, a fraction of the
-    work)."""
+    """``(np.sin(x), np.cos(x))`` of a real array; when its leading axis is :func:`complex_step_copies`'
+    copies of one block (the real parts of complex-step copies), from that block's (the same bits, a fraction
+    of the work)."""
     blocks = equal_copies(x)
     if blocks is not None:
         s, c = np.sin(blocks[0]), np.cos(blocks[0])

@@ -1,15 +1,17 @@
 """Forward-mode dual numbers: an array's value and its derivatives along D directions, computed together.
 
-A :class:`Dual` holds ``value`` (a real array of shape S) and ``tangents`` (shape (D,) + S): the derivatives of
-the value along D directions of some input. Arithmetic, the elementary functions the models use and numpy's
+A :class:`Dual` holds ``value`` (a real array of shape S) and ``tangents`` (shape (D,) + S): the derivatives
+of the value along D directions of some input. Arithmetic, the elementary functions the models use and numpy's
 array functions on a Dual propagate the tangents exactly (first order), through numpy's protocols
 (``__array_ufunc__``, ``__array_function__``), so the models' numpy code runs on Duals as it is where it does
 not allocate arrays itself (:func:`empty`, :func:`fpr.model.jets.inexact` take Duals).
 
 This is what the planner's node sensitivities take instead of the complex step
-(:meth:`planners.problem.MotionProblem._node_derivatives`): the value is computed once, not once per direction,
-and the tangents in real arithmetic. Comparisons compare values; ``.real`` is the value (code that compares the
-real parts of complex-step values compares a Dual's values).
+(:meth:`planners.problem.MotionProblem._node_derivatives`): the value is computed once, not once per
+direction, and the tangents in real arithmetic. A Dual carries the tangents of the directions it depends on
+only (``lo`` .. ``hi`` - 1: the planner's quantities depend on a part of the motion's derivative orders).
+Comparisons compare values; ``.real`` is the value (code that compares the real parts of complex-step values
+compares a Dual's values).
 
 Example:
     >>> x = Dual(np.array([0.5, 1.0]), np.array([[1.0, 0.0], [0.0, 1.0]]))  # d/dx_0, d/dx_1
@@ -42,8 +44,8 @@ class Dual:
 
     @classmethod
     def seeded(cls, value, directions):
-        """The Dual of ``value`` (shape S) whose tangent d is 1 at the entries ``directions[d]`` selects (an index
-        into S whose first entry is an integer, e.g. ``(r, slice(None), j)``) and 0 elsewhere (with its
+        """The Dual of ``value`` (shape S) whose tangent d is 1 at the entries ``directions[d]`` selects (an
+        index into S whose first entry is an integer, e.g. ``(r, slice(None), j)``) and 0 elsewhere (with its
         ``bands``)."""
         value = np.asarray(value, dtype=float)
         tangents = np.zeros((len(directions),) + value.shape)
@@ -100,8 +102,8 @@ class Dual:
             self.value[key] = item.value
             if item.tangents.shape[0]:
                 if item.lo < self.lo or item.hi > self.hi:
-                    raise ValueError(f"directions {item.lo}..{item.hi - 1} assigned into a Dual of directions "
-                                     f"{self.lo}..{self.hi - 1}: allocate it with all its operands")
+                    raise ValueError(f"directions {item.lo}..{item.hi - 1} assigned into a Dual of directions"
+                                     f" {self.lo}..{self.hi - 1}: allocate it with all of its operands")
                 target = self.tangents[item.lo - self.lo:item.hi - self.lo]
                 if target.shape[0] != self.tangents.shape[0]:
                     self.tangents[(slice(None),) + key] = 0.0
@@ -121,8 +123,8 @@ class Dual:
         if axis is None:
             axis = tuple(range(self.ndim))
         taxis = tuple(_tax(a) for a in axis) if isinstance(axis, tuple) else _tax(axis)
-        return Dual(self.value.sum(axis=axis, keepdims=keepdims), self.tangents.sum(axis=taxis, keepdims=keepdims),
-                    self.lo)
+        tangents = self.tangents.sum(axis=taxis, keepdims=keepdims)
+        return Dual(self.value.sum(axis=axis, keepdims=keepdims), tangents, self.lo)
 
     def swapaxes(self, a, b):
         return Dual(np.swapaxes(self.value, a, b), np.swapaxes(self.tangents, _tax(a), _tax(b)), self.lo)
@@ -266,8 +268,8 @@ def _full(t, shape):
 
 
 def gather(value, parts) -> Dual:
-    """The Dual of ``value`` whose tangents are the sum of ``parts``: (tangents (n_i, ...) broadcasting against
-    ``value``, their first direction lo_i), over the directions any of them carries."""
+    """The Dual of ``value`` whose tangents are the sum of ``parts``: (tangents (n_i, ...) broadcasting
+    against ``value``, their first direction lo_i), over the directions any of them carries."""
     parts = [p for p in parts if p[0].shape[0]]
     if not parts:
         return Dual(value, np.zeros((0,) + value.shape))
@@ -355,7 +357,8 @@ def matmul(a, b):
             t = t[..., 0, :]
         parts.append((t, b.lo))
     nd = value.ndim
-    return gather(value, [(t.reshape(t.shape[:1] + (1,) * (nd + 1 - t.ndim) + t.shape[1:]), lo) for t, lo in parts])
+    return gather(value, [(t.reshape(t.shape[:1] + (1,) * (nd + 1 - t.ndim) + t.shape[1:]), lo)
+                          for t, lo in parts])
 
 
 def _chain(x, value, derivative):
@@ -418,8 +421,8 @@ def span(*items) -> tuple[int, int]:
 
 
 def lift(x, lo: int = 0, hi: int = 0) -> Dual:
-    """``x`` as a Dual over the directions lo..hi-1 (a constant: zero tangents); a Dual over other directions is
-    widened to them."""
+    """``x`` as a Dual over the directions lo..hi-1 (a constant: zero tangents); a Dual over other directions
+    is widened to them."""
     if isinstance(x, Dual):
         if x.lo == lo and x.hi == hi:
             return x
@@ -454,8 +457,8 @@ def _broadcast_to(x, shape, subok=False):
     shape = tuple(shape) if np.iterable(shape) else (shape,)
     if not isinstance(x, Dual):
         return np.broadcast_to(x, shape)
-    return Dual(np.broadcast_to(x.value, shape), np.broadcast_to(_pad(x, len(shape)), x.tangents.shape[:1] + shape),
-                x.lo)
+    tangents = np.broadcast_to(_pad(x, len(shape)), x.tangents.shape[:1] + shape)
+    return Dual(np.broadcast_to(x.value, shape), tangents, x.lo)
 
 
 def _broadcast_arrays(*items, subok=False):
@@ -525,13 +528,15 @@ _FUNCTIONS = {
     np.broadcast_arrays: _broadcast_arrays, np.where: _where, np.sum: _sum, np.take: _take, np.dot: _dot,
     np.reshape: _reshape, np.swapaxes: _swapaxes, np.empty_like: _empty_like, np.zeros_like: _zeros_like,
     np.result_type: _result_type, np.tile: _tile, np.ascontiguousarray: _ascontiguous,
-    np.ndim: lambda x: x.ndim, np.shape: lambda x: x.shape, np.size: lambda x, axis=None: np.size(x.value, axis),
+    np.ndim: lambda x: x.ndim, np.shape: lambda x: x.shape,
+    np.size: lambda x, axis=None: np.size(x.value, axis),
     np.iscomplexobj: lambda x: False, np.real: lambda x: x.value, np.matmul: matmul,
 }
 
 
 def empty(shape, *like) -> np.ndarray | Dual:
-    """``np.empty(shape)`` of floats; a Dual over the directions of the Duals among ``like`` when it holds any."""
+    """``np.empty(shape)`` of floats; a Dual over the directions of the Duals among ``like`` when it holds
+    any."""
     if any(isinstance(x, Dual) for x in like):
         lo, hi = span(*like)
         return Dual(np.empty(shape), np.empty((hi - lo,) + tuple(shape)), lo)

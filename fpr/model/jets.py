@@ -19,7 +19,8 @@ import math
 import numpy as np
 
 from fpr.model.compiled import choose, load_extension
-from fpr.model.complex_step import complex_step_copies, shared_real as _shared_real
+from fpr.model.complex_step import complex_step_copies  # noqa: F401 (jets.complex_step_copies, as before)
+from fpr.model.complex_step import shared_real as _shared_real
 from fpr.model.complex_step import shared_sin_cos as _shared_sin_cos
 from fpr.model.dual import Dual, empty, gather
 from fpr.model.errors import ModelArgumentError
@@ -107,8 +108,8 @@ def _wsum(w, terms):
         t = terms.tangents
         if t.shape[1] == 0 or t.size == 0:
             return Dual(np.zeros(t.shape[2:]), np.zeros(t.shape[:1] + t.shape[2:]), terms.lo)
-        return Dual(_wsum(w, terms.value), np.matmul(w, t.reshape(t.shape[:2] + (-1,))).reshape(t.shape[:1] + t.shape[2:]),
-                    terms.lo)
+        tangents = np.matmul(w, t.reshape(t.shape[:2] + (-1,))).reshape(t.shape[:1] + t.shape[2:])
+        return Dual(_wsum(w, terms.value), tangents, terms.lo)
     terms = np.asarray(terms)
     if terms.shape[0] == 0 or terms.size == 0:
         return np.tensordot(w, terms, axes=(0, 0))  # empty sums: tensordot's zeros of the right shape
@@ -553,7 +554,8 @@ def solve(A, b):
 
 
 def _jet_solve(inv, dA, dB, K):
-    """The jet of A^-1 b, orders 0..K, from inv = A0^-1, A's jet dA (None: a constant A) and b's dB (:func:`solve`)."""
+    """The jet of A^-1 b, orders 0..K, from inv = A0^-1, A's jet dA (None: a constant A) and b's dB
+    (:func:`solve`)."""
     x = _compiled_solve(inv, dA, dB, K)
     if x is None and dA is None:
         x = np.matmul(inv, dB[:K + 1])
@@ -566,7 +568,7 @@ def _jet_solve(inv, dA, dB, K):
     return x
 
 
-# --- Dual numbers (fpr.model.dual) through the jets: the value by the real code, the tangents as a batch ------
+# --- Dual numbers (fpr.model.dual) through the jets: the value by the real code, the tangents as a batch ---
 def _value(x):
     return x.value if isinstance(x, Dual) else x
 
@@ -577,8 +579,8 @@ def _batch(x: Dual):
 
 
 def _jet_product(da, db, K):
-    """The jet of the matrix product of jets da (Ka+1, ..., n, m), db (Kb+1, ..., m, k), orders 0..K (terms beyond
-    an operand's order 0)."""
+    """The jet of the matrix product of jets da (Ka+1, ..., n, m), db (Kb+1, ..., m, k), orders 0..K (terms
+    beyond an operand's order 0)."""
     out = _compiled_product(da, db, K)
     if out is not None:
         return out

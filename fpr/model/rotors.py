@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fpr.model.errors import ShapeError
 from fpr.model.dual import Dual
+from fpr.model.errors import ShapeError
 from fpr.model.jets import inexact
 from fpr.model.parameters import RotorConstants
 

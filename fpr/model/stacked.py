@@ -52,7 +52,8 @@ class _Linear:
         d = x.d if isinstance(x, Jet) else x
         if isinstance(d, Dual):  # the value and the tangents by K, each one real product
             t = d.tangents
-            out = Dual(d.value @ self.k, (t.reshape(-1, t.shape[-1]) @ self.k).reshape(t.shape[:-1] + (-1,)), d.lo)
+            tangents = (t.reshape(-1, t.shape[-1]) @ self.k).reshape(t.shape[:-1] + (-1,))
+            out = Dual(d.value @ self.k, tangents, d.lo)
         elif np.iscomplexobj(d):
             d = np.ascontiguousarray(d, dtype=complex)
             out = (d.view(float) @ self.k_pairs).view(complex)

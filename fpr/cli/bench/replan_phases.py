@@ -50,8 +50,8 @@ def replan_phases(result, repeats: int = 15) -> dict:
             return call()
         return run
 
-    # what a derivative evaluation sends through the inverse dynamics (planners/problem.py): the Dual motion, or
-    # the complex-step copies
+    # what a derivative evaluation sends through the inverse dynamics (planners/problem.py): the Dual motion,
+    # or the complex-step copies
     motion = problem.motion(problem.points_of(x0))
     n_r, _, n = motion.shape
     copies = seeded_motion(motion, None if problem._dual_derivatives(motion) else COMPLEX_STEP)
