@@ -190,3 +190,14 @@ def test_auto_takes_dual_numbers_on_large_problems_only(square):
     assert big._dual_derivatives(motion[big]) and not small._dual_derivatives(motion[small])
     small.derivatives = "dual"
     assert small._dual_derivatives(motion[small]) and not small._dual_derivatives(motion[small] + 0j)
+
+
+def test_trimmed_drops_the_directions_a_dual_does_not_depend_on():
+    from fpr.model.dual import trimmed
+
+    t = np.zeros((6, 3))
+    t[2, 0], t[4, 2] = 1.0, 2.0
+    x = trimmed(Dual(np.ones(3), t, 1))
+    assert (x.lo, x.hi) == (3, 6)
+    np.testing.assert_array_equal(x.full_tangents(7), np.concatenate([np.zeros((1, 3)), t]))
+    assert trimmed(np.ones(2)).shape == (2,) and trimmed(Dual(np.ones(3), np.zeros((4, 3)))).hi == 0

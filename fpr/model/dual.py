@@ -534,6 +534,19 @@ _FUNCTIONS = {
 }
 
 
+def trimmed(x):
+    """``x`` without the directions at either end of its range whose tangents are all 0 (a Dual computed with
+    others may depend on fewer directions than they: the value of a jet of the motion depends on the motion's
+    first orders only); anything else as it is."""
+    if not isinstance(x, Dual) or not x.tangents.shape[0]:
+        return x
+    used = np.flatnonzero(np.any(x.tangents.reshape(x.tangents.shape[0], -1) != 0.0, axis=1))
+    if used.size == x.tangents.shape[0]:
+        return x
+    lo, hi = (used[0], used[-1] + 1) if used.size else (0, 0)
+    return Dual(x.value, x.tangents[lo:hi], x.lo + int(lo))
+
+
 def empty(shape, *like) -> np.ndarray | Dual:
     """``np.empty(shape)`` of floats; a Dual over the directions of the Duals among ``like`` when it holds
     any."""
@@ -551,4 +564,4 @@ def zeros(shape, *like) -> np.ndarray | Dual:
     return np.zeros(shape, np.result_type(*like, float))
 
 
-__all__ = ["Dual", "empty", "gather", "lift", "span", "zeros"]
+__all__ = ["Dual", "empty", "gather", "lift", "span", "trimmed", "zeros"]

@@ -249,9 +249,10 @@ def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
     hinges = point.hinge_positions_jet(s.truncate(2))  # (N, n_d, 2)
     chain_force = force.value - robot.drone_masses[:, None] * (hinges.d[2] - np.array([0.0, -point.gravity]))
 
-    q = np.concatenate([m[0], roll.value], axis=-1)
-    v = np.concatenate([m[1], roll.d[1]], axis=-1)
-    tau_x = roll_torques(robot, q, v, thrust.value, roll.d[2], external)
+    # Duals (planners/sensitivities.py): the rolls' and the thrusts' lower orders depend on fewer directions
+    q = np.concatenate([m[0], dual.trimmed(roll.value)], axis=-1)
+    v = np.concatenate([m[1], dual.trimmed(roll.d[1])], axis=-1)
+    tau_x = roll_torques(robot, q, v, dual.trimmed(thrust.value), roll.d[2], external)
     torque = dual.zeros(tau_x.shape + (3,), tau_x)
     torque[..., 0] = tau_x
     w2 = np.stack([rotor.speeds_squared(thrust.value[:, i], torque[:, i]) for i, rotor in enumerate(robot.rotors)],
