@@ -201,3 +201,20 @@ def test_trimmed_drops_the_directions_a_dual_does_not_depend_on():
     assert (x.lo, x.hi) == (3, 6)
     np.testing.assert_array_equal(x.full_tangents(7), np.concatenate([np.zeros((1, 3)), t]))
     assert trimmed(np.ones(2)).shape == (2,) and trimmed(Dual(np.ones(3), np.zeros((4, 3)))).hi == 0
+
+
+def test_disturbed_problem_dual_equals_complex_step():
+    """A problem whose inputs are flown in a gust (DisturbedProblem overrides _inputs) takes Duals too."""
+    from planners.disturbance import DisturbedProblem
+    from planners.events import GustEvent
+    from planners.optimize import plan
+    from planners.replan import Replanner, ReplanOptions
+
+    mission = load_mission("moving-target")
+    replanner = Replanner(plan(mission, "two-step"), ReplanOptions())
+    replanner.move(0)
+    problem, x0, _, _ = replanner.problem(4.05)
+    disturbed = DisturbedProblem(problem.robot, problem.points, problem.durations, problem.free, problem.alpha,
+                                 problem.normalisation, samples_per_segment=problem.samples_per_segment,
+                                 gusts=[GustEvent(4.2, (0.0, -8.0, -4.0), 0.8)], start_time=4.05)
+    _assert_same(*_both(disturbed, x0))
