@@ -214,7 +214,8 @@ def test_disturbed_problem_dual_equals_complex_step():
     replanner = Replanner(plan(mission, "two-step"), ReplanOptions())
     replanner.move(0)
     problem, x0, _, _ = replanner.problem(4.05)
-    disturbed = DisturbedProblem(problem.robot, problem.points, problem.durations, problem.free, problem.alpha,
-                                 problem.normalisation, samples_per_segment=problem.samples_per_segment,
-                                 gusts=[GustEvent(4.2, (0.0, -8.0, -4.0), 0.8)], start_time=4.05)
+    gust = GustEvent(4.2, (0.0, -8.0, -4.0), 0.8)
+    disturbed = DisturbedProblem(problem.robot, problem.points, problem.durations, problem.free,
+                                 problem.alpha, problem.normalisation, gusts=[gust], start_time=4.05,
+                                 samples_per_segment=problem.samples_per_segment)
     _assert_same(*_both(disturbed, x0))
