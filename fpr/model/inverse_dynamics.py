@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fpr.model import jets
+from fpr.model import dual, jets
 from fpr.model.errors import ShapeError
 from fpr.model.jets import Jet
 from fpr.model.rotors import signed_speeds
@@ -210,7 +210,7 @@ def _roll_rows(m, gen, sel, roll_acceleration):
         return np.linalg.solve(a_tau, (roll_acceleration - sol[..., 0] @ sel.T)[..., None])[..., 0]
     chain, rolls = layout
     # M_cr phi'' and M_rr phi'' as M [0; phi''], M_rc a_c as M [a_c; 0]: whole-M products of one call each
-    known = np.zeros(m.shape[:-1], np.result_type(m, roll_acceleration))
+    known = dual.zeros(m.shape[:-1], m, roll_acceleration)
     known[..., rolls] = roll_acceleration
     pushed = jets.small_matmul(m, known[..., None])[..., 0]
     a_chain = jets.solve_matrices(m[..., chain, chain] if isinstance(chain, slice) else m[..., chain[:, None], chain],
@@ -249,10 +249,11 @@ def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
     hinges = point.hinge_positions_jet(s.truncate(2))  # (N, n_d, 2)
     chain_force = force.value - robot.drone_masses[:, None] * (hinges.d[2] - np.array([0.0, -point.gravity]))
 
-    q = np.concatenate([m[0], roll.value], axis=-1)
-    v = np.concatenate([m[1], roll.d[1]], axis=-1)
-    tau_x = roll_torques(robot, q, v, thrust.value, roll.d[2], external)
-    torque = np.zeros(tau_x.shape + (3,), tau_x.dtype)
+    # Duals (planners/sensitivities.py): the rolls' and the thrusts' lower orders depend on fewer directions
+    q = np.concatenate([m[0], dual.trimmed(roll.value)], axis=-1)
+    v = np.concatenate([m[1], dual.trimmed(roll.d[1])], axis=-1)
+    tau_x = roll_torques(robot, q, v, dual.trimmed(thrust.value), roll.d[2], external)
+    torque = dual.zeros(tau_x.shape + (3,), tau_x)
     torque[..., 0] = tau_x
     w2 = np.stack([rotor.speeds_squared(thrust.value[:, i], torque[:, i]) for i, rotor in enumerate(robot.rotors)],
                   axis=1)

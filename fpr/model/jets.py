@@ -14,13 +14,15 @@ Example:
     >>> phi.order, phi.shape, float(phi.d[2][0])              # phi''(0) = -s''(0)
     (2, (5,), -2.0)
 """
-import contextvars
 import math
-from contextlib import contextmanager
 
 import numpy as np
 
 from fpr.model.compiled import choose, load_extension
+from fpr.model.complex_step import complex_step_copies  # noqa: F401 (jets.complex_step_copies, as before)
+from fpr.model.complex_step import shared_real as _shared_real
+from fpr.model.complex_step import shared_sin_cos as _shared_sin_cos
+from fpr.model.dual import Dual, empty, gather
 from fpr.model.errors import ModelArgumentError
 
 _MAXK = 16
@@ -62,6 +64,8 @@ def _compiled_product(da, db, K):
     """:func:`_leibniz`'s matrix products by _jets.c: ``da`` (Ka+1, ..., n, m), ``db`` (Kb+1, ..., m, k) padded to
     one ndim, the result's orders 0..K (K <= Ka + Kb, terms beyond an operand's order are 0); None where it does
     not apply (no kernel, mixed or other dtypes, sizes beyond its limits, batches that broadcast otherwise)."""
+    if isinstance(da, Dual) or isinstance(db, Dual):
+        return _dual_product(da, db, K)
     kernel = _kernel()
     if (kernel is None or da.dtype != db.dtype or da.dtype.char not in "dD" or K > _MAXK or da.ndim < 3
             or db.ndim < 3 or da.shape[-1] != db.shape[-2]):
@@ -79,6 +83,8 @@ def _compiled_product(da, db, K):
 def small_matmul(a, b):
     """``np.matmul(a, b)`` of batches of small matrices (..., n, m) @ (..., m, k), by _jets.c where it applies
     (about 5 times faster than numpy's on the planner's batches of 4 x 4 matrices; round-off apart, the same)."""
+    if isinstance(a, Dual) or isinstance(b, Dual):
+        return _dual_product(a[None], b[None], 0)[0]
     a, b = np.asarray(a), np.asarray(b)
     out = _compiled_product(a[None], b[None], 0) if a.ndim >= 2 and b.ndim >= 2 else None
     return np.matmul(a, b) if out is None else out[0]
@@ -98,6 +104,12 @@ def _ax(axis):
 def _wsum(w, terms):
     """Weighted sum ``sum_i w[i] * terms[i]`` over the leading axis (one BLAS dot: what ``np.tensordot`` does,
     without its Python overhead, which dominated on small batches)."""
+    if isinstance(terms, Dual):
+        t = terms.tangents
+        if t.shape[1] == 0 or t.size == 0:
+            return Dual(np.zeros(t.shape[2:]), np.zeros(t.shape[:1] + t.shape[2:]), terms.lo)
+        tangents = np.matmul(w, t.reshape(t.shape[:2] + (-1,))).reshape(t.shape[:1] + t.shape[2:])
+        return Dual(_wsum(w, terms.value), tangents, terms.lo)
     terms = np.asarray(terms)
     if terms.shape[0] == 0 or terms.size == 0:
         return np.tensordot(w, terms, axes=(0, 0))  # empty sums: tensordot's zeros of the right shape
@@ -106,7 +118,9 @@ def _wsum(w, terms):
 
 def _parts(x):
     """Return ``(d, order)`` of a Jet, or ``(x[None], None)`` for a constant (infinite order)."""
-    return (x.d, x.order) if isinstance(x, Jet) else (np.asarray(x)[None], None)
+    if isinstance(x, Jet):
+        return x.d, x.order
+    return (x if isinstance(x, Dual) else np.asarray(x))[None], None
 
 
 def _lift(x, order):
@@ -117,45 +131,10 @@ def _lift(x, order):
 def inexact(x) -> np.ndarray:
     """``x`` as an array of floats, complex values kept (complex-step differentiation
     passes through every function of this package that converts its inputs this way)."""
+    if isinstance(x, Dual):
+        return x
     x = np.asarray(x)
     return x if x.dtype.kind in "fc" else x.astype(float)  # inexact (np.issubdtype, cheaper)
-
-
-_COPIES = contextvars.ContextVar("complex_step_copies", default=0)
-
-
-@contextmanager
-def complex_step_copies(count: int):
-    """Within the block, complex batches whose leading axis is ``count`` copies of one batch (copy-major)
-    with equal real parts (complex-step copies: each copy's perturbation is in its imaginary part only, e.g.
-    :meth:`planners.problem.MotionProblem.evaluate`'s) have their matrices inverted once, not once per copy
-    (:func:`inverse`, :func:`solve_matrices`). A batch whose real parts differ is inverted as it is."""
-    token = _COPIES.set(int(count))
-    try:
-        yield
-    finally:
-        _COPIES.reset(token)
-
-
-def _equal_copies(x):
-    """A real array whose leading axis is :func:`complex_step_copies`' copies of one block, as (count, block...),
-    when all the copies are equal; else None."""
-    count = _COPIES.get()
-    if count < 2 or x.ndim == 0 or x.shape[0] % count:
-        return None
-    blocks = x.reshape((count, -1) + x.shape[1:])
-    return blocks if (blocks == blocks[:1]).all() else None
-
-
-def _shared_real(a):
-    """``(count, real part of one copy, imaginary parts (count, ...))`` of a complex batch of matrices
-    (..., n, n) made of :func:`complex_step_copies`' copies with equal real parts, else None."""
-    if not np.iscomplexobj(a) or a.ndim < 3:
-        return None
-    re = _equal_copies(a.real)
-    if re is None:
-        return None
-    return re.shape[0], re[0], a.imag.reshape(re.shape)
 
 
 def _small_solve(a, b=None):
@@ -185,6 +164,9 @@ def inverse(a):
     (R + i h I)^-1 = R^-1 - i h R^-1 I R^-1 (the h^2 terms vanish in floating point, as in the complex
     arithmetic itself).
     """
+    if isinstance(a, Dual):  # d(A^-1) = -A^-1 dA A^-1
+        r = _small_solve(a.value)
+        return Dual(r, -small_matmul(small_matmul(r, a.tangents), r), a.lo)
     shared = _shared_real(a)
     if shared is None:
         return _small_solve(a)
@@ -202,6 +184,8 @@ def solve_matrices(a, b):
     With complex-step copies (:func:`complex_step_copies`, a's real part R shared): x = R^-1 Re b
     + i R^-1 (Im b - Im a R^-1 Re b), from one inversion per copy's batch (as :func:`inverse`).
     """
+    if isinstance(a, Dual) or isinstance(b, Dual):
+        return _dual_solve_matrices(a, b)
     shared = _shared_real(a)
     if shared is None:
         return _small_solve(a, b) if np.ndim(b) == np.ndim(a) else np.linalg.solve(a, b)
@@ -224,23 +208,14 @@ def _atan2_value(y, x):
     return np.arctan2(yr, xr) + 1j * (xr * np.imag(y) - yr * np.imag(x)) / (xr * xr + yr * yr)
 
 
-def _shared_sin_cos(x):
-    """``(np.sin(x), np.cos(x))`` of a real array; when its leading axis is :func:`complex_step_copies`' copies
-    of one block (the real parts of complex-step copies), from that block's (the same bits, a fraction of the
-    work)."""
-    blocks = _equal_copies(x)
-    if blocks is not None:
-        s, c = np.sin(blocks[0]), np.cos(blocks[0])
-        return (np.broadcast_to(s, blocks.shape).reshape(x.shape),
-                np.broadcast_to(c, blocks.shape).reshape(x.shape))
-    return np.sin(x), np.cos(x)
-
-
 def sin_cos_value(a):
     """``(np.sin(a), np.cos(a))`` of an array; for complex-step arguments ``a = x + i h b`` (h tiny) from the
     real sine and cosine: sin(x) + i cos(x) h b and cos(x) - i sin(x) h b, which is what numpy's complex sine
     and cosine give there bit for bit (cosh(h b) = 1, sinh(h b) = h b in floating point), at a fraction of
     their cost (no complex transcendental functions)."""
+    if isinstance(a, Dual):
+        s, c = np.sin(a.value), np.cos(a.value)
+        return Dual(s, a.tangents * c, a.lo), Dual(c, a.tangents * -s, a.lo)
     if not np.iscomplexobj(a):
         return np.sin(a), np.cos(a)
     x, b = a.real, a.imag
@@ -261,6 +236,8 @@ def _leibniz(da, db, K, op=np.multiply):
         return out
     if op is not np.multiply:
         return np.stack([_wsum(_B[n, :n + 1], op(da[:n + 1], db[n::-1])) for n in range(K + 1)])
+    if isinstance(da, Dual) or isinstance(db, Dual):
+        return _dual_leibniz(da, db, K)
     out = np.empty((K + 1,) + np.broadcast_shapes(da.shape[1:], db.shape[1:]), np.result_type(da, db))
     tmp = np.empty(out.shape[1:], out.dtype) if K else None
     for n in range(K + 1):
@@ -275,8 +252,7 @@ def _leibniz(da, db, K, op=np.multiply):
 
 def _add_const(d, c):
     """Add the constant ``c`` to the value ``d[0]`` only."""
-    out = np.empty(d.shape[:1] + np.broadcast_shapes(d.shape[1:], c.shape),
-                   np.result_type(d, c, float))
+    out = empty(d.shape[:1] + np.broadcast_shapes(d.shape[1:], c.shape), d, c)
     out[...] = d
     out[0] += c
     return out
@@ -293,7 +269,7 @@ class Jet:
     __array_ufunc__ = None  # ``ndarray <op> Jet`` defers to the Jet's reflected operator.
 
     def __init__(self, d):
-        d = np.asarray(d)
+        d = d if isinstance(d, Dual) else np.asarray(d)
         if d.ndim == 0 or not 1 <= d.shape[0] <= _MAXK + 1:
             raise ModelArgumentError("d", d.shape, f"Jet needs 1..{_MAXK + 1} derivatives along axis 0, got an "
                                                    f"array of shape {d.shape}")
@@ -374,7 +350,7 @@ class Jet:
         if isinstance(other, Jet):
             K, nd = min(self.order, other.order), max(self.ndim, other.ndim)
             return Jet(jet_op(_pad(self.d[:K + 1], nd), _pad(other.d[:K + 1], nd), K))
-        c = np.asarray(other)
+        c = other if isinstance(other, Dual) else np.asarray(other)
         return Jet(const_op(_pad(self.d, c.ndim), c))
 
     def __add__(self, other):
@@ -386,7 +362,7 @@ class Jet:
         return Jet(-self.d)
 
     def __sub__(self, other):
-        return self + (-(other if isinstance(other, Jet) else np.asarray(other)))
+        return self + (-(other if isinstance(other, (Jet, Dual)) else np.asarray(other)))
 
     def __rsub__(self, other):
         return (-self) + other
@@ -427,8 +403,7 @@ class Jet:
 
 def _divide(da, db, K):
     """Quotient recurrence q^(n) = (a^(n) - sum_{k=1..n} C(n,k) b^(k) q^(n-k)) / b."""
-    q = np.empty((K + 1,) + np.broadcast_shapes(da.shape[1:], db.shape[1:]),
-                 np.result_type(da, db, float))
+    q = empty((K + 1,) + np.broadcast_shapes(da.shape[1:], db.shape[1:]), da, db)
     for n in range(K + 1):
         acc = da[n] - _wsum(_B[n, 1:n + 1], db[1:n + 1] * q[n - 1::-1]) if n else da[0]
         q[n] = acc / db[0]
@@ -570,9 +545,19 @@ def solve(A, b):
     nd = max(dA.ndim, dB.ndim) - 1
     dA, dB = _pad(dA, nd), _pad(dB, nd)
     K = min([k for k in (kA, kB) if k is not None], default=0)
-    inv = inverse(dA[0])
-    x = _compiled_solve(inv, dA if kA is not None else None, dB, K)
-    if x is None and kA is None:
+    if isinstance(dA, Dual) or isinstance(dB, Dual):
+        x = _dual_jet_solve(dA, kA, dB, K)
+    else:
+        x = _jet_solve(inverse(dA[0]), dA if kA is not None else None, dB, K)
+    x = Jet(x[..., 0] if vec else x)
+    return x if isinstance(A, Jet) or isinstance(b, Jet) else x.value
+
+
+def _jet_solve(inv, dA, dB, K):
+    """The jet of A^-1 b, orders 0..K, from inv = A0^-1, A's jet dA (None: a constant A) and b's dB
+    (:func:`solve`)."""
+    x = _compiled_solve(inv, dA, dB, K)
+    if x is None and dA is None:
         x = np.matmul(inv, dB[:K + 1])
     elif x is None:
         xs = [np.matmul(inv, dB[0])]
@@ -580,8 +565,80 @@ def solve(A, b):
             r = _wsum(_B[n, 1:n + 1], np.matmul(dA[1:n + 1], np.stack(xs[::-1])))
             xs.append(np.matmul(inv, (dB[n] if n < dB.shape[0] else 0.0) - r))
         x = np.stack(xs)
-    x = Jet(x[..., 0] if vec else x)
-    return x if isinstance(A, Jet) or isinstance(b, Jet) else x.value
+    return x
+
+
+# --- Dual numbers (fpr.model.dual) through the jets: the value by the real code, the tangents as a batch ---
+def _value(x):
+    return x.value if isinstance(x, Dual) else x
+
+
+def _batch(x: Dual):
+    """A jet Dual's tangents (D, K+1, ...) as a batch of jets (K+1, D, ...) (a view)."""
+    return np.swapaxes(x.tangents, 0, 1)
+
+
+def _jet_product(da, db, K):
+    """The jet of the matrix product of jets da (Ka+1, ..., n, m), db (Kb+1, ..., m, k), orders 0..K (terms
+    beyond an operand's order 0)."""
+    out = _compiled_product(da, db, K)
+    if out is not None:
+        return out
+    return np.stack([sum(_B[n, k] * np.matmul(da[k], db[n - k]) for k in range(max(0, n - len(db) + 1),
+                                                                             min(n, len(da) - 1) + 1))
+                     for n in range(K + 1)])
+
+
+def _dual_product(da, db, K):
+    """:func:`_compiled_product` of jets of which one or both are Duals: d(AB) = dA B + A dB."""
+    av, bv = _value(da), _value(db)
+    parts = []
+    if isinstance(da, Dual):
+        parts.append((np.swapaxes(_jet_product(_batch(da), bv[:, None], K), 0, 1), da.lo))
+    if isinstance(db, Dual):
+        parts.append((np.swapaxes(_jet_product(av[:, None], _batch(db), K), 0, 1), db.lo))
+    return gather(_jet_product(av, bv, K), parts)
+
+
+def _dual_leibniz(da, db, K):
+    """:func:`_leibniz`'s elementwise product of jets of which one or both are Duals."""
+    av, bv = _value(da), _value(db)
+    parts = []
+    if isinstance(da, Dual):
+        parts.append((np.swapaxes(_leibniz(_batch(da), bv[:K + 1, None], K), 0, 1), da.lo))
+    if isinstance(db, Dual):
+        parts.append((np.swapaxes(_leibniz(av[:K + 1, None], _batch(db), K), 0, 1), db.lo))
+    return gather(_leibniz(av, bv, K), parts)
+
+
+def _dual_jet_solve(dA, kA, dB, K):
+    """:func:`solve`'s jet of A^-1 b when A's or b's jet is a Dual: x by the real solve, its tangents from
+    A0^-1 (once) as the jet solve of A dx = db - dA x."""
+    av, bv = _value(dA), _value(dB)
+    inv = _small_solve(av[0])
+    x = _jet_solve(inv, av if kA is not None else None, bv, K)
+    parts = []
+    if isinstance(dB, Dual):
+        db = dB.tangents[:, :K + 1]
+        if db.shape[1] < K + 1:  # b's orders beyond its own are 0
+            db = np.concatenate([db, np.zeros(db.shape[:1] + (K + 1 - db.shape[1],) + db.shape[2:])], axis=1)
+        parts.append((db, dB.lo))
+    if isinstance(dA, Dual):
+        parts.append((-np.swapaxes(_jet_product(_batch(dA), x[:, None], K), 0, 1), dA.lo))
+    rhs = gather(x, parts)
+    t = _jet_solve(inv[None], av[:K + 1, None] if kA is not None else None, _batch(rhs), K)
+    return Dual(x, np.swapaxes(t, 0, 1), rhs.lo)
+
+
+def _dual_solve_matrices(a, b):
+    """:func:`solve_matrices` of Duals: x = A^-1 b by one real inverse, dx = A^-1 (db - dA x)."""
+    inv = _small_solve(_value(a))
+    x = small_matmul(inv, _value(b))
+    parts = [(b.tangents, b.lo)] if isinstance(b, Dual) else []
+    if isinstance(a, Dual):
+        parts.append((-small_matmul(a.tangents, x), a.lo))
+    rhs = gather(x, parts)
+    return Dual(x, small_matmul(inv, rhs.tangents), rhs.lo)
 
 
 def _compiled_solve(inv, dA, dB, K):

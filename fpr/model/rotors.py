@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fpr.model.dual import Dual
 from fpr.model.errors import ShapeError
 from fpr.model.jets import inexact
 from fpr.model.parameters import RotorConstants
@@ -29,6 +30,11 @@ def signed_speeds(w2) -> np.ndarray:
     for real input, and an analytic function of a complex-step perturbed input (numpy's complex ``sign``
     and ``abs`` are not: sign(z) = z / |z| and |z| drop the perturbation's derivative).
     """
+    if isinstance(w2, Dual):  # d sqrt|x| = dx / (2 sqrt|x|) (0 where x = 0, as below)
+        sign = np.sign(w2.value)
+        root = np.sqrt(sign * w2.value)
+        scale = np.divide(0.5, root, out=np.zeros(root.shape), where=sign != 0.0)
+        return Dual(sign * root, w2.tangents * scale, w2.lo)
     w2 = np.asarray(w2)
     if not np.iscomplexobj(w2):
         sign = np.sign(w2)

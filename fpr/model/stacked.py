@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from fpr.model import jets
+from fpr.model.dual import Dual
 from fpr.model.jets import Jet
 
 
@@ -49,7 +50,11 @@ class _Linear:
 
     def __call__(self, x):
         d = x.d if isinstance(x, Jet) else x
-        if np.iscomplexobj(d):
+        if isinstance(d, Dual):  # the value and the tangents by K, each one real product
+            t = d.tangents
+            tangents = (t.reshape(-1, t.shape[-1]) @ self.k).reshape(t.shape[:-1] + (-1,))
+            out = Dual(d.value @ self.k, tangents, d.lo)
+        elif np.iscomplexobj(d):
             d = np.ascontiguousarray(d, dtype=complex)
             out = (d.view(float) @ self.k_pairs).view(complex)
         else:

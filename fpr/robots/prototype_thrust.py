@@ -83,7 +83,7 @@ def thrust_vector(motion: Jet, generalized: Jet, link_length: float, order: int)
     g, f_p = link_components(b1, b2, jets.cos(xi[..., 1].truncate(b1.order)), link_length)
     with np.errstate(divide="ignore", invalid="ignore"):
         plain = g.truncate(order) / sin2.truncate(order)
-    d = np.array(plain.d)
+    d = plain.d.copy()
     near = (np.abs(np.real(sin2.value)) < SINGULAR_SCREEN) & (np.cos(np.real(xi.value[..., 1])) > 0)
     if np.any(near) and g.order >= order + 2:
         k = min(g.order, sin2.order) + 1  # every Taylor coefficient available (more = more accurate)

@@ -12,7 +12,6 @@ machine inflate the least.
 from __future__ import annotations
 
 import time
-from itertools import product
 
 import numpy as np
 
@@ -23,6 +22,7 @@ from planners.problem import COMPLEX_STEP
 from planners.replan import Replanner, ReplanOptions
 from planners.replan_check import evaluate_and_check
 from planners.replan_solver import qp_step
+from planners.sensitivities import seeded_motion
 
 
 def _least(call, repeats: int) -> float:
@@ -50,13 +50,11 @@ def replan_phases(result, repeats: int = 15) -> dict:
             return call()
         return run
 
-    # the perturbed copies a derivative evaluation sends through the inverse dynamics (planners/problem.py)
+    # what a derivative evaluation sends through the inverse dynamics (planners/problem.py): the Dual motion,
+    # or the complex-step copies
     motion = problem.motion(problem.points_of(x0))
     n_r, _, n = motion.shape
-    copies = np.repeat(motion[:, None].astype(complex), n_r * n, axis=1)
-    for d, (r, j) in enumerate(product(range(n_r), range(n))):
-        copies[r, d, :, j] += 1j * COMPLEX_STEP
-    copies = copies.reshape(n_r, -1, n)
+    copies = seeded_motion(motion, None if problem._dual_derivatives(motion) else COMPLEX_STEP)
     first = problem.evaluate(x0, True)
     part = PiecewisePolynomial(problem.points_of(x0), problem.durations)
     phases = {
@@ -70,7 +68,7 @@ def replan_phases(result, repeats: int = 15) -> dict:
             fresh(lambda: evaluate_and_check(problem, x0, rate, t_s)), repeats
         ),
     }
-    return {"nodes": int(problem.t.size), "copies": int(copies.shape[1]),
+    return {"nodes": int(problem.t.size), "copies": int(problem.t.size * n_r * n),
             "dense_samples": int(dense_check(problem.robot, part, rate, t_s)[2]), "repeats": repeats,
             "cpu_s": phases}
 
