@@ -97,6 +97,25 @@ def _baseline(mission, robot, cap: float, targets: dict, progress: bool) -> dict
                 trace=base.trace)
 
 
+def sensitivities(mission, robot, repeats: int) -> dict:
+    """The node sensitivities both ways side by side: one evaluation with derivatives of ``mission``'s one-step
+    NLP (its start, the cache bypassed) by dual numbers and by the complex step, alternating, median of
+    ``repeats`` each [s], and their ratio."""
+    problem = one_step_problem(WayPointTask.of(mission, robot), Grid())
+    x = problem.x_of(problem.points)
+    times = {"dual": [], "complex": []}
+    for _ in range(repeats):
+        for way in times:
+            problem.derivatives = way
+            problem._cache = None  # cached_evaluation's last result: measure the evaluation itself
+            start = time.perf_counter()
+            problem.evaluate(x, True)
+            times[way].append(time.perf_counter() - start)
+    median = {way: float(np.median(t)) for way, t in times.items()}
+    return dict(nodes=int(problem.t.size), dual_s=median["dual"], complex_s=median["complex"],
+                ratio=median["dual"] / median["complex"], repeats=repeats)
+
+
 def _segment(mission, robot, two_step, repeats: int) -> dict:
     """Item e: step 2 on travel 1 from the step-1 result of ``two_step`` (construction + solve)."""
     task = WayPointTask.of(mission, robot)
@@ -204,7 +223,7 @@ def run_planning(quick: bool, progress: bool) -> dict:
              met=seg["wall_time_s"] < TARGETS["segment_s"]),
     ]
     return dict(mission=PLANNING_MISSION, settings=settings, items=items, speedups=speedups, targets=targets,
-                optimality=optimality,
+                optimality=optimality, sensitivities=sensitivities(mission, robot, settings["segment_repeats"]),
                 one_step_problem_matches_plan=consistent, load_average_before=load_before,
                 load_average_after=os.getloadavg(),
                 blas_threads_env={k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")})
@@ -231,6 +250,11 @@ def planning_table(planning: dict) -> str:
     for key, s in planning["speedups"].items():
         lines.append(f"speed-up vs baseline, {key}: {'>= ' if s['lower_bound'] else ''}{s['ratio']:.0f}x "
                      f"({s['baseline_time_s']:.1f} s / {s['ours_s']:.3f} s)")
+    sens = planning.get("sensitivities")
+    if sens:
+        lines.append(f"node sensitivities, one evaluation of the one-step NLP ({sens['nodes']} nodes, median of "
+                     f"{sens['repeats']}): dual numbers {sens['dual_s'] * 1e3:.2f} ms, complex step "
+                     f"{sens['complex_s'] * 1e3:.2f} ms ({sens['ratio']:.2f}x)")
     for t in planning["targets"]:
         bound = " (lower bound)" if t.get("lower_bound") else ""
         verdict = {True: "met", False: "NOT met", None: "undecided (the baseline stopped at its time cap "
