@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+_ALL = slice(None)
 
 class Dual:
     """A real array ``value`` (shape S) with its derivatives along the directions ``lo .. lo + n - 1`` of D,
@@ -82,6 +83,9 @@ class Dual:
         return f"Dual(shape={self.shape}, directions={self.lo}..{self.hi - 1})"
 
     def __getitem__(self, key):
+        if self.bands is None:  # (the frequent case, first)
+            return Dual(self.value[key], self.tangents[(_ALL,) + key if type(key) is tuple else (_ALL, key)],
+                        self.lo)
         key = key if isinstance(key, tuple) else (key,)
         if self.bands is not None and key and isinstance(key[0], (int, np.integer, slice)):
             rows = range(len(self.bands))[key[0]]

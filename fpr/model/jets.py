@@ -403,6 +403,13 @@ class Jet:
 
 def _divide(da, db, K):
     """Quotient recurrence q^(n) = (a^(n) - sum_{k=1..n} C(n,k) b^(k) q^(n-k)) / b."""
+    if isinstance(da, Dual) or isinstance(db, Dual):  # dq = (da - q db) / b (jet products with real jets)
+        bv = _value(db)
+        q, r = _divide(_value(da), bv, K), _reciprocal(bv[:K + 1])
+        parts = [(da, r)] if isinstance(da, Dual) else []
+        if isinstance(db, Dual):
+            parts.append((db, -_leibniz(q, r, K)))
+        return _dual_chain(q, parts)
     q = empty((K + 1,) + np.broadcast_shapes(da.shape[1:], db.shape[1:]), da, db)
     for n in range(K + 1):
         acc = da[n] - _wsum(_B[n, 1:n + 1], db[1:n + 1] * q[n - 1::-1]) if n else da[0]
@@ -421,6 +428,9 @@ def sincos(a):
     s^(n) = sum_{k<n} C(n-1,k) c^(k) a^(n-k),  c^(n) = -sum_{k<n} C(n-1,k) s^(k) a^(n-k)."""
     if not isinstance(a, Jet):
         return sin_cos_value(np.asarray(a)) if np.iscomplexobj(a) else (np.sin(a), np.cos(a))
+    if isinstance(a.d, Dual):  # the real jets, and d sin = cos da, d cos = -sin da (jet products)
+        s, c = sincos(Jet(a.d.value))
+        return Jet(_dual_chain(s.d, [(a.d, c.d)])), Jet(_dual_chain(c.d, [(a.d, -s.d)]))
     d, s, c = a.d, np.empty_like(a.d), np.empty_like(a.d)
     s[0], c[0] = sin_cos_value(d[0])
     for n in range(1, a.order + 1):
@@ -463,6 +473,9 @@ def sqrt(a):
     """Square root: f^(n) = (a^(n) - sum_{k=1}^{n-1} C(n,k) f^(k) f^(n-k)) / (2 f); needs a > 0."""
     if not isinstance(a, Jet):
         return np.sqrt(a)
+    if isinstance(a.d, Dual):  # d sqrt(a) = da / (2 sqrt(a)) (jet product with the real jet 1 / (2 f))
+        f = sqrt(Jet(a.d.value)).d
+        return Jet(_dual_chain(f, [(a.d, _reciprocal(2.0 * f))]))
     d, f = a.d, np.empty_like(a.d)
     f[0] = np.sqrt(d[0])
     for n in range(1, a.order + 1):
@@ -482,6 +495,13 @@ def atan2(y, x):
         return _atan2_value(y, x)
     K = min(j.order for j in (y, x) if isinstance(j, Jet))
     y, x = _lift(y, K).truncate(K), _lift(x, K).truncate(K)
+    if isinstance(y.d, Dual) or isinstance(x.d, Dual):  # d angle = (x dy - y dx) / (x^2 + y^2) (jet products)
+        yv, xv = Jet(_value(y.d)), Jet(_value(x.d))
+        r = _reciprocal((xv * xv + yv * yv).d)
+        parts = [(y.d, _leibniz(xv.d, r, K))] if isinstance(y.d, Dual) else []
+        if isinstance(x.d, Dual):
+            parts.append((x.d, -_leibniz(yv.d, r, K)))
+        return Jet(_dual_chain(atan2(yv, xv).d, parts))
     value = _atan2_value(y.value, x.value)
     if K == 0:
         return Jet(value[None])
@@ -633,6 +653,29 @@ def _dual_leibniz(da, db, K):
     if isinstance(db, Dual):
         parts.append((np.swapaxes(_gathered_leibniz(av[:K + 1, None], _batch(db), K), 0, 1), db.lo))
     return gather(_gathered_leibniz(av, bv, K), parts)
+
+
+def _reciprocal(db):
+    """The real jet of 1 / b from b's ``db`` (K+1, ...)."""
+    one = np.zeros(db.shape)
+    one[0] = 1.0
+    return _divide(one, db, db.shape[0] - 1)
+
+
+def _dual_chain(value, parts):
+    """The Dual jet of ``value`` (K+1, ...) (a real jet) whose tangents are the sum of the jet products of the
+    Duals' tangents by real jets: ``parts`` [(Dual jet (orders >= K+1, ...), real jet (K+1, ...))]."""
+    K = value.shape[0] - 1
+    nd = value.ndim
+    return gather(value, [(np.swapaxes(_gathered_leibniz(_batch(_dpad(x, nd))[:K + 1],
+                                                         _pad(m, nd - 1)[:K + 1, None], K), 0, 1), x.lo)
+                          for x, m in parts])
+
+
+def _dpad(x: Dual, ndim):
+    """A Dual jet with unit axes after its order axis, for ``ndim`` dims with it."""
+    extra = ndim - x.ndim
+    return x.reshape(x.shape[:1] + (1,) * extra + x.shape[1:]) if extra > 0 else x
 
 
 def _dual_jet_solve(dA, kA, dB, K):
