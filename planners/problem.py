@@ -44,6 +44,7 @@ import numpy as np
 from scipy import sparse
 
 from fpr.model import jets
+from fpr.model.dual import Dual
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
@@ -51,7 +52,7 @@ from planners.sensitivities import by_complex_step, by_dual_numbers
 
 COMPLEX_STEP = 1e-30
 #: (directions, nodes) from which :attr:`MotionProblem.derivatives` "auto" takes dual numbers.
-DUAL_FROM = (20, 80)
+DUAL_FROM = (20, 60)
 POWER_SMOOTHING = 1e-2  # [W]
 POWER_CURVATURE_FLOOR = 1e-2  # [W]
 # The optimiser asks every (scaled) margin to be at least this on its grid, so that what happens
@@ -506,11 +507,18 @@ class MotionProblem:
         Nodes and midpoints go through the robot kind's margins in one call.
         """
         powers = self._half_step_powers(motion.shape[1] // self.t.size)
-        mid = motion[0] * powers[0]  # sum_k s^(k) (h/2)^k / k!, term by term in order (the bits of a plain sum)
+        dual = isinstance(motion, Dual)
+        value = motion.value if dual else motion
+        mid = value[0] * powers[0]  # sum_k s^(k) (h/2)^k / k!, term by term in order (a plain sum's bits)
         for k in range(1, N_DERIVS):
-            term = motion[k] * powers[k]
+            term = value[k] * powers[k]
             term /= math.factorial(k)
             mid += term
+        if dual:  # the tangents: the same weights, summed over k at once
+            weights = np.stack([powers[k][:, 0] / math.factorial(k) for k in range(N_DERIVS)])
+            t = motion.tangents
+            tangents = np.matmul(weights.T[None, :, None, :], t.transpose(0, 2, 1, 3))[:, :, 0]
+            mid = Dual(mid, tangents, motion.lo)
         margins = self.robot.kind.workspace_margins(np.concatenate([motion[0], mid]))
         n = motion.shape[1]
         # complex values (complex-step derivatives) compare by their real parts first

@@ -495,13 +495,16 @@ def atan2(y, x):
         return _atan2_value(y, x)
     K = min(j.order for j in (y, x) if isinstance(j, Jet))
     y, x = _lift(y, K).truncate(K), _lift(x, K).truncate(K)
-    if isinstance(y.d, Dual) or isinstance(x.d, Dual):  # d angle = (x dy - y dx) / (x^2 + y^2) (jet products)
-        yv, xv = Jet(_value(y.d)), Jet(_value(x.d))
-        r = _reciprocal((xv * xv + yv * yv).d)
-        parts = [(y.d, _leibniz(xv.d, r, K))] if isinstance(y.d, Dual) else []
+    if K and (isinstance(y.d, Dual) or isinstance(x.d, Dual)):  # d angle = (x dy - y dx) / (x^2 + y^2)
+        yv, xv = _value(y.d), _value(x.d)
+        r = _reciprocal(_leibniz(xv, xv, K) + _leibniz(yv, yv, K))
+        u, v = _leibniz(xv, r, K), _leibniz(yv, r, K)  # the angle's derivative: u y' - v x'
+        angle = np.concatenate([_atan2_value(yv[0], xv[0])[None],
+                                _leibniz(u, yv[1:], K - 1) - _leibniz(v, xv[1:], K - 1)])
+        parts = [(y.d, u)] if isinstance(y.d, Dual) else []
         if isinstance(x.d, Dual):
-            parts.append((x.d, -_leibniz(yv.d, r, K)))
-        return Jet(_dual_chain(atan2(yv, xv).d, parts))
+            parts.append((x.d, -v))
+        return Jet(_dual_chain(angle, parts))
     value = _atan2_value(y.value, x.value)
     if K == 0:
         return Jet(value[None])
