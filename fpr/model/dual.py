@@ -443,9 +443,23 @@ def _lifted(items):
 
 
 def _concatenate(items, axis=0, out=None, **kwargs):
-    items = _lifted(list(items))
-    return Dual(np.concatenate([x.value for x in items], axis=axis),
-                np.concatenate([x.tangents for x in items], axis=_tax(axis)), items[0].lo)
+    items = list(items)
+    lo, hi = span(*items)
+    value = np.concatenate([_val(x) for x in items], axis=axis)
+    if all(isinstance(x, Dual) and x.lo == lo and x.tangents.shape[0] == hi - lo for x in items):
+        return Dual(value, np.concatenate([x.tangents for x in items], axis=_tax(axis)), lo)
+    # each item's tangents into its part of one zero array (no zero tangents of its own)
+    tangents = np.zeros((hi - lo,) + value.shape)
+    index = [slice(None)] * value.ndim
+    start = 0
+    axis = axis % value.ndim
+    for x in items:
+        size = np.shape(_val(x))[axis]
+        if isinstance(x, Dual) and x.tangents.shape[0]:
+            index[axis] = slice(start, start + size)
+            tangents[(slice(x.lo - lo, x.hi - lo),) + tuple(index)] = x.tangents
+        start += size
+    return Dual(value, tangents, lo)
 
 
 def _stack(items, axis=0, out=None, **kwargs):
