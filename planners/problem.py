@@ -44,7 +44,6 @@ import numpy as np
 from scipy import sparse
 
 from fpr.model import jets
-from fpr.model.dual import Dual
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from planners.polynomial import N_DERIVS, PiecewisePolynomial
@@ -137,13 +136,11 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
         (rows (N, R), names (R,) of the constraint each row belongs to, details (R,) e.g. "rotor 3").
     """
     lim = Limits.from_robot(robot)
-    names, details = [], []
     if workspace is None:
         workspace = _workspace(robot, motion[0], crossing_sign)
-    names += list(workspace)
-    details += [""] * len(workspace)
-    # per drone i: roll_i (negative, positive), per rotor m the low and high speed rows, thrust_low_i; built for
-    # all drones at once (N, n_d, rows per drone), the same elementwise operations as row by row
+    names, details = list(workspace), [""] * len(workspace)
+    # per drone i: roll_i (negative, positive), per rotor m the low and high speed rows, thrust_low_i; built
+    # for all drones at once (N, n_d, rows per drone), the same elementwise operations as row by row
     roll = inputs.roll
     blocks = [np.stack([lim.roll + roll, lim.roll - roll], axis=-1)]
     if scaled:
@@ -157,15 +154,11 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
         margin = inputs.thrust - min_thrust
         margin = margin / (robot.drone_mass * robot.planar("point").gravity) if scaled else margin
         blocks.append(margin[..., None])
-    for i in range(robot.n_drones):
-        names += [f"roll_{i + 1}"] * 2
-        details += ["negative", "positive"]
-        for m in range(4):
-            names += [f"rotor_speed_low_{i + 1}", f"rotor_speed_high_{i + 1}"]
-            details += [f"rotor {m + 1}"] * 2
-        if min_thrust is not None:
-            names.append(f"thrust_low_{i + 1}")
-            details.append("")
+    for i in range(1, robot.n_drones + 1):
+        names += [f"roll_{i}"] * 2 + [f"rotor_speed_low_{i}", f"rotor_speed_high_{i}"] * 4
+        details += ["negative", "positive"] + [f"rotor {m}" for m in range(1, 5) for _ in range(2)]
+        names += [f"thrust_low_{i}"] if min_thrust is not None else []
+        details += [""] if min_thrust is not None else []
     drones = np.concatenate(blocks, axis=-1)
     drones = drones.reshape(drones.shape[:1] + (-1,))
     if not workspace:
@@ -386,10 +379,10 @@ class MotionProblem:
     #: How :meth:`_node_derivatives` differentiates: "dual" (forward-mode dual numbers, :mod:`fpr.model.dual`:
     #: the value once, the directions as real tangents), "complex" (the complex step, the reference) or
     #: "auto": dual numbers from :data:`DUAL_FROM` (directions, nodes) on, the complex step below. The dual
-    #: pass costs less per node and more per evaluation (its Python calls: about 2.2 ms against 1 ms):
-    #: measured on the FPR (20 directions) it is faster from about 70 nodes on (the square's one-step NLP, 136
-    #: nodes: 6.8 against 8.1 ms; a travel of 34 nodes: 3.4 against 2.7 ms); on the prototype (10 directions)
-    #: from about 480.
+    #: pass costs less per node and somewhat more per evaluation: measured on the FPR (20 directions) it is
+    #: faster at 68 nodes, not yet at 34 (the square's one-step NLP, 136 nodes: 6.2 against 8.4 ms; its
+    #: step 1, 68 nodes: 4.0 against 4.5 ms; a travel of 34 nodes: 2.9 against 2.8 ms); on the prototype (10
+    #: directions) at par from about 240.
     derivatives = "auto"
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,
@@ -514,18 +507,11 @@ class MotionProblem:
         Nodes and midpoints go through the robot kind's margins in one call.
         """
         powers = self._half_step_powers(motion.shape[1] // self.t.size)
-        dual = isinstance(motion, Dual)
-        value = motion.value if dual else motion
-        mid = value[0] * powers[0]  # sum_k s^(k) (h/2)^k / k!, term by term in order (a plain sum's bits)
+        mid = motion[0] * powers[0]  # sum_k s^(k) (h/2)^k / k!, term by term in order (the bits of a plain sum)
         for k in range(1, N_DERIVS):
-            term = value[k] * powers[k]
+            term = motion[k] * powers[k]
             term /= math.factorial(k)
             mid += term
-        if dual:  # the tangents: the same weights, summed over k at once
-            weights = np.stack([powers[k][:, 0] / math.factorial(k) for k in range(N_DERIVS)])
-            t = motion.tangents
-            tangents = np.matmul(weights.T[None, :, None, :], t.transpose(0, 2, 1, 3))[:, :, 0]
-            mid = Dual(mid, tangents, motion.lo)
         margins = self.robot.kind.workspace_margins(np.concatenate([motion[0], mid]))
         n = motion.shape[1]
         # complex values (complex-step derivatives) compare by their real parts first

@@ -21,6 +21,8 @@ Example:
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 _ALL = slice(None)
@@ -586,4 +588,60 @@ def zeros(shape, *like) -> np.ndarray | Dual:
     return np.zeros(shape, np.result_type(*like, float))
 
 
-__all__ = ["Dual", "empty", "gather", "lift", "span", "trimmed", "zeros"]
+# --- jets of Duals (fpr.model.jets: the value a real jet (K+1, ...), the tangents (n, K+1, ...)) ---------
+_PAIRS = {}
+
+
+def _pairs(K):
+    """(k, n - k, W) over the pairs 0 <= k <= n <= K: W (K+1, pairs) C(n, k) where the pair is of order n."""
+    found = _PAIRS.get(K)
+    if found is None:
+        pairs = [(n, k) for n in range(K + 1) for k in range(n + 1)]
+        w = np.zeros((K + 1, len(pairs)))
+        for i, (n, k) in enumerate(pairs):
+            w[n, i] = math.comb(n, k)
+        found = _PAIRS[K] = (np.array([k for n, k in pairs]), np.array([n - k for n, k in pairs]), w)
+    return found
+
+
+def jet_products(da, db, K):
+    """The elementwise product of real jets da, db (orders >= K+1, ...), orders 0..K, in a few numpy calls:
+    every term's product at once (da[k] * db[n - k] over the pairs k <= n <= K), weighted and summed per order
+    n by one matrix product (the dual path's arrays are small: numpy's per-term calls cost more than the
+    arithmetic)."""
+    ka, kb, w = _pairs(K)
+    terms = da[ka] * db[kb]
+    return np.dot(w, terms.reshape(terms.shape[0], -1)).reshape((K + 1,) + terms.shape[1:])
+
+
+def jet_batch(x: Dual):
+    """A jet Dual's tangents (n, K+1, ...) as a batch of jets (K+1, n, ...) (a view)."""
+    return np.swapaxes(x.tangents, 0, 1)
+
+
+def jet_leibniz(da, db, K):
+    """The elementwise product of jets (orders >= K+1, ...) of which one or both are Duals, orders 0..K."""
+    av, bv = _val(da), _val(db)
+    parts = []
+    if isinstance(da, Dual):
+        parts.append((np.swapaxes(jet_products(jet_batch(da), bv[:K + 1, None], K), 0, 1), da.lo))
+    if isinstance(db, Dual):
+        parts.append((np.swapaxes(jet_products(av[:K + 1, None], jet_batch(db), K), 0, 1), db.lo))
+    return gather(jet_products(av, bv, K), parts)
+
+
+def jet_chain(value, parts):
+    """The Dual jet of ``value`` (K+1, ...) (a real jet) whose tangents are the sum of the jet products of the
+    Duals' tangents by real jets: ``parts`` [(Dual jet (orders >= K+1, ...), real jet (K+1, ...))] (a
+    function's jet and its derivative's: d sin a = cos a da)."""
+    K, nd = value.shape[0] - 1, value.ndim
+    out = []
+    for x, m in parts:
+        x = x.reshape(x.shape[:1] + (1,) * (nd - x.ndim) + x.shape[1:]) if nd > x.ndim else x
+        m = m.reshape(m.shape[:1] + (1,) * (nd - m.ndim) + m.shape[1:]) if nd > m.ndim else m
+        out.append((np.swapaxes(jet_products(jet_batch(x)[:K + 1], m[:K + 1, None], K), 0, 1), x.lo))
+    return gather(value, out)
+
+
+__all__ = ["Dual", "empty", "gather", "jet_batch", "jet_chain", "jet_leibniz", "jet_products", "lift", "span",
+           "trimmed", "zeros"]

@@ -22,7 +22,7 @@ from fpr.model.compiled import choose, load_extension
 from fpr.model.complex_step import complex_step_copies  # noqa: F401 (jets.complex_step_copies, as before)
 from fpr.model.complex_step import shared_real as _shared_real
 from fpr.model.complex_step import shared_sin_cos as _shared_sin_cos
-from fpr.model.dual import Dual, empty, gather
+from fpr.model.dual import Dual, empty, gather, jet_batch, jet_chain, jet_leibniz
 from fpr.model.errors import ModelArgumentError
 
 _MAXK = 16
@@ -237,7 +237,7 @@ def _leibniz(da, db, K, op=np.multiply):
     if op is not np.multiply:
         return np.stack([_wsum(_B[n, :n + 1], op(da[:n + 1], db[n::-1])) for n in range(K + 1)])
     if isinstance(da, Dual) or isinstance(db, Dual):
-        return _dual_leibniz(da, db, K)
+        return jet_leibniz(da, db, K)
     out = np.empty((K + 1,) + np.broadcast_shapes(da.shape[1:], db.shape[1:]), np.result_type(da, db))
     tmp = np.empty(out.shape[1:], out.dtype) if K else None
     for n in range(K + 1):
@@ -409,7 +409,7 @@ def _divide(da, db, K):
         parts = [(da, r)] if isinstance(da, Dual) else []
         if isinstance(db, Dual):
             parts.append((db, -_leibniz(q, r, K)))
-        return _dual_chain(q, parts)
+        return jet_chain(q, parts)
     q = empty((K + 1,) + np.broadcast_shapes(da.shape[1:], db.shape[1:]), da, db)
     for n in range(K + 1):
         acc = da[n] - _wsum(_B[n, 1:n + 1], db[1:n + 1] * q[n - 1::-1]) if n else da[0]
@@ -430,7 +430,7 @@ def sincos(a):
         return sin_cos_value(np.asarray(a)) if np.iscomplexobj(a) else (np.sin(a), np.cos(a))
     if isinstance(a.d, Dual):  # the real jets, and d sin = cos da, d cos = -sin da (jet products)
         s, c = sincos(Jet(a.d.value))
-        return Jet(_dual_chain(s.d, [(a.d, c.d)])), Jet(_dual_chain(c.d, [(a.d, -s.d)]))
+        return Jet(jet_chain(s.d, [(a.d, c.d)])), Jet(jet_chain(c.d, [(a.d, -s.d)]))
     d, s, c = a.d, np.empty_like(a.d), np.empty_like(a.d)
     s[0], c[0] = sin_cos_value(d[0])
     for n in range(1, a.order + 1):
@@ -475,7 +475,7 @@ def sqrt(a):
         return np.sqrt(a)
     if isinstance(a.d, Dual):  # d sqrt(a) = da / (2 sqrt(a)) (jet product with the real jet 1 / (2 f))
         f = sqrt(Jet(a.d.value)).d
-        return Jet(_dual_chain(f, [(a.d, _reciprocal(2.0 * f))]))
+        return Jet(jet_chain(f, [(a.d, _reciprocal(2.0 * f))]))
     d, f = a.d, np.empty_like(a.d)
     f[0] = np.sqrt(d[0])
     for n in range(1, a.order + 1):
@@ -504,7 +504,7 @@ def atan2(y, x):
         parts = [(y.d, u)] if isinstance(y.d, Dual) else []
         if isinstance(x.d, Dual):
             parts.append((x.d, -v))
-        return Jet(_dual_chain(angle, parts))
+        return Jet(jet_chain(angle, parts))
     value = _atan2_value(y.value, x.value)
     if K == 0:
         return Jet(value[None])
@@ -596,11 +596,6 @@ def _value(x):
     return x.value if isinstance(x, Dual) else x
 
 
-def _batch(x: Dual):
-    """A jet Dual's tangents (D, K+1, ...) as a batch of jets (K+1, D, ...) (a view)."""
-    return np.swapaxes(x.tangents, 0, 1)
-
-
 def _jet_product(da, db, K):
     """The jet of the matrix product of jets da (Ka+1, ..., n, m), db (Kb+1, ..., m, k), orders 0..K (terms
     beyond an operand's order 0)."""
@@ -617,45 +612,10 @@ def _dual_product(da, db, K):
     av, bv = _value(da), _value(db)
     parts = []
     if isinstance(da, Dual):
-        parts.append((np.swapaxes(_jet_product(_batch(da), bv[:, None], K), 0, 1), da.lo))
+        parts.append((np.swapaxes(_jet_product(jet_batch(da), bv[:, None], K), 0, 1), da.lo))
     if isinstance(db, Dual):
-        parts.append((np.swapaxes(_jet_product(av[:, None], _batch(db), K), 0, 1), db.lo))
+        parts.append((np.swapaxes(_jet_product(av[:, None], jet_batch(db), K), 0, 1), db.lo))
     return gather(_jet_product(av, bv, K), parts)
-
-
-_PAIRS = {}
-
-
-def _pairs(K):
-    """(k, n - k, W) over the pairs 0 <= k <= n <= K: W (K+1, pairs) C(n, k) where the pair is of order n."""
-    found = _PAIRS.get(K)
-    if found is None:
-        pairs = [(n, k) for n in range(K + 1) for k in range(n + 1)]
-        w = np.zeros((K + 1, len(pairs)))
-        for i, (n, k) in enumerate(pairs):
-            w[n, i] = _B[n, k]
-        found = _PAIRS[K] = (np.array([k for n, k in pairs]), np.array([n - k for n, k in pairs]), w)
-    return found
-
-
-def _gathered_leibniz(da, db, K):
-    """:func:`_leibniz`'s elementwise product of real jets in a few numpy calls: every term's product at once
-    (da[k] * db[n - k] over the pairs k <= n <= K), weighted and summed per order n by one matrix product (the
-    dual path's arrays are small: numpy's per-term calls cost more than the arithmetic)."""
-    ka, kb, w = _pairs(K)
-    terms = da[ka] * db[kb]
-    return np.dot(w, terms.reshape(terms.shape[0], -1)).reshape((K + 1,) + terms.shape[1:])
-
-
-def _dual_leibniz(da, db, K):
-    """:func:`_leibniz`'s elementwise product of jets of which one or both are Duals."""
-    av, bv = _value(da), _value(db)
-    parts = []
-    if isinstance(da, Dual):
-        parts.append((np.swapaxes(_gathered_leibniz(_batch(da), bv[:K + 1, None], K), 0, 1), da.lo))
-    if isinstance(db, Dual):
-        parts.append((np.swapaxes(_gathered_leibniz(av[:K + 1, None], _batch(db), K), 0, 1), db.lo))
-    return gather(_gathered_leibniz(av, bv, K), parts)
 
 
 def _reciprocal(db):
@@ -663,22 +623,6 @@ def _reciprocal(db):
     one = np.zeros(db.shape)
     one[0] = 1.0
     return _divide(one, db, db.shape[0] - 1)
-
-
-def _dual_chain(value, parts):
-    """The Dual jet of ``value`` (K+1, ...) (a real jet) whose tangents are the sum of the jet products of the
-    Duals' tangents by real jets: ``parts`` [(Dual jet (orders >= K+1, ...), real jet (K+1, ...))]."""
-    K = value.shape[0] - 1
-    nd = value.ndim
-    return gather(value, [(np.swapaxes(_gathered_leibniz(_batch(_dpad(x, nd))[:K + 1],
-                                                         _pad(m, nd - 1)[:K + 1, None], K), 0, 1), x.lo)
-                          for x, m in parts])
-
-
-def _dpad(x: Dual, ndim):
-    """A Dual jet with unit axes after its order axis, for ``ndim`` dims with it."""
-    extra = ndim - x.ndim
-    return x.reshape(x.shape[:1] + (1,) * extra + x.shape[1:]) if extra > 0 else x
 
 
 def _dual_jet_solve(dA, kA, dB, K):
@@ -694,9 +638,9 @@ def _dual_jet_solve(dA, kA, dB, K):
             db = np.concatenate([db, np.zeros(db.shape[:1] + (K + 1 - db.shape[1],) + db.shape[2:])], axis=1)
         parts.append((db, dB.lo))
     if isinstance(dA, Dual):
-        parts.append((-np.swapaxes(_jet_product(_batch(dA), x[:, None], K), 0, 1), dA.lo))
+        parts.append((-np.swapaxes(_jet_product(jet_batch(dA), x[:, None], K), 0, 1), dA.lo))
     rhs = gather(x, parts)
-    t = _jet_solve(inv[None], av[:K + 1, None] if kA is not None else None, _batch(rhs), K)
+    t = _jet_solve(inv[None], av[:K + 1, None] if kA is not None else None, jet_batch(rhs), K)
     return Dual(x, np.swapaxes(t, 0, 1), rhs.lo)
 
 
