@@ -136,34 +136,33 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
         (rows (N, R), names (R,) of the constraint each row belongs to, details (R,) e.g. "rotor 3").
     """
     lim = Limits.from_robot(robot)
+    cols, names, details = [], [], []
     if workspace is None:
         workspace = _workspace(robot, motion[0], crossing_sign)
-    names, details = list(workspace), [""] * len(workspace)
-    # per drone i: roll_i (negative, positive), per rotor m the low and high speed rows, thrust_low_i; built
-    # for all drones at once (N, n_d, rows per drone), the same elementwise operations as row by row
-    roll = inputs.roll
-    blocks = [np.stack([lim.roll + roll, lim.roll - roll], axis=-1)]
-    if scaled:
-        w = inputs.rotor_speed_squared / lim.speed**2
-        speed = np.stack([w, 1.0 - w], axis=-1)
-    else:
-        w = inputs.rotor_speed
-        speed = np.stack([w, lim.speed - w], axis=-1)
-    blocks.append(speed.reshape(speed.shape[:2] + (-1,)))
-    if min_thrust is not None:
-        margin = inputs.thrust - min_thrust
-        margin = margin / (robot.drone_mass * robot.planar("point").gravity) if scaled else margin
-        blocks.append(margin[..., None])
-    for i in range(1, robot.n_drones + 1):
-        names += [f"roll_{i}"] * 2 + [f"rotor_speed_low_{i}", f"rotor_speed_high_{i}"] * 4
-        details += ["negative", "positive"] + [f"rotor {m}" for m in range(1, 5) for _ in range(2)]
-        names += [f"thrust_low_{i}"] if min_thrust is not None else []
-        details += [""] if min_thrust is not None else []
-    drones = np.concatenate(blocks, axis=-1)
-    drones = drones.reshape(drones.shape[:1] + (-1,))
-    if not workspace:
-        return drones, names, details
-    return np.concatenate([np.stack(list(workspace.values()), axis=-1), drones], axis=-1), names, details
+    for name, value in workspace.items():
+        cols.append(value)
+        names.append(name)
+        details.append("")
+    for i in range(robot.n_drones):
+        roll = inputs.roll[:, i]
+        cols += [lim.roll + roll, lim.roll - roll]
+        names += [f"roll_{i + 1}"] * 2
+        details += ["negative", "positive"]
+        for m in range(4):
+            if scaled:
+                w2 = inputs.rotor_speed_squared[:, i, m] / lim.speed**2
+                cols += [w2, 1.0 - w2]
+            else:
+                w = inputs.rotor_speed[:, i, m]
+                cols += [w, lim.speed - w]
+            names += [f"rotor_speed_low_{i + 1}", f"rotor_speed_high_{i + 1}"]
+            details += [f"rotor {m + 1}"] * 2
+        if min_thrust is not None:
+            margin = inputs.thrust[:, i] - min_thrust
+            cols.append(margin / (robot.drone_mass * robot.planar("point").gravity) if scaled else margin)
+            names.append(f"thrust_low_{i + 1}")
+            details.append("")
+    return np.stack(cols, axis=-1), names, details
 
 
 def _chain_basis(sensitivities, basis_by_node) -> np.ndarray:
