@@ -51,7 +51,7 @@ from planners.sensitivities import by_complex_step, by_dual_numbers
 
 COMPLEX_STEP = 1e-30
 #: (directions, nodes) from which :attr:`MotionProblem.derivatives` "auto" takes dual numbers.
-DUAL_FROM = (20, 80)
+DUAL_FROM = (20, 60)
 POWER_SMOOTHING = 1e-2  # [W]
 POWER_CURVATURE_FLOOR = 1e-2  # [W]
 # The optimiser asks every (scaled) margin to be at least this on its grid, so that what happens
@@ -378,10 +378,10 @@ class MotionProblem:
     #: How :meth:`_node_derivatives` differentiates: "dual" (forward-mode dual numbers, :mod:`fpr.model.dual`:
     #: the value once, the directions as real tangents), "complex" (the complex step, the reference) or
     #: "auto": dual numbers from :data:`DUAL_FROM` (directions, nodes) on, the complex step below. The dual
-    #: pass costs less per node and more per evaluation (its Python calls: about 2.2 ms against 1 ms):
-    #: measured on the FPR (20 directions) it is faster from about 70 nodes on (the square's one-step NLP, 136
-    #: nodes: 6.8 against 8.1 ms; a travel of 34 nodes: 3.4 against 2.7 ms); on the prototype (10 directions)
-    #: from about 480.
+    #: pass costs less per node and somewhat more per evaluation: measured on the FPR (20 directions) it is
+    #: faster at 68 nodes, not yet at 34 (the square's one-step NLP, 136 nodes: 6.2 against 8.4 ms; its
+    #: step 1, 68 nodes: 4.0 against 4.5 ms; a travel of 34 nodes: 2.9 against 2.8 ms); on the prototype (10
+    #: directions) at par from about 240.
     derivatives = "auto"
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,

@@ -21,8 +21,11 @@ Example:
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+_ALL = slice(None)
 
 class Dual:
     """A real array ``value`` (shape S) with its derivatives along the directions ``lo .. lo + n - 1`` of D,
@@ -82,6 +85,9 @@ class Dual:
         return f"Dual(shape={self.shape}, directions={self.lo}..{self.hi - 1})"
 
     def __getitem__(self, key):
+        if self.bands is None:  # (the frequent case, first)
+            return Dual(self.value[key], self.tangents[(_ALL,) + key if type(key) is tuple else (_ALL, key)],
+                        self.lo)
         key = key if isinstance(key, tuple) else (key,)
         if self.bands is not None and key and isinstance(key[0], (int, np.integer, slice)):
             rows = range(len(self.bands))[key[0]]
@@ -123,7 +129,11 @@ class Dual:
         if axis is None:
             axis = tuple(range(self.ndim))
         taxis = tuple(_tax(a) for a in axis) if isinstance(axis, tuple) else _tax(axis)
-        tangents = self.tangents.sum(axis=taxis, keepdims=keepdims)
+        t = self.tangents
+        if not keepdims and t.ndim > 1 and taxis in (-1, t.ndim - 1) and t.shape[-1] <= 8:
+            tangents = t @ np.ones(t.shape[-1])  # (numpy's reductions over a short last axis are slow)
+        else:
+            tangents = t.sum(axis=taxis, keepdims=keepdims)
         return Dual(self.value.sum(axis=axis, keepdims=keepdims), tangents, self.lo)
 
     def swapaxes(self, a, b):
@@ -439,9 +449,23 @@ def _lifted(items):
 
 
 def _concatenate(items, axis=0, out=None, **kwargs):
-    items = _lifted(list(items))
-    return Dual(np.concatenate([x.value for x in items], axis=axis),
-                np.concatenate([x.tangents for x in items], axis=_tax(axis)), items[0].lo)
+    items = list(items)
+    lo, hi = span(*items)
+    value = np.concatenate([_val(x) for x in items], axis=axis)
+    if all(isinstance(x, Dual) and x.lo == lo and x.tangents.shape[0] == hi - lo for x in items):
+        return Dual(value, np.concatenate([x.tangents for x in items], axis=_tax(axis)), lo)
+    # each item's tangents into its part of one zero array (no zero tangents of its own)
+    tangents = np.zeros((hi - lo,) + value.shape)
+    index = [slice(None)] * value.ndim
+    start = 0
+    axis = axis % value.ndim
+    for x in items:
+        size = np.shape(_val(x))[axis]
+        if isinstance(x, Dual) and x.tangents.shape[0]:
+            index[axis] = slice(start, start + size)
+            tangents[(slice(x.lo - lo, x.hi - lo),) + tuple(index)] = x.tangents
+        start += size
+    return Dual(value, tangents, lo)
 
 
 def _stack(items, axis=0, out=None, **kwargs):
@@ -564,4 +588,60 @@ def zeros(shape, *like) -> np.ndarray | Dual:
     return np.zeros(shape, np.result_type(*like, float))
 
 
-__all__ = ["Dual", "empty", "gather", "lift", "span", "trimmed", "zeros"]
+# --- jets of Duals (fpr.model.jets: the value a real jet (K+1, ...), the tangents (n, K+1, ...)) ---------
+_PAIRS = {}
+
+
+def _pairs(K):
+    """(k, n - k, W) over the pairs 0 <= k <= n <= K: W (K+1, pairs) C(n, k) where the pair is of order n."""
+    found = _PAIRS.get(K)
+    if found is None:
+        pairs = [(n, k) for n in range(K + 1) for k in range(n + 1)]
+        w = np.zeros((K + 1, len(pairs)))
+        for i, (n, k) in enumerate(pairs):
+            w[n, i] = math.comb(n, k)
+        found = _PAIRS[K] = (np.array([k for n, k in pairs]), np.array([n - k for n, k in pairs]), w)
+    return found
+
+
+def jet_products(da, db, K):
+    """The elementwise product of real jets da, db (orders >= K+1, ...), orders 0..K, in a few numpy calls:
+    every term's product at once (da[k] * db[n - k] over the pairs k <= n <= K), weighted and summed per order
+    n by one matrix product (the dual path's arrays are small: numpy's per-term calls cost more than the
+    arithmetic)."""
+    ka, kb, w = _pairs(K)
+    terms = da[ka] * db[kb]
+    return np.dot(w, terms.reshape(terms.shape[0], -1)).reshape((K + 1,) + terms.shape[1:])
+
+
+def jet_batch(x: Dual):
+    """A jet Dual's tangents (n, K+1, ...) as a batch of jets (K+1, n, ...) (a view)."""
+    return np.swapaxes(x.tangents, 0, 1)
+
+
+def jet_leibniz(da, db, K):
+    """The elementwise product of jets (orders >= K+1, ...) of which one or both are Duals, orders 0..K."""
+    av, bv = _val(da), _val(db)
+    parts = []
+    if isinstance(da, Dual):
+        parts.append((np.swapaxes(jet_products(jet_batch(da), bv[:K + 1, None], K), 0, 1), da.lo))
+    if isinstance(db, Dual):
+        parts.append((np.swapaxes(jet_products(av[:K + 1, None], jet_batch(db), K), 0, 1), db.lo))
+    return gather(jet_products(av, bv, K), parts)
+
+
+def jet_chain(value, parts):
+    """The Dual jet of ``value`` (K+1, ...) (a real jet) whose tangents are the sum of the jet products of the
+    Duals' tangents by real jets: ``parts`` [(Dual jet (orders >= K+1, ...), real jet (K+1, ...))] (a
+    function's jet and its derivative's: d sin a = cos a da)."""
+    K, nd = value.shape[0] - 1, value.ndim
+    out = []
+    for x, m in parts:
+        x = x.reshape(x.shape[:1] + (1,) * (nd - x.ndim) + x.shape[1:]) if nd > x.ndim else x
+        m = m.reshape(m.shape[:1] + (1,) * (nd - m.ndim) + m.shape[1:]) if nd > m.ndim else m
+        out.append((np.swapaxes(jet_products(jet_batch(x)[:K + 1], m[:K + 1, None], K), 0, 1), x.lo))
+    return gather(value, out)
+
+
+__all__ = ["Dual", "empty", "gather", "jet_batch", "jet_chain", "jet_leibniz", "jet_products", "lift", "span",
+           "trimmed", "zeros"]

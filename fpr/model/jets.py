@@ -22,7 +22,7 @@ from fpr.model.compiled import choose, load_extension
 from fpr.model.complex_step import complex_step_copies  # noqa: F401 (jets.complex_step_copies, as before)
 from fpr.model.complex_step import shared_real as _shared_real
 from fpr.model.complex_step import shared_sin_cos as _shared_sin_cos
-from fpr.model.dual import Dual, empty, gather
+from fpr.model.dual import Dual, empty, gather, jet_batch, jet_chain, jet_leibniz
 from fpr.model.errors import ModelArgumentError
 
 _MAXK = 16
@@ -237,7 +237,7 @@ def _leibniz(da, db, K, op=np.multiply):
     if op is not np.multiply:
         return np.stack([_wsum(_B[n, :n + 1], op(da[:n + 1], db[n::-1])) for n in range(K + 1)])
     if isinstance(da, Dual) or isinstance(db, Dual):
-        return _dual_leibniz(da, db, K)
+        return jet_leibniz(da, db, K)
     out = np.empty((K + 1,) + np.broadcast_shapes(da.shape[1:], db.shape[1:]), np.result_type(da, db))
     tmp = np.empty(out.shape[1:], out.dtype) if K else None
     for n in range(K + 1):
@@ -403,6 +403,13 @@ class Jet:
 
 def _divide(da, db, K):
     """Quotient recurrence q^(n) = (a^(n) - sum_{k=1..n} C(n,k) b^(k) q^(n-k)) / b."""
+    if isinstance(da, Dual) or isinstance(db, Dual):  # dq = (da - q db) / b (jet products with real jets)
+        bv = _value(db)
+        q, r = _divide(_value(da), bv, K), _reciprocal(bv[:K + 1])
+        parts = [(da, r)] if isinstance(da, Dual) else []
+        if isinstance(db, Dual):
+            parts.append((db, -_leibniz(q, r, K)))
+        return jet_chain(q, parts)
     q = empty((K + 1,) + np.broadcast_shapes(da.shape[1:], db.shape[1:]), da, db)
     for n in range(K + 1):
         acc = da[n] - _wsum(_B[n, 1:n + 1], db[1:n + 1] * q[n - 1::-1]) if n else da[0]
@@ -421,6 +428,9 @@ def sincos(a):
     s^(n) = sum_{k<n} C(n-1,k) c^(k) a^(n-k),  c^(n) = -sum_{k<n} C(n-1,k) s^(k) a^(n-k)."""
     if not isinstance(a, Jet):
         return sin_cos_value(np.asarray(a)) if np.iscomplexobj(a) else (np.sin(a), np.cos(a))
+    if isinstance(a.d, Dual):  # the real jets, and d sin = cos da, d cos = -sin da (jet products)
+        s, c = sincos(Jet(a.d.value))
+        return Jet(jet_chain(s.d, [(a.d, c.d)])), Jet(jet_chain(c.d, [(a.d, -s.d)]))
     d, s, c = a.d, np.empty_like(a.d), np.empty_like(a.d)
     s[0], c[0] = sin_cos_value(d[0])
     for n in range(1, a.order + 1):
@@ -463,6 +473,9 @@ def sqrt(a):
     """Square root: f^(n) = (a^(n) - sum_{k=1}^{n-1} C(n,k) f^(k) f^(n-k)) / (2 f); needs a > 0."""
     if not isinstance(a, Jet):
         return np.sqrt(a)
+    if isinstance(a.d, Dual):  # d sqrt(a) = da / (2 sqrt(a)) (jet product with the real jet 1 / (2 f))
+        f = sqrt(Jet(a.d.value)).d
+        return Jet(jet_chain(f, [(a.d, _reciprocal(2.0 * f))]))
     d, f = a.d, np.empty_like(a.d)
     f[0] = np.sqrt(d[0])
     for n in range(1, a.order + 1):
@@ -482,6 +495,16 @@ def atan2(y, x):
         return _atan2_value(y, x)
     K = min(j.order for j in (y, x) if isinstance(j, Jet))
     y, x = _lift(y, K).truncate(K), _lift(x, K).truncate(K)
+    if K and (isinstance(y.d, Dual) or isinstance(x.d, Dual)):  # d angle = (x dy - y dx) / (x^2 + y^2)
+        yv, xv = _value(y.d), _value(x.d)
+        r = _reciprocal(_leibniz(xv, xv, K) + _leibniz(yv, yv, K))
+        u, v = _leibniz(xv, r, K), _leibniz(yv, r, K)  # the angle's derivative: u y' - v x'
+        angle = np.concatenate([_atan2_value(yv[0], xv[0])[None],
+                                _leibniz(u, yv[1:], K - 1) - _leibniz(v, xv[1:], K - 1)])
+        parts = [(y.d, u)] if isinstance(y.d, Dual) else []
+        if isinstance(x.d, Dual):
+            parts.append((x.d, -v))
+        return Jet(jet_chain(angle, parts))
     value = _atan2_value(y.value, x.value)
     if K == 0:
         return Jet(value[None])
@@ -573,11 +596,6 @@ def _value(x):
     return x.value if isinstance(x, Dual) else x
 
 
-def _batch(x: Dual):
-    """A jet Dual's tangents (D, K+1, ...) as a batch of jets (K+1, D, ...) (a view)."""
-    return np.swapaxes(x.tangents, 0, 1)
-
-
 def _jet_product(da, db, K):
     """The jet of the matrix product of jets da (Ka+1, ..., n, m), db (Kb+1, ..., m, k), orders 0..K (terms
     beyond an operand's order 0)."""
@@ -594,21 +612,17 @@ def _dual_product(da, db, K):
     av, bv = _value(da), _value(db)
     parts = []
     if isinstance(da, Dual):
-        parts.append((np.swapaxes(_jet_product(_batch(da), bv[:, None], K), 0, 1), da.lo))
+        parts.append((np.swapaxes(_jet_product(jet_batch(da), bv[:, None], K), 0, 1), da.lo))
     if isinstance(db, Dual):
-        parts.append((np.swapaxes(_jet_product(av[:, None], _batch(db), K), 0, 1), db.lo))
+        parts.append((np.swapaxes(_jet_product(av[:, None], jet_batch(db), K), 0, 1), db.lo))
     return gather(_jet_product(av, bv, K), parts)
 
 
-def _dual_leibniz(da, db, K):
-    """:func:`_leibniz`'s elementwise product of jets of which one or both are Duals."""
-    av, bv = _value(da), _value(db)
-    parts = []
-    if isinstance(da, Dual):
-        parts.append((np.swapaxes(_leibniz(_batch(da), bv[:K + 1, None], K), 0, 1), da.lo))
-    if isinstance(db, Dual):
-        parts.append((np.swapaxes(_leibniz(av[:K + 1, None], _batch(db), K), 0, 1), db.lo))
-    return gather(_leibniz(av, bv, K), parts)
+def _reciprocal(db):
+    """The real jet of 1 / b from b's ``db`` (K+1, ...)."""
+    one = np.zeros(db.shape)
+    one[0] = 1.0
+    return _divide(one, db, db.shape[0] - 1)
 
 
 def _dual_jet_solve(dA, kA, dB, K):
@@ -624,9 +638,9 @@ def _dual_jet_solve(dA, kA, dB, K):
             db = np.concatenate([db, np.zeros(db.shape[:1] + (K + 1 - db.shape[1],) + db.shape[2:])], axis=1)
         parts.append((db, dB.lo))
     if isinstance(dA, Dual):
-        parts.append((-np.swapaxes(_jet_product(_batch(dA), x[:, None], K), 0, 1), dA.lo))
+        parts.append((-np.swapaxes(_jet_product(jet_batch(dA), x[:, None], K), 0, 1), dA.lo))
     rhs = gather(x, parts)
-    t = _jet_solve(inv[None], av[:K + 1, None] if kA is not None else None, _batch(rhs), K)
+    t = _jet_solve(inv[None], av[:K + 1, None] if kA is not None else None, jet_batch(rhs), K)
     return Dual(x, np.swapaxes(t, 0, 1), rhs.lo)
 
 

@@ -59,10 +59,11 @@ class _Linear:
             out = (d.view(float) @ self.k_pairs).view(complex)
         else:
             out = d @ self.k
+        value = out.value if isinstance(out, Dual) else out  # (a constant added: the tangents as they are)
         if isinstance(x, Jet):
-            out[0] += self.k0
+            value[0] += self.k0
             return Jet(out)
-        out += self.k0
+        value += self.k0
         return out
 
 
