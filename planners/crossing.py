@@ -291,9 +291,9 @@ def optimise_crossing(robot, start, end, duration: float, n_via=(2, 2), *, alpha
     line, xi_s''', xi_s''''), the via points and both travel times. As for the other methods
     (:func:`planners.solving.solve_refining`), a result that holds on the optimisation grid (to
     :data:`REFINE_BELOW`) but not on the dense grid is solved again on a grid twice as fine (at most
-    ``max_refinements`` times). A start
-    that ends infeasible is followed by the next of ``starts``; the first feasible result is
-    returned, else the one with the least (relative) violation. Every solve is in ``stages``.
+    ``max_refinements`` times). A start that ends infeasible is followed by the next of ``starts``; the
+    first feasible result is returned, else the one with the least (relative) violation. Every solve is in
+    ``stages``.
     """
     start_time = time.perf_counter()
     n_via = tuple(int(n) for n in n_via)

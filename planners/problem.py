@@ -13,14 +13,14 @@ everything the planner looks at is a function of the motion at that instant only
 
 The per-sample quantities come from :func:`fpr.model.inverse_dynamics.inverse_dynamics` (planning model:
 point-mass drones for the thrusts and rolls, the exact rigid drones for the torques). Their
-partial derivatives with respect to the 5 n entries of the local motion jet are computed by
-*complex-step differentiation*: every function on that path is analytic and written to carry a
-complex perturbation, so Im(f(X + i h e)) / h is the derivative to machine precision (no
-subtractive cancellation, h = 1e-30). The chain rule through W then gives exact gradients
-with respect to P. The 5 n perturbed copies of all samples go through one batched call; their real parts
-are equal, so the batched 4 x 4 inverses and solves and the sines and cosines are computed once per node and
-carried to the copies (:func:`fpr.model.jets.complex_step_copies`). Problems of one plan can share their
-nodes' derivatives (:class:`NodeDerivatives`: the 2-step polish starts where its travels ended).
+partial derivatives with respect to the 5 n entries of the local motion jet are exact, by forward-mode dual
+numbers (:mod:`fpr.model.dual`, the value once and 5 n real tangents) or by *complex-step differentiation*
+(the reference, :attr:`MotionProblem.derivatives`): every function on that path is analytic and carries a
+complex perturbation, so Im(f(X + i h e)) / h is the derivative to machine precision (h = 1e-30). The chain
+rule through W then gives exact gradients with respect to P. The complex step's 5 n copies of all samples
+go through one batched call; their real parts are equal, so the 4 x 4 inverses and solves and the sines and
+cosines are computed once per node (:func:`fpr.model.jets.complex_step_copies`). Problems of one plan can
+share their nodes' derivatives (:class:`NodeDerivatives`: the 2-step polish starts where its travels ended).
 
 Integrals use Simpson's rule on K equally spaced nodes per segment (the optimisation grid).
 Constraints are enforced on the same nodes, aggregated as the minimum over short windows
@@ -595,7 +595,7 @@ class MotionProblem:
                           jac_sparse, p_sparse)
 
     def _node_derivatives(self, points, motion):
-        """Every node's quantities and their sensitivities to its motion jet by complex step (module docstring):
+        """Every node's quantities and their sensitivities to its motion jet (:attr:`derivatives`, module docstring):
         (raw (N, Q), rows (N, R), d raw / d X (N, Q, r, j), d rows / d X (N, R, r, j)), X[r, i, j] the r-th
         derivative of coordinate j at node i; from ``node_store`` when it holds every segment."""
         store = self.node_store if (type(self) is MotionProblem and self.crossing_sign is None

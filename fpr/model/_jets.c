@@ -20,11 +20,11 @@
  * product and solve return None; all raise ValueError on arrays that do not match (the Python side checks
  * first: jets.py).
  */
-#include <math.h>
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
+#include <math.h>
 
 #define MAX_K 16      /* derivative orders, as jets._MAXK */
 #define MAX_DIM 32    /* n, m, k of a matrix */

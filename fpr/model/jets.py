@@ -539,9 +539,7 @@ def matmul(a, b):
     nd = max(da.ndim, db.ndim) - 1
     da, db = _pad(da, nd), _pad(db, nd)
     if ka is None or kb is None:  # a constant: the Leibniz sum of its single (order 0) term
-        d = _compiled_product(da[:1], db, kb) if ka is None else _compiled_product(da, db[:1], ka)
-        if d is None:
-            d = np.matmul(da[0], db) if ka is None else np.matmul(da, db[0])
+        d = _jet_product(da[:1], db, kb) if ka is None else _jet_product(da, db[:1], ka)
     else:
         d = _leibniz(da, db, min(ka, kb), np.matmul)
     d = d[..., 0] if vb else d
