@@ -378,10 +378,8 @@ class MotionProblem:
     #: How :meth:`_node_derivatives` differentiates: "dual" (forward-mode dual numbers, :mod:`fpr.model.dual`:
     #: the value once, the directions as real tangents), "complex" (the complex step, the reference) or
     #: "auto": dual numbers from :data:`DUAL_FROM` (directions, nodes) on, the complex step below. The dual
-    #: pass costs less per node and somewhat more per evaluation: measured on the FPR (20 directions) it is
-    #: faster at 68 nodes, not yet at 34 (the square's one-step NLP, 136 nodes: 6.2 against 8.4 ms; its
-    #: step 1, 68 nodes: 4.0 against 4.5 ms; a travel of 34 nodes: 2.9 against 2.8 ms); on the prototype (10
-    #: directions) at par from about 240.
+    #: pass costs less per node and more per evaluation (measured on the FPR: faster at 68 nodes, not yet at
+    #: 34; on the prototype, 10 directions, at par from about 240 nodes; README, "The inverse dynamics' cost").
     derivatives = "auto"
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,
@@ -621,6 +619,9 @@ class MotionProblem:
         """Whether :meth:`_node_derivatives` takes dual numbers (:attr:`derivatives`) at this motion: not for
         a complex motion (a caller's own complex step through the problem) nor a singularity crossing (the
         prototype's 5th and 6th derivatives: complex step, the reference)."""
+        if self.derivatives not in ("auto", "dual", "complex"):
+            raise PlannerArgumentError("derivatives", self.derivatives, f"derivatives = {self.derivatives!r}: "
+                                       "give 'auto', 'dual' or 'complex'")
         if self.derivatives == "complex" or self.crossing_sign is not None or np.iscomplexobj(motion):
             return False
         directions, nodes = DUAL_FROM

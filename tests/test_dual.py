@@ -192,6 +192,16 @@ def test_auto_takes_dual_numbers_on_large_problems_only(square):
     assert small._dual_derivatives(motion[small]) and not small._dual_derivatives(motion[small] + 0j)
 
 
+def test_an_unknown_derivatives_setting_is_refused(square):
+    """A misspelt setting ("Dual") is not taken for "auto": one error naming the field and the choices."""
+    from fpr.model.errors import PlannerArgumentError
+
+    problem = one_step_problem(square, Grid())
+    problem.derivatives = "Dual"
+    with pytest.raises(PlannerArgumentError, match="derivatives = 'Dual': give 'auto', 'dual' or 'complex'"):
+        problem.evaluate(problem.x_of(problem.points), True)
+
+
 def test_trimmed_drops_the_directions_a_dual_does_not_depend_on():
     from fpr.model.dual import trimmed
 
