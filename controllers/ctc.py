@@ -19,7 +19,7 @@ leaves (mass or rotor-constant mismatch, a small wind).
 **A known external force** (a wind the controller is told of, or estimates: ``Reference.task_force`` on
 the robot kind's task point, ``Reference.drone_forces`` on the drones) is fed forward in the outer loop:
 the chain's equation of motion with it is M_s s'' + c_s = J_h^T F + Q_ext, Q_ext = J_p(s)^T f_p +
-sum_i J_h,i(s)^T f_i (the same generalised force as the planner's :mod:`planners.disturbance`, J_p the
+sum_i J_h,i(s)^T f_i (the same generalised force as the planner's :mod:`planners.problem.disturbance`, J_p the
 task point's Jacobian, J_h,i drone i's joint's: the planning model puts the drone's mass there), so the
 drones must give J_h^T F = M_s u_p + c_s - Q_ext. Without it the feedback alone holds the wind: the
 integral is clamped (``integral_limit``), so a strong wind is balanced by the proportional term, the

@@ -4,18 +4,18 @@ The methods (:data:`planners.methods.METHODS`, one module each under ``planners/
 
 * ``"none"``: stop at every way point, the reference motion that normalises the objective (3.26);
 * ``"two-step"``, ``"one-step"``: the optimisations of the thesis' chapter 3 (seed 3.2.4);
-* ``"crossing"``: the prototype crossing its Type-2 singularity (seed ch. 4, :mod:`planners.crossing`).
+* ``"crossing"``: the prototype crossing its Type-2 singularity (seed ch. 4, :mod:`planners.crossing.solve`).
 
-Every optimisation solves its NLP with the exact gradients of :class:`planners.problem.MotionProblem`
-(:func:`planners.solving.solve_stage`), then checks the result on a dense grid
-(:func:`planners.report.evaluate_motion`), which is what :attr:`PlanResult.feasible` and the constraint
+Every optimisation solves its NLP with the exact gradients of :class:`planners.problem.motion.MotionProblem`
+(:func:`planners.optimisation.solving.solve_stage`), then checks the result on a dense grid
+(:func:`planners.problem.report.evaluate_motion`), which is what :attr:`PlanResult.feasible` and the constraint
 report are based on; a result that holds on the optimisation grid but not on the dense grid is solved
-again on a finer grid (:func:`planners.solving.solve_refining`).
+again on a finer grid (:func:`planners.optimisation.solving.solve_refining`).
 
 The result types are defined beside the code that makes them and are importable from here too:
 :class:`~planners.result.PlanResult`, :class:`~planners.result.SampledPlan`,
-:class:`~planners.report.MotionReport`, :class:`~planners.report.ConstraintReport`,
-:func:`~planners.report.evaluate_motion`, :class:`~planners.solving.StageReport`.
+:class:`~planners.problem.report.MotionReport`, :class:`~planners.problem.report.ConstraintReport`,
+:func:`~planners.problem.report.evaluate_motion`, :class:`~planners.optimisation.solving.StageReport`.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ import time
 
 from planners.methods import METHODS, method_for
 from planners.options import PlanOptions
-from planners.report import FEASIBILITY_TOLERANCE, ConstraintReport, MotionReport, evaluate_motion
+from planners.problem.report import FEASIBILITY_TOLERANCE, ConstraintReport, MotionReport, evaluate_motion
 from planners.result import PlanResult, SampledPlan
-from planners.solving import StageReport
+from planners.optimisation.solving import StageReport
 
 
 def plan(mission, method: str = "two-step", *, robot=None, progress=None, samples_per_segment: int = 17,
@@ -37,7 +37,7 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
     """Plan ``mission`` with ``method`` (see the module docstring).
 
     Args:
-        mission: a :class:`planners.mission.Mission`.
+        mission: a :class:`planners.missions.mission.Mission`.
         method: a name of :data:`planners.methods.METHODS` (``"two-step"``, ``"one-step"``, ``"none"``,
             ``"crossing"``). A singularity-crossing mission is planned by ``"crossing"`` whatever
             optimisation is asked, and ``"none"`` gives its first guess

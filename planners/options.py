@@ -13,8 +13,8 @@ from typing import Protocol
 
 from fpr.model.errors import PlannerArgumentError
 from planners.result import PlanResult
-from planners.solving import Grid
-from planners.sqp import SqpOptions
+from planners.optimisation.solving import Grid
+from planners.optimisation.sqp import SqpOptions
 
 #: The starts of the one-step method (``PlanOptions.one_step_start``).
 ONE_STEP_STARTS = ("way-points", "stop")
@@ -32,23 +32,23 @@ class PlanOptions:
         windows_per_segment: constraint windows per segment.
         max_iterations: iteration limit per NLP solve.
         tolerance: stop when an iteration improves J (about 1) by less than this.
-        dense_rate: rate of the final check [Hz] (:func:`planners.report.evaluate_motion`).
-        solver: ``"sqp"`` (:mod:`planners.sqp`, trust-region SQP, curvature as ``curvature`` says) or
+        dense_rate: rate of the final check [Hz] (:func:`planners.problem.report.evaluate_motion`).
+        solver: ``"sqp"`` (:mod:`planners.optimisation.sqp`, trust-region SQP, curvature as ``curvature`` says) or
             ``"slsqp"`` (scipy's SLSQP with the same exact gradients, quasi-Newton curvature).
         max_refinements: when a result holds every constraint on the optimisation grid but not on
             the dense grid, solve again on a grid twice as fine, at most this many times
-            (:func:`planners.solving.solve_refining`).
+            (:func:`planners.optimisation.solving.solve_refining`).
         progress: called as ``progress(stage_name, iteration, J, violation)`` after every solver
             iteration, or None.
         stop: the SQP's stopping rule, ``"progress"`` (the merit decrease below ``tolerance``) or
-            ``"kkt"`` (the KKT residual at most ``kkt_tolerance``), see :mod:`planners.sqp`; the KKT
+            ``"kkt"`` (the KKT residual at most ``kkt_tolerance``), see :mod:`planners.optimisation.sqp`; the KKT
             residual is reported either way (``StageReport.kkt``).
         kkt_tolerance: the KKT residual at which the SQP converges with ``stop="kkt"``.
-        curvature: the SQP's Hessian model: ``"smoothed"`` (default, :mod:`planners.curvature`: J_e's |P|
+        curvature: the SQP's Hessian model: ``"smoothed"`` (default, :mod:`planners.optimisation.curvature`: J_e's |P|
             with a wider smoothing), ``"gauss-newton"`` (the earlier default: stops
             about 1 % above the optimum) or ``"composite"`` (J_e's |P| piecewise linear in the QP, a
             damped BFGS correction: converges to the optimum in far fewer iterations, each far slower),
-            see :mod:`planners.sqp`.
+            see :mod:`planners.optimisation.sqp`.
         polish: ``"two-step"`` only: after both steps (when they hold the grid's constraints and the
             1-step NLP is neither step's), solve the 1-step NLP from the 2-step motion and keep it when its
             grid J is lower
@@ -85,13 +85,13 @@ class PlanOptions:
 
     @property
     def solve_arguments(self) -> dict:
-        """Keyword arguments of :func:`planners.solving.solve_stage`."""
+        """Keyword arguments of :func:`planners.optimisation.solving.solve_stage`."""
         return {"progress": self.progress, "max_iterations": self.max_iterations, "tolerance": self.tolerance,
                 "solver": self.solver, "sqp": self.sqp_options}
 
     @property
     def sqp_options(self) -> SqpOptions:
-        """The :class:`~planners.sqp.SqpOptions` of these options."""
+        """The :class:`~planners.optimisation.sqp.SqpOptions` of these options."""
         return SqpOptions(max_iterations=self.max_iterations, tolerance=self.tolerance, stop=self.stop,
                           kkt_tolerance=self.kkt_tolerance, curvature=self.curvature,
                           second_order=self.stop == "kkt" or self.curvature == "composite")

@@ -1,8 +1,8 @@
 """What a planning method returns: :class:`PlanResult`, and its motion sampled for plots and files.
 
 Every method of :data:`planners.methods.METHODS` returns a :class:`PlanResult`: the motion (a
-:class:`~planners.polynomial.PiecewisePolynomial`), its dense-grid :class:`~planners.report.MotionReport`,
-the reference that normalises J (3.26), and the NLP solves (:class:`~planners.solving.StageReport`).
+:class:`~planners.trajectory.polynomial.PiecewisePolynomial`), its dense-grid :class:`~planners.problem.report.MotionReport`,
+the reference that normalises J (3.26), and the NLP solves (:class:`~planners.optimisation.solving.StageReport`).
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
-from planners.polynomial import PiecewisePolynomial
-from planners.report import MotionReport
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.report import MotionReport
 
 #: How tables and figures name a motion by its method; any other method ``m`` is "optimised (m)".
 METHOD_LABELS = {"none": "stop at way points", "crossing": "optimised crossing",
@@ -43,19 +43,19 @@ class PlanResult:
     """An optimised (or reference) motion and everything known about it.
 
     Attributes:
-        mission: the :class:`planners.mission.Mission`.
+        mission: the :class:`planners.missions.mission.Mission`.
         method: the method that planned it (a name of :data:`planners.methods.METHODS`; ``"first guess"``
             for a crossing mission's reference).
         alpha: the weight used.
-        trajectory: the motion, a :class:`~planners.polynomial.PiecewisePolynomial`.
+        trajectory: the motion, a :class:`~planners.trajectory.polynomial.PiecewisePolynomial`.
         is_way: (m+1,) True for way points, False for via points.
-        report: dense-grid :class:`~planners.report.MotionReport` of ``trajectory``.
+        report: dense-grid :class:`~planners.problem.report.MotionReport` of ``trajectory``.
         reference: dense-grid report of the stop-at-every-way-point motion (J_e0, J_phi0).
         stages: the NLP solves, in order.
         wall_time: total planning time [s] (set by :func:`planners.optimize.plan`).
         robot: the robot it was planned for.
         crossing: for a singularity-crossing mission, the
-            :class:`planners.crossing.CrossingOutcome` (``reference`` is then its first guess, the
+            :class:`planners.crossing.solve.CrossingOutcome` (``reference`` is then its first guess, the
             motion the optimisation started from); else None.
     """
 

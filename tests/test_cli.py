@@ -15,7 +15,7 @@ import pytest
 import fpr
 from fpr.cli.plan import csv_columns, main, parser
 from planners.methods import METHODS
-from planners.mission import builtin_mission_text
+from planners.missions.mission import builtin_mission_text
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -20,7 +20,7 @@ import pytest
 from fpr.cli import plan as cli
 from fpr.cli.plan import main
 from fpr.sim.plant import PlantDivergedError
-from planners.mission import builtin_mission_text
+from planners.missions.mission import builtin_mission_text
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ("--method", "none", "--no-plots", "--quiet", "--rate", "20")
@@ -395,7 +395,7 @@ def test_taking_the_wall_times_out_of_plan_json_leaves_the_result_s_stages_their
     """split_timings edits the plan document in place; the stages' times the CLI prints afterwards (and the
     manifest's) must be the solver's, not the stage record's default 0 (the document holds copies)."""
     from fpr.cli.plan_files import split_timings
-    from planners.mission import load_mission
+    from planners.missions.mission import load_mission
     from planners.optimize import plan
 
     result = plan(load_mission("square"), "two-step")

@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from fpr.cli.plan import main  # noqa: E402
-from planners.mission import BUILTIN_MISSIONS  # noqa: E402
+from planners.missions.mission import BUILTIN_MISSIONS  # noqa: E402
 
 TIME_BOUND = 60.0  # [s] per case; a valid case takes about 0.5 s here
 

@@ -12,9 +12,10 @@ from fpr.model.jets import Jet
 from fpr.robots import prototype_singularity as singularity
 from fpr.robots import prototype_thrust
 from fpr.robots.prototype import prototype_workspace_margins
-from planners import crossing, crossing_problem
-from planners.mission import load_mission, mission_from_dict, mission_from_toml
-from planners.polynomial import PiecewisePolynomial
+from planners.crossing import solve as crossing
+from planners.crossing import problem as crossing_problem
+from planners.missions.mission import load_mission, mission_from_dict, mission_from_toml
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 
 @pytest.fixture(scope="module")
@@ -402,7 +403,7 @@ def test_a_solve_that_stalls_next_to_the_feasible_set_is_refined_not_dropped():
     it, or with the default threshold, the loop stops there as before."""
     from types import SimpleNamespace
 
-    from planners.solving import GRID_FEASIBILITY, Grid, solve_refining
+    from planners.optimisation.solving import GRID_FEASIBILITY, Grid, solve_refining
 
     def run(first_violation, **kwargs):
         calls = []

@@ -17,14 +17,14 @@ import sys
 SCRIPT = """
 import json, sys
 padding = [bytearray(n) for n in range(1, len(sys.argv[1]) + 1)]
-from planners.crossing import CROSSING_STARTS
-from planners.mission import load_mission
+from planners.crossing.solve import CROSSING_STARTS
+from planners.missions.mission import load_mission
 from planners.methods import crossing
 from fpr.model import qp
 mission = load_mission("cross-singularity")
 robot = mission.load_robot()
 start, end, duration, n_via = crossing._task(mission, robot)
-from planners.crossing import optimise_crossing
+from planners.crossing.solve import optimise_crossing
 outcome = optimise_crossing(robot, start, end, duration, n_via, alpha=mission.alpha, starts=CROSSING_STARTS[:1],
                             max_refinements=0)
 trajectory = outcome.trajectory

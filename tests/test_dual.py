@@ -11,9 +11,9 @@ from fpr.model.rotors import signed_speeds
 from planners.methods.one_step import one_step_problem
 from planners.methods.two_step import travel_problem
 from planners.methods.way_points import WayPointTask
-from planners.mission import load_mission
-from planners.problem import MotionProblem
-from planners.solving import Grid
+from planners.missions.mission import load_mission
+from planners.problem.motion import MotionProblem
+from planners.optimisation.solving import Grid
 
 H = 1e-30
 
@@ -178,7 +178,7 @@ def test_directions_carried_and_widened():
 def test_auto_takes_dual_numbers_on_large_problems_only(square):
     """"auto" (the default): dual numbers from DUAL_FROM on (where they are faster), complex step below, and
     always for a complex motion (a caller's own complex step) whatever the setting."""
-    from planners.problem import DUAL_FROM
+    from planners.problem.motion import DUAL_FROM
 
     grid = Grid()
     big = one_step_problem(square, grid)
@@ -215,10 +215,10 @@ def test_trimmed_drops_the_directions_a_dual_does_not_depend_on():
 
 def test_disturbed_problem_dual_equals_complex_step():
     """A problem whose inputs are flown in a gust (DisturbedProblem overrides _inputs) takes Duals too."""
-    from planners.disturbance import DisturbedProblem
-    from planners.events import GustEvent
+    from planners.problem.disturbance import DisturbedProblem
+    from planners.missions.events import GustEvent
     from planners.optimize import plan
-    from planners.replan import Replanner, ReplanOptions
+    from planners.replanning.replanner import Replanner, ReplanOptions
 
     mission = load_mission("moving-target")
     replanner = Replanner(plan(mission, "two-step"), ReplanOptions())

@@ -1,11 +1,11 @@
-"""Mission events (planners/events.py): parsing, validation with the field named, the TOML round trip."""
+"""Mission events (planners/missions/events.py): parsing, validation with the field named, the TOML round trip."""
 
 import numpy as np
 import pytest
 
 from fpr.model.errors import MissionError, WorkspaceError
-from planners.events import GustEvent, MoveEvent, gust_force, moved_positions
-from planners.mission import load_mission, mission_from_toml
+from planners.missions.events import GustEvent, MoveEvent, gust_force, moved_positions
+from planners.missions.mission import load_mission, mission_from_toml
 
 S0 = [0.0, 0.0, 3.9269908169872414, 1.5707963267948966]
 

@@ -5,7 +5,7 @@ import pytest
 
 from fpr.model import jets
 from fpr.model.jets import Jet
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 
 
 @pytest.fixture(scope="module", params=["square", "prototype-tour"])

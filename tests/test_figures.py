@@ -17,7 +17,7 @@ from fpr.robots.prototype import prototype_joints
 from fpr.views import figures
 from fpr.views.figures import planning, robot_info, simulation, studies
 from planners.optimize import SampledPlan
-from planners.polynomial import PiecewisePolynomial, stop_points
+from planners.trajectory.polynomial import PiecewisePolynomial, stop_points
 
 RATE = 50.0  # sampling rate of the test plans [Hz]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -537,7 +537,7 @@ def test_simulation_figures_reject_a_log_of_the_other_robot(fpr_case, prototype_
 @pytest.fixture(scope="module")
 def square_stop():
     """The stop-at-way-points PlanResult of the square mission (planning it takes ~0.1 s)."""
-    from planners.mission import load_mission
+    from planners.missions.mission import load_mission
     from planners.optimize import plan
 
     return plan(load_mission("square"), "none")

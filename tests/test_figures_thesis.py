@@ -20,7 +20,7 @@ from fpr.views.figures.simulation import NOISE_LEVEL, _sim_out_of_plane
 from fpr.views.figures.studies import APPENDIX_FIGURES, _value_labels
 from fpr.views.figures.style import LIMIT_LABEL, ROTOR_STYLES
 from fpr.views.thesis import Claim, claims_markdown, fmt
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.optimize import plan
 
 

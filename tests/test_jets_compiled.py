@@ -141,7 +141,7 @@ def test_node_derivatives_of_a_mission_are_numpy_s(reference):
     through every kernel): values and sensitivities equal to round-off."""
     from planners.methods.one_step import one_step_problem
     from planners.methods.way_points import WayPointTask
-    from planners.mission import load_mission
+    from planners.missions.mission import load_mission
     from planners.options import PlanOptions
 
     problem = one_step_problem(WayPointTask.of(load_mission("square"), fpr.load("fpr")), PlanOptions().grid)

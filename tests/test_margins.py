@@ -1,6 +1,6 @@
 """Closed-loop margins (fpr.sim.margins): constructed logs whose margins are known by construction.
 
-A log that follows the plan exactly has the plan's own margins (the dense-grid report of planners.report is
+A log that follows the plan exactly has the plan's own margins (the dense-grid report of planners.problem.report is
 an independent computation of the same constraints); the physical margin is the planning one plus the design
 margin (m_gd, m_ga, m_gr from the robot's parameters); a log pushed below the ground by a known depth at a
 known tick breaks the ground's physical limit by that depth at that time, and the command line then exits 1
@@ -29,7 +29,7 @@ from fpr.sim.margins import (
     simulation_document,
     thrust_floor,
 )
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.optimize import plan
 
 TICK = 0.002  # [s]

@@ -14,8 +14,8 @@ import fpr
 from fpr.model.errors import MissionError, SingularityError, WorkspaceError
 from fpr.robots.fpr import fpr_workspace_margins
 from fpr.robots.prototype import prototype_joints, prototype_workspace_margins
-from planners import mission as mission_module
-from planners.mission import (
+from planners.missions import mission as mission_module
+from planners.missions.mission import (
     BUILTIN_MISSIONS,
     Mission,
     builtin_mission_text,
@@ -54,7 +54,7 @@ def proto(robots, way_points, space="task", arm="down"):
 
 # ---------------------------------------------------------------------------------------- built-ins
 def test_builtin_names_are_the_files():
-    folder = Path(mission_module.__file__).parent / "missions"
+    folder = Path(mission_module.__file__).parent
     assert sorted(p.stem for p in folder.glob("*.toml")) == sorted(BUILTIN_MISSIONS)
 
 

@@ -5,9 +5,9 @@ import numpy as np
 from planners.methods.one_step import one_step_problem
 from planners.methods.two_step import travel_problem
 from planners.methods.way_points import WayPointTask
-from planners.mission import load_mission
-from planners.problem import MotionProblem, NodeDerivatives
-from planners.solving import Grid
+from planners.missions.mission import load_mission
+from planners.problem.motion import MotionProblem, NodeDerivatives
+from planners.optimisation.solving import Grid
 
 
 def test_the_whole_problem_at_the_travels_points_takes_their_derivatives_and_they_are_its_own():

@@ -3,7 +3,7 @@
 The two-step method's polish is a 1-step solve from the 2-step motion, kept only when its grid J is
 lower: the polished plan can be no worse on the grid than the thesis' two-step plan, and like every
 plan it is checked on the dense grid. The KKT residual of every stage is what
-:func:`planners.sqp.kkt_residual` gives for the stage's last point: finite, >= 0, in ``plan.json``.
+:func:`planners.optimisation.sqp.kkt_residual` gives for the stage's last point: finite, >= 0, in ``plan.json``.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import pytest
 from planners.methods import METHODS
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.options import PlanOptions
-from planners.solving import Grid
+from planners.optimisation.solving import Grid
 
 
 @pytest.fixture(scope="module")

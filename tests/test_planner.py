@@ -20,11 +20,11 @@ from fpr.robots.fpr import fpr_workspace_margins
 from fpr.robots.prototype import prototype_workspace_margins
 from planners.methods import METHODS, method_for
 from planners.methods import crossing as crossing_method
-from planners.mission import load_mission, mission_from_dict
+from planners.missions.mission import load_mission, mission_from_dict
 from planners.optimize import evaluate_motion, plan
 from planners.options import PlanOptions
-from planners.polynomial import PiecewisePolynomial, stop_points, with_via_points
-from planners.problem import POWER_SMOOTHING, MotionProblem, constraint_kind, constraint_rows
+from planners.trajectory.polynomial import PiecewisePolynomial, stop_points, with_via_points
+from planners.problem.motion import POWER_SMOOTHING, MotionProblem, constraint_kind, constraint_rows
 
 P0, Q0 = 5 * np.pi / 4, np.pi / 2  # phi, q21 of s0: both drones above the end-effector
 S0 = np.array([0.0, 0.0, P0, Q0])

@@ -1,13 +1,13 @@
-"""The replanner (planners/replan.py): C4 splices, the deadline fallback, infeasible plans kept out."""
+"""The replanner (planners/replanning/replanner.py): C4 splices, the deadline fallback, infeasible plans kept out."""
 
 import numpy as np
 import pytest
 
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.optimize import plan
-from planners.polynomial import PiecewisePolynomial
-from planners.replan import Replanner, ReplanOptions, jet, splice
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.replanning.replanner import Replanner, ReplanOptions, jet, splice
 
 S0 = [0.0, 0.0, 3.9269908169872414, 1.5707963267948966]
 

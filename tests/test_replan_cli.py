@@ -84,8 +84,8 @@ def test_replanned_run_follows_the_moved_way_point(runs):
 def test_closed_loop_margins_are_measured_against_the_executed_plan(runs):
     """simulation.json's planned margins are the executed plan's (rebuilt from replans.json), not the offline's."""
     from fpr.robots import load
-    from planners.polynomial import PiecewisePolynomial
-    from planners.report import evaluate_motion
+    from planners.trajectory.polynomial import PiecewisePolynomial
+    from planners.problem.report import evaluate_motion
 
     (_, out), (_, plain) = runs["replan"], runs["plain"]
     executed = json.loads((out / "replans.json").read_text())["executed_plan"]

@@ -1,5 +1,5 @@
-"""A known external force in the planning model (planners/disturbance.py), and the replanner's own SQP
-(planners/replan_solver.py)."""
+"""A known external force in the planning model (planners/problem/disturbance.py), and the replanner's own SQP
+(planners/replanning/solver.py)."""
 
 import numpy as np
 import pytest
@@ -7,14 +7,14 @@ import pytest
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.model.jets import Jet
 from fpr.robots import load
-from planners.disturbance import DisturbedProblem, dense_check, generalized_gust, gust_profile
-from planners.events import GustEvent
-from planners.mission import builtin_mission_text, load_mission
+from planners.problem.disturbance import DisturbedProblem, dense_check, generalized_gust, gust_profile
+from planners.missions.events import GustEvent
+from planners.missions.mission import builtin_mission_text, load_mission
 from planners.optimize import plan
-from planners.polynomial import PiecewisePolynomial
-from planners.replan import Replanner, ReplanOptions
-from planners.replan_solver import qp_step, solve_warm
-from planners.report import evaluate_motion
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.replanning.replanner import Replanner, ReplanOptions
+from planners.replanning.solver import qp_step, solve_warm
+from planners.problem.report import evaluate_motion
 
 
 @pytest.fixture(scope="module")
@@ -162,7 +162,7 @@ def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_
     """
     from fpr.sim.closed_loop import SimulationSettings
     from fpr.sim.replanning import InFlight, TriggerSettings
-    from planners.disturbance import evaluate_in_gusts
+    from planners.problem.disturbance import evaluate_in_gusts
 
     mission = load_mission("gust")
     [gust] = mission.events
@@ -209,7 +209,7 @@ def test_the_wind_estimate_reads_a_steady_held_error_as_the_force_on_the_end_eff
 
     from controllers.ctc import ControllerSettings
     from fpr.sim.wind_estimate import WindEstimator
-    from planners.disturbance import task_jacobian
+    from planners.problem.disturbance import task_jacobian
 
     robot = load("fpr")
     settings = dataclasses.replace(ControllerSettings(), chain_integral=0.0)
@@ -306,7 +306,7 @@ def test_an_estimated_wind_that_drops_is_forgotten_and_kept_as_the_record_of_wha
 
 def test_the_replanner_learns_a_gust_listed_twice_twice():
     """Two identical gust events push twice as hard in the plant; the replanner plans against both."""
-    from planners.mission import mission_from_toml
+    from planners.missions.mission import mission_from_toml
 
     text = builtin_mission_text("gust")
     start = text.index("\n[[events]]")
@@ -322,7 +322,7 @@ def test_the_replanner_learns_a_gust_listed_twice_twice():
 
 def test_a_step_qp_that_quadprog_cannot_solve_stops_the_replan_without_using_it(monkeypatch, moving):
     """quadprog's "constraints are inconsistent" ends the SQP with a message; the replan is not used."""
-    import planners.replan_solver as rs
+    import planners.replanning.solver as rs
 
     def fail(*args, **kwargs):
         raise ValueError("constraints are inconsistent, no solution")

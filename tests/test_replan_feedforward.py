@@ -1,7 +1,7 @@
 """The wind feed-forward of the controller (controllers/ctc.py) and its wiring (fpr/sim/replanning.py).
 
 Physics checks against independent computations: the planner's inverse dynamics with a known external
-force (planners/disturbance.py's Q_ext = J_p^T F, its J_p by complex step of the kind's task point, where
+force (planners/problem/disturbance.py's Q_ext = J_p^T F, its J_p by complex step of the kind's task point, where
 the controller takes Pinocchio's frame Jacobian), and the static force balance of the whole robot.
 """
 
@@ -13,7 +13,7 @@ import pytest
 import fpr
 from controllers.ctc import CascadedController, Reference
 from fpr.model.inverse_dynamics import inverse_dynamics
-from planners.disturbance import task_jacobian
+from planners.problem.disturbance import task_jacobian
 
 POSES = {"fpr": np.array([0.0, 0.0, 5 * np.pi / 4, np.pi / 2]), "prototype": np.array([-0.84, 1.68])}
 GRAVITY = 9.81
@@ -145,7 +145,7 @@ def _short_flight(robot):
     and robot are all the simulation reads)."""
     from types import SimpleNamespace
 
-    from planners.polynomial import PiecewisePolynomial
+    from planners.trajectory.polynomial import PiecewisePolynomial
 
     points = np.zeros((2, 5, 4))
     points[0, 0] = POSES["fpr"]
@@ -171,8 +171,8 @@ def test_without_a_known_force_the_closed_loop_is_the_same_to_the_bit():
     import dataclasses
 
     from fpr.sim.replanning import TriggerSettings
-    from planners.events import GustEvent
-    from planners.mission import load_mission
+    from planners.missions.events import GustEvent
+    from planners.missions.mission import load_mission
 
     robot = fpr.load("fpr")
     result = _short_flight(robot)
@@ -198,7 +198,7 @@ def test_the_wind_estimate_adds_what_the_controller_feeds_forward():
     is the fed force; held off by what a force G needs, it is the fed force plus G."""
     from controllers.ctc import ControllerSettings
     from fpr.sim.wind_estimate import WindEstimator
-    from planners.disturbance import task_jacobian
+    from planners.problem.disturbance import task_jacobian
 
     robot = fpr.load("fpr")
     settings = ControllerSettings(chain_integral=0.0)
@@ -223,9 +223,9 @@ def test_an_infeasible_wind_replan_is_solved_again_without_the_headroom_after_it
 
     from fpr.sim.closed_loop import SimulationSettings
     from fpr.sim.replanning import InFlight, TriggerSettings
-    from planners.disturbance import CONTROL_HEADROOM
-    from planners.mission import load_mission
-    from planners.replan import ReplanOptions
+    from planners.problem.disturbance import CONTROL_HEADROOM
+    from planners.missions.mission import load_mission
+    from planners.replanning.replanner import ReplanOptions
 
     calls = []
 
@@ -248,7 +248,7 @@ def test_an_infeasible_wind_replan_is_solved_again_without_the_headroom_after_it
 
 @pytest.mark.parametrize("value", [-1.0, float("nan"), "225", True])
 def test_wind_headroom_refuses_absurd_values(value):
-    from planners.replan import ReplanOptions
+    from planners.replanning.replanner import ReplanOptions
 
     with pytest.raises(Exception, match="wind_headroom"):
         ReplanOptions(wind_headroom=value)
@@ -274,7 +274,7 @@ def test_an_estimate_is_fed_to_the_controller_as_a_ramp_from_its_take_up():
 
     from fpr.sim.closed_loop import SimulationSettings
     from fpr.sim.replanning import InFlight, TriggerSettings
-    from planners.mission import load_mission
+    from planners.missions.mission import load_mission
 
     robot = fpr.load("fpr")
     fake = SimpleNamespace(robot=robot, moves={}, gusts=[], assumed=None)

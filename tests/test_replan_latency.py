@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from fpr.model.dual import Dual
-from planners.disturbance import dense_check
-from planners.events import GustEvent
-from planners.mission import load_mission
+from planners.problem.disturbance import dense_check
+from planners.missions.events import GustEvent
+from planners.missions.mission import load_mission
 from planners.optimize import plan
-from planners.polynomial import PiecewisePolynomial
-from planners.replan import Replanner, ReplanOptions
-from planners.replan_check import evaluate_and_check
-from planners.replan_solver import solve_warm
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.replanning.replanner import Replanner, ReplanOptions
+from planners.replanning.check import evaluate_and_check
+from planners.replanning.solver import solve_warm
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +137,7 @@ def test_the_fused_check_leaves_a_callers_own_hook_in_place(moving):
 
 
 def test_the_bench_times_the_copies_a_derivative_evaluation_sends(moving, monkeypatch):
-    """fpr.bench's phase "its inverse dynamics" rebuilds the perturbed copies planners/problem.py sends."""
+    """fpr.bench's phase "its inverse dynamics" rebuilds the perturbed copies planners/problem/motion.py sends."""
     import fpr.cli.bench.replan_phases as phases
 
     sent = []
@@ -150,7 +150,7 @@ def test_the_bench_times_the_copies_a_derivative_evaluation_sends(moving, monkey
     original = problem._inputs
     problem._inputs = lambda motion: seen.append(motion) or original(motion)
     problem.evaluate(x0, True)
-    [copies] = sent  # the complex-step copies or the Dual motion (planners.problem.MotionProblem.derivatives)
+    [copies] = sent  # the complex-step copies or the Dual motion (planners.problem.motion.MotionProblem.derivatives)
     if isinstance(copies, Dual):
         np.testing.assert_array_equal(copies.value, seen[0].value)
         np.testing.assert_array_equal(copies.tangents, seen[0].tangents)

@@ -6,7 +6,7 @@ import pytest
 
 from fpr.robots import load
 from fpr.sim.replanning import ForcedPlant
-from planners.events import GustEvent
+from planners.missions.events import GustEvent
 
 
 @pytest.mark.parametrize("body", ["end_effector", "drone_1", "drone_2"])
@@ -66,9 +66,9 @@ def test_the_gust_mission_saturates_without_replanning_and_not_with_it():
     from fpr.sim.closed_loop import SimulationSettings, simulate
     from fpr.sim.margins import broken, closed_loop_margins, eaten
     from fpr.sim.replanning import InFlight, TriggerSettings
-    from planners.mission import load_mission
+    from planners.missions.mission import load_mission
     from planners.optimize import plan
-    from planners.replan import Replanner, ReplanOptions
+    from planners.replanning.replanner import Replanner, ReplanOptions
 
     mission = load_mission("gust")
     result = plan(mission, "two-step")

@@ -27,7 +27,7 @@ from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.robots.base import RobotKind
 from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.sim.plant import Plant, hover_configuration, hover_speeds
-from planners.mission import Mission
+from planners.missions.mission import Mission
 from planners.optimize import plan
 
 SEED = 5

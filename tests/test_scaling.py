@@ -9,19 +9,19 @@ import numpy as np
 import pytest
 from scipy import sparse
 
-import planners.active_set as active_set
-import planners.curvature as curvature
+import planners.optimisation.active_set as active_set
+import planners.optimisation.curvature as curvature
 from fpr.cli.bench.cli import parser
 from fpr.cli.bench.scaling import EXPONENT_GOAL, _targets, growth_exponent, scaling_table
 from fpr.model.qp import proxsuite_module
-from planners.active_set import banded_solver, bandwidth, solve_step_qp
-from planners.curvature import smoothed_hessian
+from planners.optimisation.active_set import banded_solver, bandwidth, solve_step_qp
+from planners.optimisation.curvature import smoothed_hessian
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
-from planners.missions_gen import LOOP_RADIUS, loop_mission, loop_way_points
-from planners.report import evaluate_motion
-from planners.solving import Grid
-from planners.sqp import _proxqp, _qp_step, kkt_residual
+from fpr.bench.missions import LOOP_RADIUS, loop_mission, loop_way_points
+from planners.problem.report import evaluate_motion
+from planners.optimisation.solving import Grid
+from planners.optimisation.sqp import _proxqp, _qp_step, kkt_residual
 
 proxqp = proxsuite_module().proxqp
 

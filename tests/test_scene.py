@@ -29,9 +29,9 @@ from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from fpr.sim.closed_loop import SimulationLog
 from fpr.views import scene as scene_module
 from fpr.views.scene import THRUST_SCALE, SceneView, view, write_scene
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.optimize import plan
-from planners.polynomial import PiecewisePolynomial
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 FPS = 30.0
 

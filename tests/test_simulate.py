@@ -23,7 +23,7 @@ import pytest
 from fpr.model.errors import ModelArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from fpr.sim.closed_loop import SimulationLog, SimulationSettings, simulate
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.optimize import plan
 
 

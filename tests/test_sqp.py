@@ -1,4 +1,4 @@
-"""The SQP (planners.sqp) on small NLPs whose optimum, multipliers and KKT residual are known by hand.
+"""The SQP (planners.optimisation.sqp) on small NLPs whose optimum, multipliers and KKT residual are known by hand.
 
 Every problem is min J(x) s.t. c(x) >= 0 in two variables; the expected solutions come from the KKT
 conditions solved on paper (stated at each problem). Tolerances: the SQP stops at a KKT residual of
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from fpr.model.errors import PlannerArgumentError
-from planners.problem import POWER_SMOOTHING, Evaluation
-from planners.sqp import SqpOptions, damped_bfgs, kkt_residual, solve_sqp
+from planners.problem.motion import POWER_SMOOTHING, Evaluation
+from planners.optimisation.sqp import SqpOptions, damped_bfgs, kkt_residual, solve_sqp
 
 TIGHT = SqpOptions(stop="kkt", kkt_tolerance=1e-7, max_iterations=200)
 
@@ -119,7 +119,7 @@ def test_an_infeasible_start_is_brought_to_the_feasible_optimum():
 
 class PowerNlp(SmallNlp):
     """J = sum_k |P_k|_eps + 0.1 |x|^2 with P = (x1 - 1, x2 + 1/2) (the planner's smoothed |.|, the
-    ``power`` fields of :class:`planners.problem.Evaluation`), s.t. x1 <= 1/2."""
+    ``power`` fields of :class:`planners.problem.motion.Evaluation`), s.t. x1 <= 1/2."""
 
     def __init__(self):
         self.n_x = 2

@@ -1,7 +1,7 @@
 """The pieces behind the planner's default at the optimum (issue 17, second round).
 
-The active-set step QP (planners.active_set), the "smoothed" curvature (planners.curvature), the
-workspace rows between grid nodes (planners.problem), the one-step method's start, and the default plans
+The active-set step QP (planners.optimisation.active_set), the "smoothed" curvature (planners.optimisation.curvature), the
+workspace rows between grid nodes (planners.problem.motion), the one-step method's start, and the default plans
 of the square against the best J known.
 """
 
@@ -12,16 +12,16 @@ import pytest
 from scipy.optimize import minimize
 
 from fpr.model.errors import PlannerArgumentError
-from planners.active_set import solve_step_qp
-from planners.curvature import power_curvature, smoothed_hessian
+from planners.optimisation.active_set import solve_step_qp
+from planners.optimisation.curvature import power_curvature, smoothed_hessian
 from planners.methods import METHODS
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.options import PlanOptions
-from planners.polynomial import PiecewisePolynomial
-from planners.problem import POWER_CURVATURE_FLOOR, POWER_SMOOTHING
-from planners.solving import Grid
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.motion import POWER_CURVATURE_FLOOR, POWER_SMOOTHING
+from planners.optimisation.solving import Grid
 
 SQUARE_BEST_J = 0.5037  # issue 17: peer solvers, feasible on the 500 Hz grid
 

@@ -8,7 +8,7 @@ from fpr.model import jets
 from fpr.model.inverse_dynamics import _roll_rows, roll_torques
 from fpr.model.jets import Jet
 from fpr.model.stacked import _Linear
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 
 RTOL = 1e-13
 

@@ -1,4 +1,4 @@
-"""The thesis' studies (planners.studies, fpr.cli.studies): reference ratios, the trends the maths guarantees, tables, files.
+"""The thesis' studies (fpr.studies.thesis, fpr.cli.studies): reference ratios, the trends the maths guarantees, tables, files.
 
 Small settings (n_vp in {0, 1}, alpha in {0, 1}) on the single-travel ``study`` mission.
 
@@ -28,8 +28,8 @@ from fpr.cli import studies
 from fpr.cli.studies import format_table, format_value, write_study_figures
 from fpr.model.errors import PlannerArgumentError, UnknownMethodError
 from planners.methods import METHODS
-from planners.mission import load_mission
-from planners.studies import (
+from planners.missions.mission import load_mission
+from fpr.studies.thesis import (
     AlphaStudy,
     Case,
     ViaPointStudy,
@@ -57,7 +57,7 @@ def via(robot):
 
 @pytest.fixture(scope="module")
 def alpha(robot):
-    # alpha = 0 is not feasible on the dense grid (see planners/studies.py): no grid refinement here,
+    # alpha = 0 is not feasible on the dense grid (see fpr/studies/thesis.py): no grid refinement here,
     # the trends below concern the optimum of each grid problem
     return alpha_study(alphas=(1.0, 0.0), robot=robot, max_refinements=0)
 

@@ -12,7 +12,7 @@ import pytest
 
 from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.views.figures import simulated_indices
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.optimize import plan
 
 

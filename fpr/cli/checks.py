@@ -150,7 +150,7 @@ def check_work(args, mission, robot, optimised: bool) -> None:
 
     Args:
         args: the parsed options.
-        mission: the :class:`planners.mission.Mission` as planned (overrides included).
+        mission: the :class:`planners.missions.mission.Mission` as planned (overrides included).
         robot: its robot.
         optimised: a planning method that optimises via points (not ``none``).
 

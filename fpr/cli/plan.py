@@ -60,7 +60,7 @@ from fpr.views.figures import margins_figure, plan_figures, simulation_figures
 from fpr.views.figures.all_figures import CROSSING_FIGURES
 from fpr.views.scene import view
 from planners.methods import METHODS, method_for
-from planners.mission import BUILTIN_MISSIONS, load_mission
+from planners.missions.mission import BUILTIN_MISSIONS, load_mission
 from planners.optimize import PlanResult, plan
 
 __all__ = ["comparison_table", "csv_columns", "main", "parser", "plan_document", "write_csv"]

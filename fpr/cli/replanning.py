@@ -24,9 +24,9 @@ import numpy as np
 from fpr.cli.checks import CommandLineError
 from fpr.sim.replanning import InFlight, TriggerSettings
 from fpr.views.figures.replanning import write_replanning_figure
-from planners.disturbance import evaluate_in_gusts
-from planners.events import moved_positions
-from planners.replan import TIMINGS, Replanner, ReplanOptions
+from planners.problem.disturbance import evaluate_in_gusts
+from planners.missions.events import moved_positions
+from planners.replanning.replanner import TIMINGS, Replanner, ReplanOptions
 
 
 def add_arguments(group) -> None:
@@ -121,7 +121,7 @@ def executed(final, hooks):
     """The executed plan as a :class:`planners.result.PlanResult`, or None when nothing was replanned.
 
     The executed plan is the plan in force at each instant, checked on the dense grid (in the gusts the
-    replanner was told of: :func:`planners.disturbance.evaluate_in_gusts`).
+    replanner was told of: :func:`planners.problem.disturbance.evaluate_in_gusts`).
     """
     if hooks is None or hooks.replanner is None or hooks.replanner.trajectory is final.trajectory:
         return None

@@ -1,8 +1,8 @@
 """The thesis' planning studies from the command line: ``python -m fpr.studies [--out DIR] [--quick]``.
 
-The studies themselves (:func:`~planners.studies.via_point_study`, :func:`~planners.studies.alpha_study`,
-:func:`~planners.studies.method_comparison`: seed 3.2.5, 3.2.6 and appendix) are in
-:mod:`planners.studies`, and importable from here too. This module formats them: it runs the three
+The studies themselves (:func:`~fpr.studies.thesis.via_point_study`, :func:`~fpr.studies.thesis.alpha_study`,
+:func:`~fpr.studies.thesis.method_comparison`: seed 3.2.5, 3.2.6 and appendix) are in
+:mod:`fpr.studies.thesis`, and importable from here too. This module formats them: it runs the three
 studies (``--quick``: fewer cases), prints one table per study (:func:`format_table`), writes
 ``via_points.png`` (Fig. 3.7-3.8), ``alpha.png`` (Fig. 3.9-3.10), the figures of each optimised square
 motion against the stop-at-way-points one (Fig. 3.11-3.18, one folder per method;
@@ -28,8 +28,8 @@ from fpr.cli.output import OutputFolder, inputs_hash, manifest, write_manifest
 from fpr.cli.plan_files import split_timings
 from fpr.views.figures import alpha_study_figure, plan_figures, via_point_study_figure
 from fpr.views.figures.studies import APPENDIX_FIGURES
-from planners.mission import load_mission
-from planners.studies import (
+from planners.missions.mission import load_mission
+from fpr.studies.thesis import (
     ALPHAS,
     COMPARED_METHODS,
     COMPARISON_MISSION,

@@ -14,7 +14,7 @@ _COPIES = contextvars.ContextVar("complex_step_copies", default=0)
 def complex_step_copies(count: int):
     """Within the block, complex batches whose leading axis is ``count`` copies of one batch (copy-major)
     with equal real parts (complex-step copies: each copy's perturbation is in its imaginary part only, e.g.
-    :meth:`planners.problem.MotionProblem.evaluate`'s) have their matrices inverted once, not once per copy
+    :meth:`planners.problem.motion.MotionProblem.evaluate`'s) have their matrices inverted once, not once per copy
     (:func:`fpr.model.jets.inverse`, :func:`fpr.model.jets.solve_matrices`). A batch whose real parts differ
     is inverted as it is."""
     token = _COPIES.set(int(count))

@@ -7,7 +7,7 @@ array functions on a Dual propagate the tangents exactly (first order), through 
 not allocate arrays itself (:func:`empty`, :func:`fpr.model.jets.inexact` take Duals).
 
 This is what the planner's node sensitivities take instead of the complex step
-(:meth:`planners.problem.MotionProblem._node_derivatives`): the value is computed once, not once per
+(:meth:`planners.problem.motion.MotionProblem._node_derivatives`): the value is computed once, not once per
 direction, and the tangents in real arithmetic. A Dual carries the tangents of the directions it depends on
 only (``lo`` .. ``hi`` - 1: the planner's quantities depend on a part of the motion's derivative orders).
 Comparisons compare values; ``.real`` is the value (code that compares the real parts of complex-step values

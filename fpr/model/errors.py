@@ -160,7 +160,7 @@ class ArgumentError(FprError, ValueError):
 
 
 class TrajectoryError(ArgumentError):
-    """A wrong argument of a polynomial trajectory (:mod:`planners.polynomial`): points, durations,
+    """A wrong argument of a polynomial trajectory (:mod:`planners.trajectory.polynomial`): points, durations,
     query times, derivative orders, via-point counts (``argument``: ``points``, ``durations``, ``t``,
     ``order``...; ``value``, ``reason`` as in :class:`ArgumentError`)."""
 

@@ -225,7 +225,7 @@ def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
     Args:
         robot: the :class:`~fpr.model.robot.Robot`.
         motion: s and its time derivatives 0..4, shape (5, N, n_s) (or (5, n_s) for one sample),
-            e.g. from :meth:`planners.polynomial.PiecewisePolynomial.evaluate`. Rows 5 and 6 (the
+            e.g. from :meth:`planners.trajectory.polynomial.PiecewisePolynomial.evaluate`. Rows 5 and 6 (the
             5th and 6th derivatives) are used, and needed, where the robot kind says so
             (``kind.needs_high_derivatives``: the prototype near its Type-2 singularity, where the
             link tension is a limit).
@@ -249,7 +249,7 @@ def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
     hinges = point.hinge_positions_jet(s.truncate(2))  # (N, n_d, 2)
     chain_force = force.value - robot.drone_masses[:, None] * (hinges.d[2] - np.array([0.0, -point.gravity]))
 
-    # Duals (planners/sensitivities.py): the rolls' and the thrusts' lower orders depend on fewer directions
+    # Duals (planners/problem/sensitivities.py): the rolls' and the thrusts' lower orders depend on fewer directions
     q = np.concatenate([m[0], dual.trimmed(roll.value)], axis=-1)
     v = np.concatenate([m[1], dual.trimmed(roll.d[1])], axis=-1)
     tau_x = roll_torques(robot, q, v, dual.trimmed(thrust.value), roll.d[2], external)

@@ -59,7 +59,7 @@ class RobotKind:
             are the planning coordinates (then ``planning_pose`` copies task-space way points).
         assembly_modes: the assembly modes a mission may name (``arm``), e.g. ("down", "up"); empty
             when the mission's ``arm`` is ignored.
-        crosses_singularity: whether :mod:`planners.crossing` can plan a crossing of the robot's
+        crosses_singularity: whether :mod:`planners.crossing.solve` can plan a crossing of the robot's
             Type-2 singularity (then ``crossing_margins`` is given).
         singular_margins: prefixes of the names of the workspace margins that keep the last planning
             coordinate away from the Type-2 singularity (e.g. ("q21",)): violated, they raise a
@@ -185,7 +185,7 @@ class RobotKind:
     def workspace_margins(self, s, mode: str | None = None) -> dict[str, np.ndarray]:
         """Signed margins of the geometric constraints (>= 0 where satisfied), each of shape (...) (required).
 
-        Names start with the constraint kind (:data:`planners.problem.CONSTRAINT_KINDS`: ``ground_1``,
+        Names start with the constraint kind (:data:`planners.problem.motion.CONSTRAINT_KINDS`: ``ground_1``,
         ``q21_low``...). Units: m or rad.
 
         Args:

@@ -49,7 +49,7 @@ class Flight:
         robot_name: the registered robot (``robot.name``).
         robot_parameters: the robot's parameters the plan was made with (xacro overrides).
         chain: the planning coordinates (``robot.layout.chain``), for the tracking columns.
-        trajectory: the planned motion (:class:`planners.polynomial.PiecewisePolynomial`).
+        trajectory: the planned motion (:class:`planners.trajectory.polynomial.PiecewisePolynomial`).
         hold: time simulated after the plan's end [s].
         tracking_tolerance: see :class:`fpr.robustness.spec.Campaign`.
     """

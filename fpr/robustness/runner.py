@@ -24,14 +24,14 @@ from fpr.model.errors import CampaignError
 from fpr.robustness.outcomes import Flight, error_row, fly
 from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign
 from fpr.robustness.store import RunStore
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.optimize import plan
 
 logger = logging.getLogger(__name__)
 
 
 def mission_of(campaign: Campaign):
-    """The campaign's mission, with its fixed robot parameters (:class:`planners.mission.Mission`)."""
+    """The campaign's mission, with its fixed robot parameters (:class:`planners.missions.mission.Mission`)."""
     mission = load_mission(campaign.mission)
     if campaign.robot_parameters:
         mission = mission.replace(robot_parameters={**mission.robot_parameters, **campaign.robot_parameters})

@@ -1,7 +1,7 @@
 """Closed-loop limits reported like planned ones: every planned constraint's worst margin in simulation.
 
-A plan is checked on a dense grid (:func:`planners.report.evaluate_motion`): every constraint of
-:data:`planners.problem.CONSTRAINT_KINDS` has a signed margin (>= 0 holds) against its **planning limit**,
+A plan is checked on a dense grid (:func:`planners.problem.report.evaluate_motion`): every constraint of
+:data:`planners.problem.motion.CONSTRAINT_KINDS` has a signed margin (>= 0 holds) against its **planning limit**,
 which includes the design margins of the thesis (m_gd above the ground, m_ga from a singularity and from a
 rolled-over drone, m_gr below w_max, seed 3.27-3.48) and, for a singularity crossing, the thrust floor.
 The closed loop (:func:`fpr.sim.closed_loop.simulate`) does not follow the plan exactly, so the same
@@ -23,7 +23,7 @@ the time its chain crosses the singularity (once), not the planned time, so that
 milliseconds late is not counted as a motion on the wrong side.
 
 The margins are in the constraint's natural unit (m, rad, rad/s, N); a margin counts as broken below
-``-FEASIBILITY_TOLERANCE[unit]`` (:mod:`planners.report`), the plan's own tolerance.
+``-FEASIBILITY_TOLERANCE[unit]`` (:mod:`planners.problem.report`), the plan's own tolerance.
 """
 
 from __future__ import annotations
@@ -36,8 +36,8 @@ import numpy as np
 
 from fpr.model.errors import ModelArgumentError
 from fpr.model.parameters import Margins
-from planners.problem import CONSTRAINT_KINDS, constraint_kind, constraint_rows
-from planners.report import FEASIBILITY_TOLERANCE
+from planners.problem.motion import CONSTRAINT_KINDS, constraint_kind, constraint_rows
+from planners.problem.report import FEASIBILITY_TOLERANCE
 
 #: Entries of :meth:`fpr.sim.closed_loop.SimulationLog.summary` that depend on the wall clock.
 WALL_CLOCK = ("wall_time_s", "real_time_factor")
@@ -49,7 +49,7 @@ class ClosedLoopMargin:
 
     Attributes:
         name: the constraint's name in the plan (``ground_2``, ``q1_high``, ``thrust_low_1``...).
-        kind: its kind (key of :data:`planners.problem.CONSTRAINT_KINDS`).
+        kind: its kind (key of :data:`planners.problem.motion.CONSTRAINT_KINDS`).
         unit: unit of the margins (m, rad, rad/s, N).
         planned: the plan's own worst margin against the planning limit (dense grid) [unit].
         margin_planning: the closed loop's worst margin against the planning limit [unit].

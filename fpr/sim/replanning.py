@@ -3,12 +3,12 @@
 :func:`fpr.sim.closed_loop.simulate` takes an ``in_flight`` object (:class:`InFlight`) with two hooks:
 
 * ``make_plant(...)``: the plant, a :class:`ForcedPlant` that adds the mission's gusts
-  (:mod:`planners.events`) to the rotors' and the wind's forces: on the end-effector (the robot kind's
+  (:mod:`planners.missions.events`) to the rotors' and the wind's forces: on the end-effector (the robot kind's
   task point) through J^T F of that point, or on a drone's centre of mass like the wind;
 * ``after_tick(t, q, v, reference)`` after every inner-loop tick: returns a new plan in force (a
-  :class:`~planners.polynomial.PiecewisePolynomial` that equals the old one up to the splice time) or None.
+  :class:`~planners.trajectory.polynomial.PiecewisePolynomial` that equals the old one up to the splice time) or None.
 
-Triggers (with a :class:`planners.replan.Replanner`, ``--replan``):
+Triggers (with a :class:`planners.replanning.replanner.Replanner`, ``--replan``):
 
 * **event**: a ``move`` event at its time: the way point moves and the rest of the motion is re-optimised
   from the plan in force's own state at the splice (C4 with it: the planned rotor speeds do not jump);
@@ -24,7 +24,7 @@ Triggers (with a :class:`planners.replan.Replanner`, ``--replan``):
   the gust's start (a forecast, a wind sensor); with ``estimate_wind`` instead (opt-in) a steady force on
   the task point is estimated from the tracking error (:class:`fpr.sim.wind_estimate.WindEstimator`)
   and, once it has held ``estimate_delay``, the replanner plans against it. Either way it replans then
-  with the force in the NLP's inverse dynamics (:mod:`planners.disturbance`), and again ``wind_lead``
+  with the force in the NLP's inverse dynamics (:mod:`planners.problem.disturbance`), and again ``wind_lead``
   before each way point while the wind blows: the rest of the travel and the next one are re-optimised
   against the wind together, so the splice lies in the part already planned in the wind. (Replanning
   once the way point was passed spliced into the offline plan's next travel, planned without the wind:
@@ -49,7 +49,7 @@ before (``feed_forward=False``).
 before a way point, on a new estimate) is given ``wind_deadline`` (default 0.3 s) when it is longer than the
 replanner's deadline: it does not react to a surprise (the gust rises over its ``rise``, the way point is
 ``wind_lead`` ahead), and the 50 ms default made every wind replan on ``gust`` late (84 ms modelled).
-A wind replan that comes out infeasible (the rotors' headroom of :mod:`planners.disturbance` out of the warm
+A wind replan that comes out infeasible (the rotors' headroom of :mod:`planners.problem.disturbance` out of the warm
 SQP's reach) is solved again at once without the headroom, triggered when the first solve ends (the two
 latencies add up): better a plan in the wind at the thesis' w >= 0 than the plan in force, made without it.
 
@@ -69,9 +69,9 @@ import pinocchio as pin
 from fpr.model.errors import ModelArgumentError
 from fpr.sim.plant import Plant
 from fpr.sim.wind_estimate import WindEstimator
-from planners.disturbance import inputs_in_gusts
-from planners.events import END_EFFECTOR, GustEvent, gust_force, moved_positions
-from planners.replan import Replanner, jet
+from planners.problem.disturbance import inputs_in_gusts
+from planners.missions.events import END_EFFECTOR, GustEvent, gust_force, moved_positions
+from planners.replanning.replanner import Replanner, jet
 
 
 class ForcedPlant(Plant):
@@ -151,7 +151,7 @@ class TriggerSettings:
         rate: fixed replanning rate [Hz], or None.
         after_gust: replan (from the plan in force's state) when a gust event ends.
         known_gusts: the replanner is told a gust's force when it starts (a forecast, a wind sensor) and
-            replans at once against it (:mod:`planners.disturbance`), and again ``wind_lead`` before each
+            replans at once against it (:mod:`planners.problem.disturbance`), and again ``wind_lead`` before each
             way point while it blows, through the travel after it (the default). Only gusts with a
             ``rise``: a step blast is not planned against (the plan cannot follow a step; on the previous
             0.4 s step gust it made the saturation worse, 382 ticks instead of 2).
@@ -216,7 +216,7 @@ class InFlight:
 
     Args:
         mission: the mission (its events).
-        replanner: a :class:`planners.replan.Replanner`, or None (gusts only; move events ignored).
+        replanner: a :class:`planners.replanning.replanner.Replanner`, or None (gusts only; move events ignored).
         triggers: :class:`TriggerSettings`.
         controller: the controller's :class:`controllers.ctc.ControllerSettings` (kept as ``controller`` for
             what a trigger may need of it; the triggers of today do not use it).
@@ -226,7 +226,7 @@ class InFlight:
 
     Attributes:
         moves: {event index: the moved way point in planning coordinates} of the move events, checked
-            (:func:`planners.events.moved_positions`).
+            (:func:`planners.missions.events.moved_positions`).
     """
 
     def __init__(
@@ -257,7 +257,7 @@ class InFlight:
 
     @property
     def replans(self) -> list:
-        """The :class:`planners.replan.Replan` records so far."""
+        """The :class:`planners.replanning.replanner.Replan` records so far."""
         return [] if self.replanner is None else self.replanner.replans
 
     def make_plant(self, robot, q, v=None, w=None, rotor_constant_scale: float = 1.0) -> ForcedPlant:
@@ -339,7 +339,7 @@ class InFlight:
 
     def known_force(self, t: float) -> tuple:
         """The known wind at t [s]: (force on the task point (3,), forces on the drones (n_d, 3)) [N], each
-        None when none pushes (:func:`planners.events.gust_force` of :meth:`known_gusts`)."""
+        None when none pushes (:func:`planners.missions.events.gust_force` of :meth:`known_gusts`)."""
         gusts = self.known_gusts()
         return gust_force(gusts, t, self._n_drones) if gusts else self._no_force
 
@@ -351,7 +351,7 @@ class InFlight:
     def inputs(self, robot, ticks, motion):
         """The plan's inputs (:func:`fpr.model.inverse_dynamics.inverse_dynamics`) at ``ticks`` [s] of
         ``motion`` (its derivatives 0..MOTION_ORDER), flown in the known gusts (their Q_ext with its time
-        derivatives, :func:`planners.disturbance.generalized_gust`); no gust known: the plan's own."""
+        derivatives, :func:`planners.problem.disturbance.generalized_gust`); no gust known: the plan's own."""
         gusts = self.known_gusts()
         self._inputs_for = gusts
         return inputs_in_gusts(robot, motion, ticks, gusts)

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planners.disturbance import task_jacobian
+from planners.problem.disturbance import task_jacobian
 
 
 class WindEstimator:

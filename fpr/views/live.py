@@ -20,7 +20,7 @@ class LivePlan:
     """A mission replanned on demand.
 
     Attributes:
-        mission: the :class:`planners.mission.Mission` to replan.
+        mission: the :class:`planners.missions.mission.Mission` to replan.
         method: the planning method (``"two-step"``...).
         robot: its robot (default ``mission.load_robot()``).
         rate: sampling rate of the drawn path [Hz].

@@ -3,8 +3,8 @@
 
 Adding a method: write ``planners/methods/<name>.py`` with a ``plan(mission, robot, options)`` that
 returns a :class:`~planners.result.PlanResult` (the shared pieces: :mod:`planners.methods.way_points`,
-:func:`planners.solving.solve_stage`, :func:`planners.solving.solve_refining`,
-:func:`planners.report.evaluate_motion`), import it below and add one line to :data:`METHODS`.
+:func:`planners.optimisation.solving.solve_stage`, :func:`planners.optimisation.solving.solve_refining`,
+:func:`planners.problem.report.evaluate_motion`), import it below and add one line to :data:`METHODS`.
 :func:`planners.optimize.plan`, ``python -m fpr.plan --method`` and the studies read this registry.
 """
 

@@ -1,7 +1,7 @@
 """Method ``"crossing"``: a prototype mission that crosses its Type-2 singularity once (seed ch. 4).
 
 The mission (``cross_singularity = true``) gives a start and an end in the two assembly modes and a
-total time; :func:`planners.crossing.optimise_crossing` frees the crossing state, the travel times and
+total time; :func:`planners.crossing.solve.optimise_crossing` frees the crossing state, the travel times and
 the via points (``mission.via_points`` per travel). :func:`first_guess` is the motion it starts from,
 the reference of such a mission (what ``"none"`` gives it, :func:`planners.methods.method_for`).
 """
@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from fpr.model.errors import MissionError
-from planners.crossing import CrossingOutcome, crossing_report, optimise_crossing
-from planners.crossing import first_guess as designed_first_guess
-from planners.crossing_problem import crossing_layout
+from planners.crossing.solve import CrossingOutcome, crossing_report, optimise_crossing
+from planners.crossing.solve import first_guess as designed_first_guess
+from planners.crossing.problem import crossing_layout
 from planners.options import PlanOptions
 from planners.result import PlanResult
 
@@ -38,7 +38,7 @@ def _result(mission, method: str, outcome: CrossingOutcome, robot) -> PlanResult
 def plan(mission, robot, options: PlanOptions) -> PlanResult:
     """The optimised crossing of ``mission`` (its ``crossing`` is the :class:`CrossingOutcome`; its
     ``reference`` the first guess' report). The crossing's solves use the SQP with tolerance
-    :data:`planners.crossing.CROSSING_TOLERANCE` whatever ``options.solver`` and ``options.tolerance`` say.
+    :data:`planners.crossing.solve.CROSSING_TOLERANCE` whatever ``options.solver`` and ``options.tolerance`` say.
 
     Raises:
         MissionError: ``mission`` is not a singularity-crossing mission.
@@ -53,7 +53,7 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
 
 
 def first_guess(mission, robot, options: PlanOptions) -> PlanResult:
-    """The first guess of :func:`plan` (:func:`planners.crossing.first_guess`), not optimised.
+    """The first guess of :func:`plan` (:func:`planners.crossing.solve.first_guess`), not optimised.
 
     Raises:
         MissionError: ``mission`` is not a singularity-crossing mission.

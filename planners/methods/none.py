@@ -9,7 +9,7 @@ import numpy as np
 
 from planners.methods.way_points import WayPointTask
 from planners.options import PlanOptions
-from planners.report import evaluate_motion
+from planners.problem.report import evaluate_motion
 from planners.result import PlanResult
 
 

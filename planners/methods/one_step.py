@@ -7,8 +7,8 @@ first, alone (:func:`way_point_start`, a stage of its own): on the prototype tou
 stop motion ends in a local minimum 0.7 % above the best J known.
 
 The first and last way points keep zero derivatives (the robot starts and ends at rest). The NLP is
-solved by :func:`planners.solving.solve_stage`, again on finer grids when the dense check asks for it
-(:func:`planners.solving.solve_refining`).
+solved by :func:`planners.optimisation.solving.solve_stage`, again on finer grids when the dense check asks for it
+(:func:`planners.optimisation.solving.solve_refining`).
 """
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ import numpy as np
 
 from planners.methods.way_points import WayPointTask
 from planners.options import PlanOptions
-from planners.polynomial import PiecewisePolynomial
-from planners.problem import MotionProblem
-from planners.report import evaluate_motion
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.motion import MotionProblem
+from planners.problem.report import evaluate_motion
 from planners.result import PlanResult
-from planners.solving import Grid, solve_refining, solve_stage
+from planners.optimisation.solving import Grid, solve_refining, solve_stage
 
 
 def one_step_problem(task: WayPointTask, grid: Grid, normalisation=None) -> MotionProblem:

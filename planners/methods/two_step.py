@@ -6,7 +6,7 @@ the way points only (:func:`step1_problem`); step 2 then optimises, travel by tr
 starts from the step-1 motion itself (its value and derivatives at the via times), so step 2 never
 ends worse than step 1. The first and last way points keep zero derivatives (the robot starts and
 ends at rest). A motion that fails the dense check but holds on the grid is solved again, both
-steps, on a finer grid (:func:`planners.solving.solve_refining`).
+steps, on a finer grid (:func:`planners.optimisation.solving.solve_refining`).
 
 With ``PlanOptions.polish`` (the default), when steps 1 and 2 hold the grid's constraints, there is
 more than one travel (with one, step 2 is the 1-step NLP already) and there are via points (without,
@@ -26,11 +26,11 @@ import numpy as np
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
 from planners.options import PlanOptions
-from planners.polynomial import PiecewisePolynomial
-from planners.problem import MotionProblem, NodeDerivatives
-from planners.report import evaluate_motion
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.motion import MotionProblem, NodeDerivatives
+from planners.problem.report import evaluate_motion
 from planners.result import PlanResult
-from planners.solving import GRID_FEASIBILITY, Grid, solve_refining, solve_stage
+from planners.optimisation.solving import GRID_FEASIBILITY, Grid, solve_refining, solve_stage
 
 
 def step1_problem(task: WayPointTask, grid: Grid, normalisation) -> MotionProblem:
@@ -93,7 +93,7 @@ def _polish(task: WayPointTask, grid: Grid, points, stages: list, options: PlanO
     """The 1-step NLP solved from the 2-step ``points`` (appends its stage); the better points.
 
     ``normalisation``: the steps' (J_e0, J_phi0) on ``grid`` (:meth:`WayPointTask.normalisation`, not
-    computed again); ``shared``: the travels' :class:`~planners.problem.NodeDerivatives` (its first evaluation
+    computed again); ``shared``: the travels' :class:`~planners.problem.motion.NodeDerivatives` (its first evaluation
     with derivatives, at the points where the travels ended, takes their numbers), or None."""
     whole = one_step_problem(task, grid, normalisation)
     if shared is not None:

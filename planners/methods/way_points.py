@@ -4,7 +4,7 @@ motion, and the NLPs built on them.
 A way-point mission goes through k+1 way points in k travels, each with n_vp via points. Its
 *stop-at-every-way-point* motion (every derivative 1..4 zero at every way point) is the reference of
 the objective (J_e0, J_phi0 of 3.26) and the first guess of the optimisations. A :class:`WayPointTask`
-holds these and builds the :class:`~planners.problem.MotionProblem` s of the methods.
+holds these and builds the :class:`~planners.problem.motion.MotionProblem` s of the methods.
 """
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ from functools import cached_property
 
 import numpy as np
 
-from planners.polynomial import PiecewisePolynomial, stop_points, with_via_points
-from planners.problem import MotionProblem
-from planners.report import MotionReport
+from planners.trajectory.polynomial import PiecewisePolynomial, stop_points, with_via_points
+from planners.problem.motion import MotionProblem
+from planners.problem.report import MotionReport
 from planners.result import PlanResult
-from planners.solving import Grid
+from planners.optimisation.solving import Grid
 
 
 @dataclass(frozen=True, eq=False)
@@ -26,7 +26,7 @@ class WayPointTask:
     """A way-point mission made ready for planning.
 
     Attributes:
-        mission: the :class:`planners.mission.Mission`.
+        mission: the :class:`planners.missions.mission.Mission`.
         robot: the robot it is planned for.
         way_times: travel times (k,) [s].
         n_via: via points per travel (k,).
@@ -59,7 +59,7 @@ class WayPointTask:
     @cached_property
     def via_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(points, durations, is_way) of the stop motion cut at the via times
-        (:func:`planners.polynomial.with_via_points`): the layout of every motion with via points."""
+        (:func:`planners.trajectory.polynomial.with_via_points`): the layout of every motion with via points."""
         return with_via_points(self.stop, self.way_times, self.n_via)
 
     def with_via_points(self, trajectory: PiecewisePolynomial) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -9,7 +9,7 @@ a reference's). The sections, each in its own module:
 * ``model`` (:mod:`fpr.cli.bench.model`): the robot model, the planar model, the inverse dynamics and the
   closed chain against the raw Pinocchio calls, and accuracy figures;
 * ``planning`` (:mod:`fpr.cli.bench.planning`): the planning methods on the square mission against a
-  baseline in the manner of the thesis' fmincon runs (:mod:`planners.baseline`), re-optimising one
+  baseline in the manner of the thesis' fmincon runs (:mod:`fpr.bench.baseline`), re-optimising one
   segment, the singularity crossing;
 * ``control`` (:mod:`fpr.cli.bench.control`): the rotor allocation's QP solvers side by side, and the
   closed-loop simulation's real-time factor;

@@ -54,7 +54,7 @@ from fpr.model.robot import Robot, _attitude_kernel
 from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.sim.plant import Plant, hover_configuration
 from fpr.sim.watch import Watch, _screen_kernel
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.optimize import plan
 
 CONTROL_MISSION = "square"

@@ -2,9 +2,9 @@
 
 For each built-in mission of :data:`MISSIONS` and each planner of :data:`PLANNERS`, one run: the dense-grid
 J, the best J known for that mission (:data:`BEST_J`) and the gap to it, the KKT residual the solver
-reports for its last stage (:mod:`planners.sqp`), the KKT residual of the result as a point of the
+reports for its last stage (:mod:`planners.optimisation.sqp`), the KKT residual of the result as a point of the
 whole 1-step NLP (the same for every method: multipliers by non-negative least squares on the
-constraints within 1e-6 of their bound, :func:`planners.solving.kkt_with_best_multipliers`), the
+constraints within 1e-6 of their bound, :func:`planners.optimisation.solving.kkt_with_best_multipliers`), the
 iterations, the time, and whether the plan holds every constraint on the dense grid.
 """
 
@@ -16,9 +16,9 @@ import time
 from planners.methods import METHODS
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.options import PlanOptions
-from planners.solving import Grid, kkt_with_best_multipliers
+from planners.optimisation.solving import Grid, kkt_with_best_multipliers
 
 #: The best J known per mission: peer solvers (scipy's SLSQP with the planner's exact derivatives, tight
 #: tolerances, several starts; IPOPT confirming a KKT point), every result feasible on the 500 Hz grid

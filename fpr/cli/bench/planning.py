@@ -4,7 +4,7 @@
 a. ``plan(mission, "two-step")`` and b. ``plan(mission, "one-step")``: our exact-gradient trust-region
    SQP (median of 3 runs, 1 with ``--quick``);
 c. ``plan(mission, "one-step", solver="slsqp")``: the same NLP, scipy SLSQP with our exact gradients;
-d. a baseline mimicking the thesis' fmincon runs (:func:`planners.baseline.plan_baseline`): scipy
+d. a baseline mimicking the thesis' fmincon runs (:func:`fpr.bench.baseline.plan_baseline`): scipy
    ``minimize(method="trust-constr")`` (interior point) on the same 1-step NLP, with 2-point
    finite-difference gradients of J and of the constraints and BFGS Hessian approximations, stopped by
    a time cap (120 s, 15 s with ``--quick``). Its J is the dense-grid J of its last iterate, normalised
@@ -13,7 +13,7 @@ d. a baseline mimicking the thesis' fmincon runs (:func:`planners.baseline.plan_
 e. re-optimising one segment: step 2 of the two-step method on travel 1
    (:func:`planners.methods.two_step.travel_problem`), from the step-1 result (problem construction
    included; median of 11 runs, 5 with ``--quick``);
-f. the singularity crossing: ``plan(load_mission("cross-singularity"))`` (:mod:`planners.crossing`,
+f. the singularity crossing: ``plan(load_mission("cross-singularity"))`` (:mod:`planners.crossing.solve`,
    median of 3 runs, 1 with ``--quick``); not part of the speed-ups (no baseline);
 g. optimality: per built-in mission and planner, J beside the best J known, the KKT residuals,
    iterations and time (:mod:`fpr.cli.bench.optimality`; ``--quick`` leaves the composite SQP out).
@@ -37,16 +37,16 @@ import numpy as np
 
 from fpr.cli.bench.optimality import optimality_table, run_optimality
 from fpr.cli.bench.timing import fmt
-from planners.baseline import plan_baseline
+from fpr.bench.baseline import plan_baseline
 from planners.methods.one_step import one_step_problem
 from planners.methods.two_step import travel_problem
 from planners.methods.way_points import WayPointTask
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.optimize import plan
-from planners.polynomial import PiecewisePolynomial
-from planners.report import evaluate_motion
-from planners.solving import GRID_FEASIBILITY, Grid
-from planners.sqp import SqpOptions, solve_sqp
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.report import evaluate_motion
+from planners.optimisation.solving import GRID_FEASIBILITY, Grid
+from planners.optimisation.sqp import SqpOptions, solve_sqp
 
 PLANNING_MISSION = "square"
 PLANNING_SETTINGS = {  # quick / full
@@ -73,7 +73,7 @@ def _plan_item(name: str, results: list, times: list[float]) -> dict:
 
 
 def _baseline(mission, robot, cap: float, targets: dict, progress: bool) -> dict:
-    """Item d: :func:`planners.baseline.plan_baseline` for ``cap`` [s]; when it reached each J of ``targets``."""
+    """Item d: :func:`fpr.bench.baseline.plan_baseline` for ``cap`` [s]; when it reached each J of ``targets``."""
     start = time.perf_counter()
 
     def say(name, iteration, j, violation):

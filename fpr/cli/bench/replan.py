@@ -1,6 +1,6 @@
 """Replanning section of the benchmark (``python -m fpr.bench --section replan``): the latency of a replan.
 
-Each item is one call of :meth:`planners.replan.Replanner.replan` (build the horizon's NLP, solve it by the
+Each item is one call of :meth:`planners.replanning.replanner.Replanner.replan` (build the horizon's NLP, solve it by the
 SQP with the replanner's own explicit options, check the result on the dense grid), timed by its wall
 clock, from the offline two-step plan of a built-in mission:
 
@@ -9,7 +9,7 @@ b. ``square`` at a fixed rate: a replan every 0.5 s (0.25 .. 11.25 s; 1 s with `
    plan in force (the re-optimisation of the rest of the current travel);
 c. ``gust``: solves from a robot pushed off the plan (5 cm along y, at rest relative to the plan), every
    0.5 s from 3.25 s (1 s with ``--quick``): timed only, such a plan is not spliced in (it is not C4 with the
-   plan in force, :mod:`planners.replan`).
+   plan in force, :mod:`planners.replanning.replanner`).
 
 Reported per item and over all of them: median, 95th percentile and worst **wall** time against the
 default deadline (50 ms), on this machine's clock as it is (no scaling to a reference speed: on a shared
@@ -19,7 +19,7 @@ shared machine inflate less than the wall clock). Each replan is also solved, ri
 as it was before the latency work (:data:`BEFORE`: a dense check of its own, every SQP iteration up to the
 cap whatever the deadline), and the ratios of today's times to those are printed: measured side by side in
 one run, they hold on a loaded machine where the times themselves do not. The costs of the deterministic
-``work`` latency (:data:`planners.replan.WORK_COST`) are fitted (non-negative least squares) to today's wall
+``work`` latency (:data:`planners.replanning.replanner.WORK_COST`) are fitted (non-negative least squares) to today's wall
 and CPU times and printed beside the costs in use, with the ratio of the modelled latency to the measured
 one (median and range over the replans): how far the default, reproducible used / not-used decision may be
 from the wall clock. Last, the moving-target replan taken apart into its phases
@@ -36,9 +36,9 @@ import numpy as np
 from scipy.optimize import nnls
 
 from fpr.cli.bench.replan_phases import phases_table, replan_phases
-from planners.mission import load_mission
+from planners.missions.mission import load_mission
 from planners.optimize import plan
-from planners.replan import WORK_COST, Replanner, ReplanOptions, jet
+from planners.replanning.replanner import WORK_COST, Replanner, ReplanOptions, jet
 
 DEADLINE = ReplanOptions().deadline
 #: The replanner before the latency work, timed beside today's: the dense check in a call of its own, and
@@ -91,7 +91,7 @@ def _stats(values) -> dict:
 
 
 def _work_rows(works) -> np.ndarray:
-    """The work model's columns (:meth:`planners.replan.Replanner.latency`) of each replan's ``work``."""
+    """The work model's columns (:meth:`planners.replanning.replanner.Replanner.latency`) of each replan's ``work``."""
     return np.array(
         [[w["nodes"] * w["derivative_evaluations"], w["nodes"] * w["value_evaluations"], w["horizon_s"]]
          for w in works],
@@ -213,7 +213,7 @@ def replan_table(doc: dict) -> str:
         f"(to the CPU times: {', '.join(f'{v:.3g}' for v in doc['work_cost_fitted_cpu'])}; the replanner "
         f"before, wall: {', '.join(f'{v:.3g}' for v in doc['work_cost_fitted_before'])}, CPU: "
         f"{', '.join(f'{v:.3g}' for v in doc['work_cost_fitted_before_cpu'])}) "
-        f"(planners.replan.WORK_COST in use: {', '.join(f'{v:.3g}' for v in doc['work_cost_in_use'])}); "
+        f"(planners.replanning.replanner.WORK_COST in use: {', '.join(f'{v:.3g}' for v in doc['work_cost_in_use'])}); "
         f"modelled / measured latency: median {ratio['median']:.2f}, range {ratio['min']:.2f} .. {ratio['max']:.2f}"
     )
     if "phases" in doc:

@@ -1,10 +1,10 @@
 """Where a replan's time goes: its phases timed one by one (part of ``python -m fpr.bench --section replan``).
 
 The moving-target replan (the move event at 4 s, 28 grid nodes) is taken apart: the NLP's set-up
-(:meth:`planners.replan.Replanner.problem`), a derivative evaluation and its inverse dynamics alone, a value
-evaluation, one step QP (:func:`planners.replan_solver.qp_step`), the dense check
-(:func:`planners.disturbance.dense_check`) and the value evaluation fused with it
-(:func:`planners.replan_check.evaluate_and_check`). Each phase is repeated and its **minimum** CPU time
+(:meth:`planners.replanning.replanner.Replanner.problem`), a derivative evaluation and its inverse dynamics alone, a value
+evaluation, one step QP (:func:`planners.replanning.solver.qp_step`), the dense check
+(:func:`planners.problem.disturbance.dense_check`) and the value evaluation fused with it
+(:func:`planners.replanning.check.evaluate_and_check`). Each phase is repeated and its **minimum** CPU time
 (``time.process_time``) kept: the least the phase takes on this machine, which the other jobs of a shared
 machine inflate the least.
 """
@@ -16,13 +16,13 @@ import time
 import numpy as np
 
 from fpr.model.inverse_dynamics import inverse_dynamics
-from planners.disturbance import dense_check
-from planners.polynomial import PiecewisePolynomial
-from planners.problem import COMPLEX_STEP
-from planners.replan import Replanner, ReplanOptions
-from planners.replan_check import evaluate_and_check
-from planners.replan_solver import qp_step
-from planners.sensitivities import seeded_motion
+from planners.problem.disturbance import dense_check
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.motion import COMPLEX_STEP
+from planners.replanning.replanner import Replanner, ReplanOptions
+from planners.replanning.check import evaluate_and_check
+from planners.replanning.solver import qp_step
+from planners.problem.sensitivities import seeded_motion
 
 
 def _least(call, repeats: int) -> float:
@@ -50,7 +50,7 @@ def replan_phases(result, repeats: int = 15) -> dict:
             return call()
         return run
 
-    # what a derivative evaluation sends through the inverse dynamics (planners/problem.py): the Dual motion,
+    # what a derivative evaluation sends through the inverse dynamics (planners/problem/motion.py): the Dual motion,
     # or the complex-step copies
     motion = problem.motion(problem.points_of(x0))
     n_r, _, n = motion.shape

@@ -1,6 +1,6 @@
 """Scaling section of the benchmark (``python -m fpr.bench --section scaling``): planning time by length.
 
-Missions of 4, 8, 16 and 32 way points round a circle (:func:`planners.missions_gen.loop_mission`:
+Missions of 4, 8, 16 and 32 way points round a circle (:func:`fpr.bench.missions.loop_mission`:
 every travel a 0.5 m chord in 1.5 s), with 0 to 4 via points per travel (``--quick``: 1 only), each
 planned once by ``plan(mission, method)`` with the planner's defaults, both methods, one after the other
 in one process. Per (way points, via points, method): the wall time of the whole call (reference and
@@ -20,7 +20,7 @@ import sys
 import numpy as np
 
 from fpr.cli.bench.timing import fmt
-from planners.missions_gen import loop_mission
+from fpr.bench.missions import loop_mission
 from planners.optimize import plan
 
 WAY_POINTS = (4, 8, 16, 32)
@@ -91,7 +91,7 @@ def _targets(rows, exponents) -> list[dict]:
 
 def scaling_table(scaling: dict) -> str:
     """The scaling section as text: one line per (way points, via points), both methods side by side."""
-    lines = [f"planning scaling, loop missions (planners.missions_gen; load average "
+    lines = [f"planning scaling, loop missions (fpr.bench.missions; load average "
              f"{scaling['load_average_before'][0]:.2f} -> {scaling['load_average_after'][0]:.2f})",
              f"{'way points':>10}  {'via':>3}  " + "  ".join(
                  f"{m + ' time':>15}  {'J':>7}  {'iter':>4}  {'feas':>4}" for m in METHODS)]

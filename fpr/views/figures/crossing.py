@@ -18,7 +18,7 @@ def _crossing_comparison(robot, outcomes: Sequence, rate: float) -> Figure:
     """The figure of :func:`crossing_comparison_figure`, not written."""
     if not outcomes:
         raise FigureError("outcomes", outcomes, "outcomes is empty: give at least one "
-                                                "planners.crossing.CrossingOutcome")
+                                                "planners.crossing.solve.CrossingOutcome")
     colors = [STYLE["plan_color"], "tab:orange", "tab:green", "tab:purple"]
     limit = robot.rotor_constants.max_speed - robot.margins.rotor_speed
     max_thrust = 4 * robot.rotor_constants.thrust_coefficient * limit**2
@@ -67,7 +67,7 @@ def crossing_comparison_figure(path: str | Path, robot, outcomes: Sequence, rate
     Args:
         path: the PNG file to write.
         robot: the prototype.
-        outcomes: :class:`planners.crossing.CrossingOutcome` s (the seed's approaches, ours).
+        outcomes: :class:`planners.crossing.solve.CrossingOutcome` s (the seed's approaches, ours).
         rate: sampling rate [Hz].
 
     Returns:

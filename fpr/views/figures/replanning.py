@@ -24,9 +24,9 @@ def replanning_figure(robot, offline, revisions, log, log_without=None, moved=()
 
     Args:
         robot: the robot.
-        offline: the offline plan's trajectory (:class:`planners.polynomial.PiecewisePolynomial`).
+        offline: the offline plan's trajectory (:class:`planners.trajectory.polynomial.PiecewisePolynomial`).
         revisions: (splice time [s], plan in force from then on) of each replan used
-            (:attr:`planners.replan.Replanner.revisions`).
+            (:attr:`planners.replanning.replanner.Replanner.revisions`).
         log: the :class:`fpr.sim.closed_loop.SimulationLog` with replanning.
         log_without: the same simulation without replanning, or None.
         moved: the moved way points, in planning coordinates (n_s,) each.

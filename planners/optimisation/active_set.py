@@ -1,6 +1,6 @@
 r"""An exact solver of the SQP's step QP when few constraints are active: a primal-dual active-set guess.
 
-The step QP of :mod:`planners.sqp` at a feasible point is
+The step QP of :mod:`planners.optimisation.sqp` at a feasible point is
 
 .. math:: \\min_d \\tfrac12 d^T H d + g^T d \\quad \\text{s.t.}\\; A d \\ge b,\\; |d|_\\infty \\le \\Delta
 

@@ -3,13 +3,13 @@
 The thesis ends on making the optimisation fast enough to plan online; this module does it on a
 receding horizon. At a trigger (an event that changes the mission, a tracking error past a bound, or
 a fixed rate, decided by the caller: :mod:`fpr.sim.replanning`) at time t_0, :meth:`Replanner.replan`
-builds and solves the NLP of :class:`planners.problem.MotionProblem` for the motion from the *splice*
+builds and solves the NLP of :class:`planners.problem.motion.MotionProblem` for the motion from the *splice*
 t_s = t_0 + deadline to the end of the horizon:
 
 * the start point at t_s is the plan in force's own [s, s', s'', s''', s''''] at t_s: the splice is C4,
   so the planned rotor speeds, which depend on s up to its 4th derivative through the roll acceleration,
   do not jump. (A ``start`` off the plan, e.g. from the robot's state, can be solved, to time it, but is
-  not spliced in: the plan in force would jump there, and :class:`~planners.polynomial.PiecewisePolynomial`
+  not spliced in: the plan in force would jump there, and :class:`~planners.trajectory.polynomial.PiecewisePolynomial`
   holds C4 motions only);
 * then the way points still ahead, up to ``horizon`` travels past the last one that changed (or the
   end, or the ``through`` way point), with the mission's via points inside each travel (the travel cut by
@@ -21,11 +21,11 @@ t_s = t_0 + deadline to the end of the horizon:
 * the end of the horizon keeps the plan in force's jet (C4 with the rest of it), or rest at the end;
 * the same objective as the offline plan (alpha, and the offline normalisation J_e0, J_phi0 of the
   mission's stop motion, 3.26) and the same constraints (margins, rolls, rotor speeds 3.48), solved from
-  the plan in force by :func:`planners.replan_solver.solve_warm` (an explicit iteration cap); the result is
-  checked on a dense grid (:func:`planners.disturbance.dense_check`, the rows of
-  :func:`planners.report.evaluate_motion`);
+  the plan in force by :func:`planners.replanning.solver.solve_warm` (an explicit iteration cap); the result is
+  checked on a dense grid (:func:`planners.problem.disturbance.dense_check`, the rows of
+  :func:`planners.problem.report.evaluate_motion`);
 * gusts the replanner was told of (:meth:`Replanner.learn`) are in the inverse dynamics of the NLP and of
-  the check (:class:`planners.disturbance.DisturbedProblem`).
+  the check (:class:`planners.problem.disturbance.DisturbedProblem`).
 
 **Deadline.** The solve must end before t_s in simulated time. Its wall time is measured on the
 machine and reported, but by default (``timing = "work"``) the used / not-used decision compares the
@@ -45,14 +45,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fpr.model.errors import PlannerArgumentError
-from planners.disturbance import CONTROL_HEADROOM, RISE, DisturbedProblem, dense_check
-from planners.events import moved_positions
+from planners.problem.disturbance import CONTROL_HEADROOM, RISE, DisturbedProblem, dense_check
+from planners.missions.events import moved_positions
 from planners.methods.way_points import WayPointTask
-from planners.polynomial import N_DERIVS, PiecewisePolynomial
-from planners.problem import MotionProblem
-from planners.replan_check import evaluate_and_check
-from planners.replan_solver import solve_warm
-from planners.solving import Grid
+from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
+from planners.problem.motion import MotionProblem
+from planners.replanning.check import evaluate_and_check
+from planners.replanning.solver import solve_warm
+from planners.optimisation.solving import Grid
 
 #: Cost of the solver's work for the deterministic latency [s]: (per derivative evaluation per grid node,
 #: per value evaluation per grid node, per second of re-optimised motion: the dense check and the set-up).
@@ -79,7 +79,7 @@ class ReplanOptions:
     Attributes:
         deadline: simulated time between the trigger and the splice, within which the solve must end [s].
         horizon: travels re-optimised past the last way point that changed (or past the next one).
-        max_iterations: SQP iteration cap of one replan (:func:`planners.replan_solver.solve_warm`).
+        max_iterations: SQP iteration cap of one replan (:func:`planners.replanning.solver.solve_warm`).
         tolerance: the SQP stops when an iteration improves J by less than this.
         samples_per_segment, windows_per_segment: the optimisation grid: 7 nodes per segment (the offline
             planner uses 17); the dense check at ``dense_rate`` decides feasibility.
@@ -89,9 +89,9 @@ class ReplanOptions:
             (the measured wall time) for the used / not-used decision.
         work_cost: the costs of the ``"work"`` latency model [s] (:data:`WORK_COST`).
         fuse_check: the dense check of the SQP's last trial point shares its inverse-dynamics call
-            (:func:`planners.replan_check.evaluate_and_check`; same verdict), or (False) is a call of its own.
+            (:func:`planners.replanning.check.evaluate_and_check`; same verdict), or (False) is a call of its own.
         wind_headroom: w_h [rad/s], the least rotor speed the NLP asks for while a known gust pushes
-            (:data:`planners.disturbance.CONTROL_HEADROOM`; the check that decides use keeps w >= 0).
+            (:data:`planners.problem.disturbance.CONTROL_HEADROOM`; the check that decides use keeps w >= 0).
         refine_margin: an SQP iteration after the first (a refinement: the first gives a plan) starts only
             if ``refine_margin`` times the deterministic latency (:meth:`Replanner.latency`) with its
             evaluations is within the deadline: the work model has been up to 1.7 times below the measured
@@ -172,7 +172,7 @@ class Replan:
         used: it was spliced into the plan; why: one line saying why (not) used.
         violated: the constraints it breaks (dense grid).
         start: "plan" (the plan in force's jet) or "robot" (a start from the robot's state).
-        solver: why the SQP stopped (:func:`planners.replan_solver.solve_warm`'s message).
+        solver: why the SQP stopped (:func:`planners.replanning.solver.solve_warm`'s message).
         work: what the deterministic latency counts: grid ``nodes``, ``derivative_evaluations``,
             ``value_evaluations``, ``horizon_s`` (the re-optimised duration [s]).
     """
@@ -249,7 +249,7 @@ class Replanner:
 
     Raises:
         WorkspaceError, SingularityError: a move event's ``to`` out of the workspace
-            (:func:`planners.events.moved_positions`).
+            (:func:`planners.missions.events.moved_positions`).
     """
 
     def __init__(self, result, options: ReplanOptions | None = None):
@@ -283,7 +283,7 @@ class Replanner:
             self.gusts.append(self.mission.events[event_index])
 
     def assume(self, gust) -> None:
-        """Plan against ``gust`` (a :class:`planners.events.GustEvent`, e.g. estimated in flight) from now on.
+        """Plan against ``gust`` (a :class:`planners.missions.events.GustEvent`, e.g. estimated in flight) from now on.
 
         It replaces the gust assumed before, which is kept in :attr:`gusts` but ends where ``gust`` is fully
         on (``gust.at + gust.rise``; the two blend over the ramp): the record of the wind each part of the

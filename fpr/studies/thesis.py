@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 from fpr.model.errors import PlannerArgumentError, UnknownMethodError
 from planners.methods import CROSSING_METHODS, METHODS
-from planners.mission import Mission, load_mission
+from planners.missions.mission import Mission, load_mission
 from planners.optimize import plan
 from planners.result import PlanResult
 

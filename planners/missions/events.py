@@ -26,7 +26,7 @@ A mission file may list ``[[events]]`` tables (TOML array of tables), each with 
     point: the FPR's end-effector, the prototype's drone joint) or ``"drone_<i>"`` (the centre of mass
     of drone i, 1-based).
 
-Events are validated when the mission is built (:class:`planners.mission.Mission` calls
+Events are validated when the mission is built (:class:`planners.missions.mission.Mission` calls
 :func:`parse_events`); an error is a :class:`fpr.model.errors.MissionError` naming the field as
 ``events[i].<key>``. A simulation applies gusts always and ``move`` events only when it replans
 (:mod:`fpr.sim.replanning`): without replanning the robot flies the plan made before the flight.
@@ -154,7 +154,7 @@ def parse_events(value, mission) -> tuple:
     Args:
         value: a list of tables (dicts) with the keys of the module docstring, or of events already
             built (:class:`MoveEvent`, :class:`GustEvent`), or empty.
-        mission: the :class:`planners.mission.Mission` being built (way points, times, space, robot).
+        mission: the :class:`planners.missions.mission.Mission` being built (way points, times, space, robot).
 
     Returns:
         a tuple of events, sorted by ``at`` (stable: events at the same time keep their order).

@@ -1,14 +1,14 @@
 """The replanner's last evaluation and its dense check in one inverse-dynamics call.
 
 A replan ends with the value of J and the constraints at the final point on the optimisation grid (the SQP's
-last ratio test) and the check of that motion on the dense grid (:func:`planners.disturbance.dense_check`).
+last ratio test) and the check of that motion on the dense grid (:func:`planners.problem.disturbance.dense_check`).
 Both are the inverse dynamics (:func:`fpr.model.inverse_dynamics.inverse_dynamics`) of the same motion at
 two sets of samples, and on the replanner's sizes (14-28 grid nodes, 70-500 dense samples) a call costs
 mostly its fixed overhead (about 13 ms for 28 samples against 41 ms for 600 on the shared machine,
 ``python -m fpr.bench --section replan`` prints the phases): :func:`evaluate_and_check` makes one call of
 the grid nodes and the dense samples together and splits the result, so that the final evaluation is the
-problem's own (:meth:`planners.problem.MotionProblem.evaluate`, values only) and the check is
-:func:`~planners.disturbance.dense_check`'s (same samples, rows, tolerances and verdict).
+problem's own (:meth:`planners.problem.motion.MotionProblem.evaluate`, values only) and the check is
+:func:`~planners.problem.disturbance.dense_check`'s (same samples, rows, tolerances and verdict).
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ import numpy as np
 
 from fpr.model.inverse_dynamics import MotionInputs, inverse_dynamics
 from fpr.model.jets import Jet
-from planners.disturbance import dense_times, generalized_gust, verdict
-from planners.polynomial import PiecewisePolynomial
+from planners.problem.disturbance import dense_times, generalized_gust, verdict
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 
 def _split(inputs: MotionInputs, n: int) -> tuple[MotionInputs, MotionInputs]:
@@ -37,15 +37,15 @@ def evaluate_and_check(problem, x, rate: float, start_time: float = 0.0, gusts=(
     """``problem.evaluate(x)`` (values only) and the dense check of its motion from one inverse-dynamics call.
 
     Args:
-        problem: the replan's NLP (:class:`planners.problem.MotionProblem`, or
-            :class:`planners.disturbance.DisturbedProblem` with its Q_ext at the grid nodes).
+        problem: the replan's NLP (:class:`planners.problem.motion.MotionProblem`, or
+            :class:`planners.problem.disturbance.DisturbedProblem` with its Q_ext at the grid nodes).
         x: the point (n_x,).
         rate: rate of the dense check [Hz] (plus the part's knots).
         start_time: absolute time of the problem's first point [s] (when the ``gusts`` push).
         gusts: the gust events the dense check flies the motion in.
 
     Returns:
-        (the :class:`planners.problem.Evaluation` at x, (feasible, violated names worst first, samples)).
+        (the :class:`planners.problem.motion.Evaluation` at x, (feasible, violated names worst first, samples)).
     """
     x = np.asarray(x, dtype=float)
     points = problem.points_of(x)

@@ -1,6 +1,6 @@
 """A known external force in the planning problem: the replanner plans *against* a gust.
 
-A gust (:class:`planners.events.GustEvent`) pushes with a world force F [N] (fixed direction, its strength
+A gust (:class:`planners.missions.events.GustEvent`) pushes with a world force F [N] (fixed direction, its strength
 ramping in and out: :func:`gust_profile`) on the robot kind's task point (the FPR's end-effector) or on a
 drone. In the planning model (the seed's point-mass drones,
 3.12) it is the generalised force Q_ext = J_p(s)^T F on the chain coordinates, J_p the Jacobian of the point
@@ -9,7 +9,7 @@ a drone: its joint, where the planning model puts its mass), and the drones must
 J_h^T F_drones = M_s s'' + c_s - Q_ext (:func:`fpr.model.inverse_dynamics.inverse_dynamics`'s
 ``external``): the thrusts, rolls, torques and rotor speeds (3.48) of a motion flown in the gust.
 
-:class:`DisturbedProblem` is the planning NLP (:class:`planners.problem.MotionProblem`, same objective and
+:class:`DisturbedProblem` is the planning NLP (:class:`planners.problem.motion.MotionProblem`, same objective and
 constraints) with that force at its grid nodes; :func:`dense_check` is the dense-grid check of a motion
 with it. Q_ext is evaluated at the first guess's positions and kept fixed while the NLP is solved: exact
 for the FPR's end-effector (p = [y, z], J_p constant), an approximation for a force on a drone.
@@ -37,15 +37,15 @@ import numpy as np
 
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.model.jets import Jet
-from planners.events import smooth_ramp
-from planners.polynomial import PiecewisePolynomial
-from planners.problem import (
+from planners.missions.events import smooth_ramp
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.motion import (
     CONSTRAINT_KINDS,
     MotionProblem,
     constraint_kind,
     constraint_rows,
 )
-from planners.report import FEASIBILITY_TOLERANCE, evaluate_motion
+from planners.problem.report import FEASIBILITY_TOLERANCE, evaluate_motion
 
 _STEP = 1e-30
 
@@ -113,10 +113,10 @@ def generalized_gust(robot, gusts, t, s, rise: float = RISE) -> np.ndarray | Non
 
 
 class DisturbedProblem(MotionProblem):
-    """:class:`planners.problem.MotionProblem` flown against known gusts (module docstring).
+    """:class:`planners.problem.motion.MotionProblem` flown against known gusts (module docstring).
 
     Args:
-        *args, **kwargs: those of :class:`~planners.problem.MotionProblem`.
+        *args, **kwargs: those of :class:`~planners.problem.motion.MotionProblem`.
         gusts: the gust events the planner knows.
         start_time: the absolute time of the problem's first point [s] (its node times start at 0).
         headroom: w_h [rad/s], the least rotor speed asked for at every node of a problem in which a gust
@@ -156,7 +156,7 @@ class DisturbedProblem(MotionProblem):
 def dense_check(robot, part: PiecewisePolynomial, rate: float, start_time: float = 0.0, gusts=()):
     """Every planning constraint of ``part`` at ``rate`` [Hz] plus its knots, flown in the ``gusts``.
 
-    The check of :func:`planners.report.evaluate_motion` (same rows, natural units, same tolerances), with
+    The check of :func:`planners.problem.report.evaluate_motion` (same rows, natural units, same tolerances), with
     the gusts' Q_ext, and derivatives 0..4 only (no singularity crossing in a replanned part).
 
     Args:
@@ -211,10 +211,10 @@ def verdict(robot, motion, inputs) -> tuple[bool, list[str]]:
 
 
 def evaluate_in_gusts(robot, trajectory: PiecewisePolynomial, gusts, rate: float = 500.0):
-    """:func:`planners.report.evaluate_motion` of a motion flown in known ``gusts`` (absolute times [s]).
+    """:func:`planners.problem.report.evaluate_motion` of a motion flown in known ``gusts`` (absolute times [s]).
 
     The same rows, sampling and report, with the gusts' Q_ext in the inverse dynamics (the rotor speeds
-    3.48 of the motion in the wind). No gust pushing: :func:`~planners.report.evaluate_motion` as it is.
+    3.48 of the motion in the wind). No gust pushing: :func:`~planners.problem.report.evaluate_motion` as it is.
     """
 
     def external(t, s):

@@ -1,12 +1,12 @@
 """A small trust-region SQP for the planning NLP: elastic QPs, the KKT residual.
 
-Gauss-Newton curvature, the "smoothed" model of J_e's absolute values (:mod:`planners.curvature`, the
+Gauss-Newton curvature, the "smoothed" model of J_e's absolute values (:mod:`planners.optimisation.curvature`, the
 planner's default), or a composite model of them with a damped BFGS correction. At a feasible point the
-step QP is solved exactly by a short active-set sequence (:mod:`planners.active_set`); ProxQP takes the
+step QP is solved exactly by a short active-set sequence (:mod:`planners.optimisation.active_set`); ProxQP takes the
 rest (infeasible points, ill-conditioned models).
 
 The planning objective is a weighted sum of integrals of squares (J_phi) and of absolute values
-(J_e) of per-sample quantities whose exact Jacobians :class:`planners.problem.MotionProblem`
+(J_e) of per-sample quantities whose exact Jacobians :class:`planners.problem.motion.MotionProblem`
 provides; their Gauss-Newton / reweighted least-squares matrix is a good positive semi-definite
 model of the Hessian, far better than a quasi-Newton estimate built from scratch (SLSQP needs
 hundreds of iterations on these problems, this method a handful).
@@ -20,7 +20,7 @@ with slacks s only on the constraints violated at x (always feasible), and accep
 J + rho * sum(max(0, -c)). Constraints that cannot become active inside the trust region
 (c_i > |A_i|_1 Delta) are left out of the QP, which keeps it small.
 
-**Curvature** (``SqpOptions.curvature``). ``"smoothed"`` (:mod:`planners.curvature`; the default of
+**Curvature** (``SqpOptions.curvature``). ``"smoothed"`` (:mod:`planners.optimisation.curvature`; the default of
 :class:`planners.options.PlanOptions`): J_phi's Gauss-Newton matrix plus, for
 each |P_k|, the curvature of a wider smoothing sqrt(P^2 + mu^2) (mu = 0.1 W) and 5 % of the
 majoriser below; with the planner's defaults it ends within 0.2 % of the best known J of the square,
@@ -70,9 +70,9 @@ from scipy import sparse
 
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
-from planners.active_set import BANDED_MIN_SIZE, shifted, solve_step_qp
-from planners.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
-from planners.problem import POWER_SMOOTHING
+from planners.optimisation.active_set import BANDED_MIN_SIZE, shifted, solve_step_qp
+from planners.optimisation.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
+from planners.problem.motion import POWER_SMOOTHING
 
 # the portable build: its results do not depend on memory alignment (fpr.model.qp): plans repeat bit for bit
 proxsuite = proxsuite_module()
@@ -108,7 +108,7 @@ class SqpOptions:
             scaled to O(1), constraint rows to unit gradient).
         curvature: ``"gauss-newton"``, ``"composite"`` or ``"smoothed"`` (:data:`CURVATURES`; the
             composite model needs the problem's ``power`` fields, else it is Gauss-Newton with the BFGS
-            correction; ``"smoothed"`` (:mod:`planners.curvature`) too, else it is Gauss-Newton).
+            correction; ``"smoothed"`` (:mod:`planners.optimisation.curvature`) too, else it is Gauss-Newton).
         second_order: after a rejected step that raised the constraint violation, try it once more with
             a second-order correction (the least-norm step back to the linearised working set): along
             curved constraints the l1 merit rejects good steps (the Maratos effect).
@@ -117,7 +117,7 @@ class SqpOptions:
             derivatives each): where the model overestimates the curvature (J_e is close to linear
             along the step), it can save iterations (with the ``"smoothed"`` defaults it did not pay).
         power_width, majoriser_share: mu [W] and the majoriser's share of the ``"smoothed"`` curvature
-            (:func:`planners.curvature.power_curvature`).
+            (:func:`planners.optimisation.curvature.power_curvature`).
         trial_derivatives: evaluate a trial point with its derivatives (unless the trial before was
             rejected): an accepted trial is the next iterate, whose derivatives the next iteration needs,
             so one evaluation serves both; a rejected one costs the derivatives in vain. The planning
@@ -259,7 +259,7 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     hess = ev.hessian if hessian is None else hessian
     n = ev.gradient.size
     c, a = ev.constraints, _jacobian(ev)
-    if sparse.issparse(a):  # a long mission's (planners.problem.SPARSE_FROM): the same rows, fewer operations
+    if sparse.issparse(a):  # a long mission's (planners.problem.motion.SPARSE_FROM): the same rows, fewer operations
         keep = np.flatnonzero(c - abs(a).sum(axis=1).A1 * radius <= 0.0)
         a_keep = a[keep]
     else:
@@ -269,7 +269,7 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     c_k, a_k = c[keep] / norms, _rows_divided(a_keep, norms)
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
-    if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.active_set)
+    if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.optimisation.active_set)
         exact = solve_step_qp(hess, ev.gradient, a_k, -c_k, radius, shift=_shift(hess))
         if exact is not None:
             d, lam = exact[0], np.zeros(c.size)
@@ -304,7 +304,7 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
 def _proxqp(h, g, rows, lower, upper):
     """ProxQP on min 1/2 y^T h y + g^T y s.t. lower <= rows y <= upper (capped at 300 iterations).
 
-    Its sparse backend on large QPs (:data:`planners.active_set.BANDED_MIN_SIZE` variables or more: a long
+    Its sparse backend on large QPs (:data:`planners.optimisation.active_set.BANDED_MIN_SIZE` variables or more: a long
     mission's H is banded and each row touches one or two segments, a few per cent of the entries);
     the dense one on small ones, where it is as fast (and gives the results the planner's figures were
     measured with).
@@ -468,7 +468,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     """Minimise ``problem``'s J subject to its constraints >= 0, from x0.
 
     Args:
-        problem: a :class:`planners.problem.MotionProblem` (``evaluate(x, derivatives)`` returning J,
+        problem: a :class:`planners.problem.motion.MotionProblem` (``evaluate(x, derivatives)`` returning J,
             constraints, gradient, jacobian, a positive semi-definite ``hessian`` and ``violation``).
         x0: start.
         options: :class:`SqpOptions`.

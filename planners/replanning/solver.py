@@ -2,21 +2,21 @@
 
 A replan starts from the plan in force, which is already near-optimal (the rest of the offline plan, or
 that plan shifted to a moved way point): it needs a few Gauss-Newton SQP steps, not a general solver's
-robustness. :func:`solve_warm` is the elastic trust-region SQP of :mod:`planners.sqp` (same subproblem:
-Gauss-Newton curvature of :class:`planners.problem.MotionProblem`, slacks on the constraints violated at
+robustness. :func:`solve_warm` is the elastic trust-region SQP of :mod:`planners.optimisation.sqp` (same subproblem:
+Gauss-Newton curvature of :class:`planners.problem.motion.MotionProblem`, slacks on the constraints violated at
 x, constraints that cannot become active in the trust region left out, rows scaled to unit infinity
 norm, exact l1 merit and ratio test), with two differences chosen for latency:
 
 * the QP is solved by Goldfarb and Idnani's dual active-set method (``quadprog``), exact and about
   0.5 ms for the replanner's ~60 variables, where ProxQP took ~10 ms whatever the size;
-* an explicit iteration cap (:class:`planners.replan.ReplanOptions`), and it stops as soon as an
+* an explicit iteration cap (:class:`planners.replanning.replanner.ReplanOptions`), and it stops as soon as an
   accepted, feasible step improves the merit by less than ``tolerance`` (relative);
 * a budget: an iteration after the first starts only when the caller's ``afford`` says its cost fits
   (the replanner: the deterministic latency with one more derivative and value evaluation within the
   deadline), so a refinement never makes a plan late;
 * the trial point likely to be the last (the last iteration's, or a step predicting a merit decrease
   below ``tolerance``) may be evaluated by the caller's ``final``, which fuses the value evaluation
-  with the caller's dense check of it (:func:`planners.replan_check.evaluate_and_check`): one
+  with the caller's dense check of it (:func:`planners.replanning.check.evaluate_and_check`): one
   inverse-dynamics call instead of two.
 
 Its counts (derivative and value evaluations) feed the replanner's deterministic latency.
@@ -95,7 +95,7 @@ def solve_warm(problem, x0, max_iterations: int = 4, tolerance: float = 1e-3, ra
     """Minimise ``problem``'s J subject to its constraints >= 0 from the warm start x0 (module docstring).
 
     Args:
-        problem: the NLP (:class:`planners.problem.MotionProblem` or a subclass).
+        problem: the NLP (:class:`planners.problem.motion.MotionProblem` or a subclass).
         x0: the warm start (n_x,).
         max_iterations: iteration cap.
         tolerance: stop when an accepted feasible step improves the merit by less than this (relative).

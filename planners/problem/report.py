@@ -1,9 +1,9 @@
 """What a motion does, checked on a dense grid: :func:`evaluate_motion` and its :class:`MotionReport`.
 
-A motion planned on the optimisation grid (:mod:`planners.problem`) is sampled again at 500 Hz (and at
+A motion planned on the optimisation grid (:mod:`planners.problem.motion`) is sampled again at 500 Hz (and at
 every knot): the inverse dynamics (:func:`fpr.model.inverse_dynamics.inverse_dynamics`) gives the
 thrusts, rolls, torques and rotor speeds; J_e (3.24, exact |.|) and J_phi (3.25) are integrated by the
-trapezoidal rule; every constraint of :data:`planners.problem.CONSTRAINT_KINDS` is reported by its
+trapezoidal rule; every constraint of :data:`planners.problem.motion.CONSTRAINT_KINDS` is reported by its
 worst value (:class:`ConstraintReport`), in natural units, against :data:`FEASIBILITY_TOLERANCE`.
 A plan's feasibility is this report's, not the optimiser's verdict.
 """
@@ -16,8 +16,8 @@ import numpy as np
 
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from fpr.model.kinematics import singularity_margin
-from planners.polynomial import PiecewisePolynomial
-from planners.problem import CONSTRAINT_KINDS, constraint_kind, constraint_rows, objective_rates
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.motion import CONSTRAINT_KINDS, constraint_kind, constraint_rows, objective_rates
 
 #: Largest violation of a constraint still counted as satisfied on the dense grid, per unit.
 FEASIBILITY_TOLERANCE = {"m": 1e-6, "rad": 1e-6, "rad/s": 1e-3, "N": 1e-6}
@@ -29,7 +29,7 @@ class ConstraintReport:
 
     Attributes:
         name: e.g. ``ground_1``, ``roll_2``, ``rotor_speed_high_1``.
-        kind: its kind (key of :data:`planners.problem.CONSTRAINT_KINDS`).
+        kind: its kind (key of :data:`planners.problem.motion.CONSTRAINT_KINDS`).
         margin: least signed margin (>= 0 satisfied) [unit].
         time: where it occurs [s].
         unit: unit of ``margin``.
@@ -109,13 +109,13 @@ def evaluate_motion(robot, trajectory: PiecewisePolynomial, rate: float = 500.0,
     Args:
         robot, trajectory, rate: what to check, and how densely [Hz].
         crossing_time: for a prototype motion that crosses its Type-2 singularity once
-            (:mod:`planners.crossing`), the time of the crossing [s]: the assembly-mode bounds are
+            (:mod:`planners.crossing.solve`), the time of the crossing [s]: the assembly-mode bounds are
             then checked on each side of it.
         min_thrust: also check thrust >= this [N] (``thrust_low``), or None.
         external: known external forces the motion is flown against (a gust), or None: a function of the
             sample times t (N,) [s] and positions s (N, n_s) giving what
             :func:`fpr.model.inverse_dynamics.inverse_dynamics` takes as ``external`` (or None: no force),
-            e.g. :func:`planners.disturbance.evaluate_in_gusts`'s.
+            e.g. :func:`planners.problem.disturbance.evaluate_in_gusts`'s.
 
     Returns:
         the :class:`MotionReport` (J_e, J_phi by the trapezoidal rule on the samples).

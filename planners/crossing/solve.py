@@ -2,7 +2,7 @@
 
 A motion of the prototype can pass q2 = 0 (links aligned) with finite drone forces only if the crossing
 criterion (4.7) holds there (:mod:`fpr.robots.prototype_singularity`). The motions are two travels
-meeting at the crossing point, and :class:`planners.crossing_problem.CrossingProblem` is their NLP
+meeting at the crossing point, and :class:`planners.crossing.problem.CrossingProblem` is their NLP
 (which unknowns are free, which constraints hold). Here are the ways of solving it:
 
 * :func:`seed_approach` reproduces the seed's two approaches (4.2.1, 4.2.2) with this package's
@@ -36,7 +36,7 @@ from fpr.robots.prototype_singularity import (
     min_thrust,
     nearest_criterion_acceleration,
 )
-from planners.crossing_problem import (
+from planners.crossing.problem import (
     GROUPS,
     CrossingProblem,
     add_via_points,
@@ -44,9 +44,9 @@ from planners.crossing_problem import (
     crossing_motion,
     travel_times,
 )
-from planners.polynomial import N_DERIVS, PiecewisePolynomial
-from planners.report import MotionReport, evaluate_motion
-from planners.solving import Grid, solve_refining, solve_stage
+from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
+from planners.problem.report import MotionReport, evaluate_motion
+from planners.optimisation.solving import Grid, solve_refining, solve_stage
 
 #: The successive first guesses of :func:`optimise_crossing`: (drone polar angle at the crossing
 #: [rad], fraction of the mission's total time). The chain nearly upright, where gravity acts least
@@ -132,10 +132,10 @@ class CrossingOutcome:
         name: what produced it.
         trajectory: the motion (points laid out by :func:`crossing_layout` with ``n_via``).
         n_via: via points per travel.
-        report: dense-grid :class:`planners.report.MotionReport` (crossing-side constraints,
+        report: dense-grid :class:`planners.problem.report.MotionReport` (crossing-side constraints,
             :func:`crossing_report`).
         initial: the same for the motion the optimisation started from.
-        stages: the NLP solves (:class:`planners.solving.StageReport`).
+        stages: the NLP solves (:class:`planners.optimisation.solving.StageReport`).
         wall_time: [s].
     """
 
@@ -204,8 +204,8 @@ class CrossingOutcome:
 
 
 def crossing_report(robot, trajectory: PiecewisePolynomial, n_via, rate: float = 500.0) -> MotionReport:
-    """:func:`planners.report.evaluate_motion` of a crossing motion laid out by
-    :func:`~planners.crossing_problem.crossing_layout` with ``n_via``: the assembly-mode bounds on
+    """:func:`planners.problem.report.evaluate_motion` of a crossing motion laid out by
+    :func:`~planners.crossing.problem.crossing_layout` with ``n_via``: the assembly-mode bounds on
     each side of the crossing, and the least thrust (:func:`~fpr.robots.prototype_singularity.min_thrust`)."""
     index, _ = crossing_layout(n_via)
     return evaluate_motion(robot, trajectory, rate, crossing_time=float(trajectory.knots[index]),
@@ -289,7 +289,7 @@ def optimise_crossing(robot, start, end, duration: float, n_via=(2, 2), *, alpha
     From :func:`first_guess` (total ``duration`` [s] times ``starts[0][1]``, crossing with the drone at
     polar angle ``starts[0][0]``), one NLP frees the crossing state (q1_s, xi_s', xi_s'' on the criterion's
     line, xi_s''', xi_s''''), the via points and both travel times. As for the other methods
-    (:func:`planners.solving.solve_refining`), a result that holds on the optimisation grid (to
+    (:func:`planners.optimisation.solving.solve_refining`), a result that holds on the optimisation grid (to
     :data:`REFINE_BELOW`) but not on the dense grid is solved again on a grid twice as fine (at most
     ``max_refinements`` times). A start that ends infeasible is followed by the next of ``starts``; the
     first feasible result is returned, else the one with the least (relative) violation. Every solve is in

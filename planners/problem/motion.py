@@ -1,7 +1,7 @@
 """The motion-planning problem of the thesis' chapter 3, with exact derivatives.
 
 A motion is a chain of degree-9 segments through points P (way points and via points, each
-``[s, s', s'', s''', s'''']``, see :mod:`planners.polynomial`). Given the segment durations, the
+``[s, s', s'', s''', s'''']``, see :mod:`planners.trajectory.polynomial`). Given the segment durations, the
 motion and its derivatives at any time are *linear* in P (the Hermite basis weights W), and
 everything the planner looks at is a function of the motion at that instant only:
 
@@ -25,7 +25,7 @@ share their nodes' derivatives (:class:`NodeDerivatives`: the 2-step polish star
 Integrals use Simpson's rule on K equally spaced nodes per segment (the optimisation grid).
 Constraints are enforced on the same nodes, aggregated as the minimum over short windows
 (a few nodes each) to keep the number of NLP constraints small, with a small back-off
-(``CONSTRAINT_BACKOFF``) for what happens between nodes; :func:`planners.report.evaluate_motion`
+(``CONSTRAINT_BACKOFF``) for what happens between nodes; :func:`planners.problem.report.evaluate_motion`
 checks the result on a dense grid afterwards.
 
 The absolute value in J_e is smoothed for the optimiser, |x| ~ sqrt(x^2 + eps^2) - eps with
@@ -46,8 +46,8 @@ from scipy import sparse
 from fpr.model import jets
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
-from planners.polynomial import N_DERIVS, PiecewisePolynomial
-from planners.sensitivities import by_complex_step, by_dual_numbers
+from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
+from planners.problem.sensitivities import by_complex_step, by_dual_numbers
 
 COMPLEX_STEP = 1e-30
 #: (directions, nodes) from which :attr:`MotionProblem.derivatives` "auto" takes dual numbers.
@@ -97,7 +97,7 @@ CONSTRAINT_KINDS = {
     "rotor_speed_low": ("rad/s", "rotor speed w >= 0 (3.48)"),
     "rotor_speed_high": ("rad/s", "rotor speed w <= w_max - m_gr (3.48)"),
     "thrust_low": ("N", "thrust f_i >= f_min: the controller steers the thrust's direction, which a small "
-                        "thrust makes ill-conditioned (singularity crossings, planners.crossing)"),
+                        "thrust makes ill-conditioned (singularity crossings, planners.crossing.solve)"),
 }
 
 
@@ -125,7 +125,7 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
         scaled: False gives natural units (m, rad, rad/s; rotor margins on the signed speed).
             True gives the smooth, O(1) rows the optimiser uses: rotor margins on w^2 / w_lim^2
             and 1 - w^2 / w_lim^2 (w^2 is smooth where the signed speed is not).
-        crossing_sign: prototype crossing its Type-2 singularity once (:mod:`planners.crossing`):
+        crossing_sign: prototype crossing its Type-2 singularity once (:mod:`planners.crossing.solve`):
             per sample +1 before the crossing, -1 after it, 0 at it (N,). The assembly-mode bounds
             3.46 are then replaced by ``crossing_side`` (sign * q2 >= 0) and ``crossing_range``.
         min_thrust: f_min [N] of the ``thrust_low`` rows (scaled by m_d g), or None for none.
@@ -369,7 +369,7 @@ class MotionProblem:
         samples_per_segment: odd number of grid nodes per segment (ends included).
         windows_per_segment: constraint windows per segment (min over each window's nodes).
         crossing: index of the point where the prototype crosses its Type-2 singularity (q2 = 0
-            there, :mod:`planners.crossing`), or None. The motion is then evaluated with derivatives
+            there, :mod:`planners.crossing.solve`), or None. The motion is then evaluated with derivatives
             0..6 (:data:`fpr.model.inverse_dynamics.MOTION_ORDER`) and the assembly-mode bounds become the
             crossing's side constraints.
         min_thrust: a lower bound f_min [N] on every drone's thrust (``thrust_low``), or None.
@@ -437,7 +437,7 @@ class MotionProblem:
         self._window_index = (np.array([a for a, _ in self.windows])[:, None] + np.arange(lengths.pop())
                               if len(lengths) == 1 else None)
         self._cache: tuple[bytes, bool, Evaluation] | None = None
-        #: set by the composite SQP (:mod:`planners.sqp`): evaluations with derivatives then also give the
+        #: set by the composite SQP (:mod:`planners.optimisation.sqp`): evaluations with derivatives then also give the
         #: powers, their derivatives and J_phi's Gauss-Newton matrix (``Evaluation.power``...)
         self.power_model = False
         self._rows_names: list[str] | None = None
@@ -476,7 +476,7 @@ class MotionProblem:
     # ------------------------------------------------------------------ evaluation
     def _inputs(self, motion) -> MotionInputs:
         """The inverse-dynamics inputs of ``motion`` (5, N, n): the hook a problem with external forces
-        overrides (:class:`planners.disturbance.DisturbedProblem`); here the free flight."""
+        overrides (:class:`planners.problem.disturbance.DisturbedProblem`); here the free flight."""
         return inverse_dynamics(self.robot, motion)
 
     def _quantities(self, motion):

@@ -7,7 +7,7 @@ attempt (:func:`planners.methods.one_step.one_step_problem`): scipy's
 ``minimize(method="trust-constr")`` with 2-point finite-difference gradients of J and of the
 constraints and BFGS Hessian approximations, from the stop-at-every-way-point motion, stopped by a
 time cap. It is what the benchmark (``python -m fpr.bench --section planning``) compares the
-exact-gradient SQP of :mod:`planners.sqp` with; it is not a registered method.
+exact-gradient SQP of :mod:`planners.optimisation.sqp` with; it is not a registered method.
 """
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ from scipy.optimize import BFGS, NonlinearConstraint, minimize
 
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
-from planners.polynomial import PiecewisePolynomial
-from planners.report import evaluate_motion
+from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.report import evaluate_motion
 from planners.result import PlanResult
-from planners.solving import GRID_FEASIBILITY, Grid
+from planners.optimisation.solving import GRID_FEASIBILITY, Grid
 
 
 @dataclass(eq=False)
@@ -69,7 +69,7 @@ def plan_baseline(mission, robot, time_cap: float, *, grid: Grid = Grid(), dense
     """Plan ``mission`` like the thesis' fmincon runs (see the module docstring), for ``time_cap`` [s].
 
     Args:
-        mission: a way-point mission (:class:`planners.mission.Mission`).
+        mission: a way-point mission (:class:`planners.missions.mission.Mission`).
         robot: the robot.
         time_cap: the run stops at the first iteration after this much time [s] (it has no other
             stopping rule that a few minutes would meet).

@@ -51,7 +51,7 @@ File format (every key at the top level, except the optional ``[robot_parameters
     perturbation (roll rates) only. Default 0.5.
 ``cross_singularity`` (boolean, optional)
     Prototype only (a robot whose kind ``crosses_singularity``): ``true`` asks for a motion that
-    crosses the Type-2 singularity q2 = 0 exactly once (seed ch. 4, :mod:`planners.crossing`). The mission then has 2 way points, the start in
+    crosses the Type-2 singularity q2 = 0 exactly once (seed ch. 4, :mod:`planners.crossing.solve`). The mission then has 2 way points, the start in
     the assembly mode ``arm`` and the end in the other one, and 2 travel times and via-point
     counts: start -> crossing and crossing -> end (the times are first guesses; the planner
     optimises them with the crossing state). Default ``false``.
@@ -61,7 +61,7 @@ File format (every key at the top level, except the optional ``[robot_parameters
     Default: none (the committed URDF).
 ``[[events]]`` (array of tables, optional)
     What happens during the flight: a way point that moves (``kind = "move"``), a gust
-    (``kind = "gust"``); every key is documented in :mod:`planners.events`. Default: none.
+    (``kind = "gust"``); every key is documented in :mod:`planners.missions.events`. Default: none.
 
 Full example (the built-in ``square`` mission, with a longer link)::
 
@@ -85,7 +85,7 @@ Full example (the built-in ``square`` mission, with a longer link)::
 
 In Python::
 
-    from planners.mission import load_mission
+    from planners.missions.mission import load_mission
     mission = load_mission("square").replace(alpha=0.3, via_points=2)
     robot = mission.load_robot()
     s = mission.positions(robot)   # (k, 4) FPR s, or (k, 2) prototype xi, margins checked
@@ -111,7 +111,7 @@ import numpy as np
 from fpr import robots
 from fpr.model import description
 from fpr.model.errors import MissionError
-from planners.events import events_toml, parse_events
+from planners.missions.events import events_toml, parse_events
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -171,8 +171,8 @@ class Mission:
         description: free text.
         robot_parameters: xacro overrides for ``fpr.load(robot, **robot_parameters)``, e.g.
             ``{"link_length": 1.0}`` [SI units]; stored as a read-only mapping.
-        events: what happens in flight, a tuple of :class:`planners.events.MoveEvent` /
-            :class:`planners.events.GustEvent` sorted by time (:mod:`planners.events`).
+        events: what happens in flight, a tuple of :class:`planners.missions.events.MoveEvent` /
+            :class:`planners.missions.events.GustEvent` sorted by time (:mod:`planners.missions.events`).
         source: where the mission came from (file path or ``"built-in <name>"``), for messages.
 
     Raises:
@@ -211,7 +211,7 @@ class Mission:
         self._set("alpha", self._alpha(self.alpha))
         self._set("robot_parameters", self._robot_parameters(self.robot_parameters))
         self._check_arm_signs()
-        self._set("events", parse_events(self.events, self))  # [[events]]: planners/events.py
+        self._set("events", parse_events(self.events, self))  # [[events]]: planners/missions/events.py
 
     def _set(self, name: str, value) -> None:
         object.__setattr__(self, name, value)
@@ -504,7 +504,7 @@ class Mission:
         d = self.to_dict()
         rows = "".join(f"    {_toml_value(row)},\n" for row in d["way_points"])
         lines = [
-            "# Mission written by planners.mission.Mission.to_toml (format: see planners/mission.py)",
+            "# Mission written by planners.missions.mission.Mission.to_toml (format: see planners/missions/mission.py)",
             f"name = {_toml_value(d['name'])}",
             f"description = {_toml_value(d['description'])}",
             f"robot = {_toml_value(d['robot'])}  # {' or '.join(_toml_value(n) for n in robots.names())}",
@@ -515,7 +515,7 @@ class Mission:
             f"times = {_toml_value(d['times'])}  # travel time of each way-to-way travel [s]",
             f"via_points = {_toml_value(d['via_points'])}  # via points inside each travel",
             f"alpha = {_toml_value(d['alpha'])}  # weight of the energy term, in [0, 1]",
-            *(["cross_singularity = true  # prototype: cross q2 = 0 once (planners.crossing)"]
+            *(["cross_singularity = true  # prototype: cross q2 = 0 once (planners.crossing.solve)"]
               if d["cross_singularity"] else []),
             "",
             "[robot_parameters]  # overrides of urdf/parameters.yaml for the URDF [SI units]",
@@ -612,7 +612,7 @@ def mission_from_toml(text: str, source: str = "", *, default_name: str | None =
         reason = str(error)
         if "end of document" in reason:  # tomllib gives no line number there: add it
             reason += f" (line {text.count(chr(10)) + 1})"
-        raise MissionError("<toml>", f"not valid TOML: {reason}; see the format in planners/mission.py",
+        raise MissionError("<toml>", f"not valid TOML: {reason}; see the format in planners/missions/mission.py",
                            source) from error
     return mission_from_dict(data, source, default_name=default_name)
 
@@ -626,7 +626,7 @@ def builtin_mission_text(name: str) -> str:
     if name not in BUILTIN_MISSIONS:
         reason = f"no built-in mission {name!r}: use one of {', '.join(BUILTIN_MISSIONS)}"
         raise MissionError("<file>", reason, name)
-    folder = importlib.resources.files(__package__ or "planners").joinpath("missions")
+    folder = importlib.resources.files(__package__ or "planners.missions")
     return folder.joinpath(f"{name}.toml").read_text(encoding="utf-8")
 
 

@@ -22,9 +22,9 @@ and solves min J = alpha J_e/J_e0 + (1 - alpha) J_phi/J_phi0 under the chapter's
 q2 > 0 before the crossing and < 0 after it (one crossing), with the crossing velocity bounded away
 from 0 (a simple crossing), and (``smooth_crossing``) the 5th derivative continuous at the crossing:
 there F is one derivative less smooth than the motion, and a C4 knot would step the roll acceleration.
-The methods that solve it are in :mod:`planners.crossing`.
+The methods that solve it are in :mod:`planners.crossing.solve`.
 
-Derivatives: the motion entries by complex step (:class:`planners.problem.MotionProblem`), the
+Derivatives: the motion entries by complex step (:class:`planners.problem.motion.MotionProblem`), the
 crossing acceleration's dependence on (q1_s, xi_s', mu) by complex step too, the travel times by
 central differences (each needs a new grid).
 """
@@ -39,8 +39,8 @@ from fpr.robots.prototype_singularity import (
     min_thrust,
     nearest_criterion_acceleration,
 )
-from planners.polynomial import N_DERIVS, PiecewisePolynomial, Segment, with_via_points
-from planners.problem import (
+from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial, Segment, with_via_points
+from planners.problem.motion import (
     CONSTRAINT_BACKOFF,
     Evaluation,
     MotionProblem,
@@ -125,7 +125,7 @@ class CrossingProblem:
         times: the two travel times [s] (kept unless ``"times"`` is free).
         n_via: via points in each travel.
         free: the groups of unknowns (subset of :data:`GROUPS`).
-        alpha, normalisation: the objective (3.26), as in :class:`planners.problem.MotionProblem`.
+        alpha, normalisation: the objective (3.26), as in :class:`planners.problem.motion.MotionProblem`.
         samples_per_segment, windows_per_segment: the grid.
         min_crossing_speed: |q2'| at the crossing is kept above this [rad/s] (a simple crossing).
         time_bounds: (least, largest) travel time [s]; default (0.3 s, twice the two given times together).

@@ -1,7 +1,7 @@
 """Solving one planning NLP (a *stage*), and solving again on a finer grid when the dense check asks for it.
 
-* :func:`solve_stage` runs the trust-region SQP of :mod:`planners.sqp` (or scipy's SLSQP with the
-  same exact gradients) on any NLP with the shape of :class:`planners.problem.MotionProblem`
+* :func:`solve_stage` runs the trust-region SQP of :mod:`planners.optimisation.sqp` (or scipy's SLSQP with the
+  same exact gradients) on any NLP with the shape of :class:`planners.problem.motion.MotionProblem`
   (``n_x``, ``evaluate(x, derivatives) -> Evaluation``) and reports it as a :class:`StageReport`.
 * :func:`solve_refining` is the grid refinement every optimising method shares: a motion that holds
   every constraint on the optimisation :class:`Grid` but not on the dense grid is solved again, from
@@ -19,7 +19,7 @@ import numpy as np
 from scipy.optimize import minimize, nnls
 
 from fpr.model.errors import PlannerArgumentError
-from planners.sqp import SqpOptions, kkt_residual, prepare, solve_sqp
+from planners.optimisation.sqp import SqpOptions, kkt_residual, prepare, solve_sqp
 
 #: The NLP solvers :func:`solve_stage` knows.
 SOLVERS = ("sqp", "slsqp")
@@ -67,7 +67,7 @@ class StageReport:
         wall_time: [s].
         J_start, J_end: objective (on the optimisation grid) before and after.
         violation_end: largest scaled constraint violation on the grid at the end (0 = none).
-        kkt: the KKT residual at the end (:func:`planners.sqp.kkt_residual`: the largest of the three
+        kkt: the KKT residual at the end (:func:`planners.optimisation.sqp.kkt_residual`: the largest of the three
             below; SQP: with its last QP's multipliers; SLSQP: with the non-negative least-squares
             multipliers of the constraints within 1e-6 of their bound), kkt_stationarity,
             kkt_complementarity, kkt_feasibility: its parts, active: constraints with a positive multiplier.
@@ -93,7 +93,7 @@ class StageReport:
     active: int = 0
 
     def set_kkt(self, kkt) -> None:
-        """Copy a :class:`planners.sqp.Kkt` into the report."""
+        """Copy a :class:`planners.optimisation.sqp.Kkt` into the report."""
         self.kkt, self.kkt_stationarity = kkt.residual, kkt.stationarity
         self.kkt_complementarity, self.kkt_feasibility = kkt.complementarity, kkt.feasibility
         self.active = kkt.active
@@ -105,15 +105,15 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
 
     Args:
         problem: the NLP (``n_x``, ``evaluate(x, derivatives)``, e.g. a
-            :class:`~planners.problem.MotionProblem`), constraints ``>= 0``.
+            :class:`~planners.problem.motion.MotionProblem`), constraints ``>= 0``.
         x0: the start, shape (n_x,).
         name: the stage's name (reports and ``progress``).
         progress: called as ``progress(name, iteration, J, violation)`` after every iteration, or None.
         max_iterations: iteration limit.
         tolerance: stop when an iteration improves J (about 1) by less than this.
-        solver: one of :data:`SOLVERS`: ``"sqp"`` (:func:`planners.sqp.solve_sqp`) or ``"slsqp"`` (scipy;
+        solver: one of :data:`SOLVERS`: ``"sqp"`` (:func:`planners.optimisation.sqp.solve_sqp`) or ``"slsqp"`` (scipy;
             its best iterate is returned, a feasible one first).
-        sqp: further :class:`~planners.sqp.SqpOptions` of the SQP (its ``max_iterations`` and
+        sqp: further :class:`~planners.optimisation.sqp.SqpOptions` of the SQP (its ``max_iterations`` and
             ``tolerance`` are replaced by the arguments above); default: the earlier rule
             (``stop="progress"``, ``curvature="gauss-newton"``), as the singularity crossing uses it.
 
@@ -186,7 +186,7 @@ def solve_stage(problem, x0, name: str, progress=None, max_iterations: int = 100
 
 
 def kkt_with_best_multipliers(ev):
-    """The :class:`~planners.sqp.Kkt` residual of an Evaluation (with derivatives), best multipliers.
+    """The :class:`~planners.optimisation.sqp.Kkt` residual of an Evaluation (with derivatives), best multipliers.
 
     The multipliers: lambda >= 0 on the constraints within 1e-6 of their bound, by non-negative least
     squares on nabla J = A^T lambda (for a solver that gives none, SLSQP, and to compare methods).
@@ -206,7 +206,7 @@ def solve_refining(attempt: Callable, check: Callable, grid: Grid, max_refinemen
         attempt: ``attempt(grid, previous) -> (trajectory, stages)``: one solve (one or more stages)
             on ``grid``; ``previous`` is None the first time, then the trajectory of the attempt before,
             to start from.
-        check: ``check(trajectory) -> MotionReport`` (:func:`planners.report.evaluate_motion`).
+        check: ``check(trajectory) -> MotionReport`` (:func:`planners.problem.report.evaluate_motion`).
         grid: the first grid.
         max_refinements: at most this many refined attempts after the first.
         refine_below: a grid violation (the stages' ``violation_end``) up to which a finer grid is tried.

@@ -4,7 +4,7 @@ J = a_phi J_phi + sum_k pw_k |P_k| (J_e: the drone powers P_k at the grid nodes,
 objective itself smooths |P| as sqrt(P^2 + eps^2) - eps with eps = 0.01 W). A Gauss-Newton model of
 h(P(x)) keeps the outer function's curvature and drops P's own: grad P^T h''(P) grad P.
 
-* The default Gauss-Newton matrix of :class:`planners.problem.MotionProblem` gives each term the
+* The default Gauss-Newton matrix of :class:`planners.problem.motion.MotionProblem` gives each term the
   majoriser curvature 1 / |P_k| (a reweighted least-squares model: the quadratic through |P| that
   touches it at +-P_k). Along a step that moves P_k by dP with |dP| >> |P_k|, that quadratic grows as
   dP^2 / (2 |P_k|) where |P| grows as |dP|: it makes every step far too short, and the SQP stops
@@ -12,7 +12,7 @@ h(P(x)) keeps the outer function's curvature and drops P's own: grad P^T h''(P) 
 * This model gives each term h''(P) of a wider smoothing, sqrt(P^2 + mu^2) with mu = ``width``
   (0.1 W): mu^2 / (P^2 + mu^2)^(3/2), large only within about mu of a sign change of P (where |P|
   bends), small where P keeps its sign (where |P| is linear in P), plus ``share`` (0.05) times the
-  majoriser, which keeps the model's Hessian well conditioned (the active-set QP, planners.active_set,
+  majoriser, which keeps the model's Hessian well conditioned (the active-set QP, planners.optimisation.active_set,
   needs it) and its steps inside the region where the linearisation of P holds. Measured with the
   planner's defaults (dense-grid J, SQP iterations of all stages; issue 17): square one-step 0.5046
   in 19 iterations (Gauss-Newton: 0.5087, stopped after 12, 0.5036 only after 305), tour one-step
@@ -21,7 +21,7 @@ h(P(x)) keeps the outer function's curvature and drops P's own: grad P^T h''(P) 
   At 0.05 they are close to 1, and trying longer steps (``SqpOptions.extrapolate``) no longer pays
   (28 and 84 iterations instead of 27 and 80 for the two-step square and tour): it is off.
 
-The model is only the QP's curvature: the trust-region ratio test of :mod:`planners.sqp` judges every
+The model is only the QP's curvature: the trust-region ratio test of :mod:`planners.optimisation.sqp` judges every
 step on the exact merit, so a model that is too bold is corrected by shorter steps.
 """
 
@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 
-from planners.problem import POWER_CURVATURE_FLOOR, POWER_SMOOTHING, SPARSE_FROM
+from planners.problem.motion import POWER_CURVATURE_FLOOR, POWER_SMOOTHING, SPARSE_FROM
 
 #: mu of the model's smoothing of |P| [W] (module docstring).
 POWER_WIDTH = 0.1
@@ -54,7 +54,7 @@ def smoothed_hessian(ev, width: float = POWER_WIDTH, share: float = MAJORISER_SH
     if getattr(ev, "power", None) is None:
         return ev.hessian
     weight = ev.power_weight * power_curvature(ev.power, width, share)
-    # a long mission (planners.problem.SPARSE_FROM variables or more, where the evaluation's Jacobian is
+    # a long mission (planners.problem.motion.SPARSE_FROM variables or more, where the evaluation's Jacobian is
     # sparse too): each P_k depends on one segment's entries only, so the sum over the powers is a sparse
     # product (the same sum to round-off; below, the dense product the planner's figures were measured with)
     pj = getattr(ev, "power_jacobian_sparse", None)  # the evaluation's own CSR copy (no dense array made)

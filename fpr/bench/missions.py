@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planners.mission import Mission
+from planners.missions.mission import Mission
 
 #: Centre [y, z] [m] and radius [m] of the circle the end-effector goes round.
 LOOP_CENTRE = (0.5, 0.5)
@@ -57,5 +57,5 @@ def loop_mission(count: int, via_points: int = 1, alpha: float = 0.5) -> Mission
     return Mission(name=f"loop-{int(count)}", robot="fpr", way_points=points,
                    times=np.round(SECONDS_PER_METRE * chords, 12), via_points=via_points, alpha=alpha,
                    description=f"{int(count)} way points round a 0.5 m circle, {via_points} via points a "
-                               "travel (planners.missions_gen)",
-                   source="planners.missions_gen")
+                               "travel (fpr.bench.missions)",
+                   source="fpr.bench.missions")

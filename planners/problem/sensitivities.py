@@ -1,5 +1,5 @@
 """A motion's node quantities and their sensitivities to each node's motion jet, the two ways
-:meth:`planners.problem.MotionProblem._node_derivatives` takes them.
+:meth:`planners.problem.motion.MotionProblem._node_derivatives` takes them.
 
 Both take ``quantities`` (the problem's ``_quantities``: motion (5, N, n) -> (raw (N, Q), rows (N, R))) and
 the motion, and return (raw, rows, d raw / d X (N, Q, r, j), d rows / d X (N, R, r, j)), X[r, i, j] the r-th

@@ -1,0 +1,1 @@
+"""The planning NLP: the motion problem and its exact derivatives, the dense check, known external forces."""
