@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from fpr.model.compiled import choose, load_extension
+from fpr import _native as native
 from fpr.model.complex_step import complex_step_copies  # noqa: F401 (jets.complex_step_copies, as before)
 from fpr.model.complex_step import shared_real as _shared_real
 from fpr.model.complex_step import shared_sin_cos as _shared_sin_cos
@@ -29,17 +29,10 @@ _MAXK = 16
 _B = np.array([[math.comb(n, k) for k in range(_MAXK + 1)] for n in range(_MAXK + 1)], float)
 
 
-_KERNEL = load_extension("fpr.model._jets")
-
-#: The switch of :mod:`fpr.model._jets`' jet products and solves (:func:`fpr.model.compiled.choose`): None (the
-#: default) uses them when built, False always numpy's (the reference the tests hold them equal to), True
-#: requires them.
-compiled: bool | None = None
-
-
 def _kernel():
-    """fpr/model/_jets.c's module under :data:`compiled`, or None for numpy's."""
-    return choose(compiled, _KERNEL, "compiled", "fpr.model.jets.compiled = True", "jet products (fpr/model/_jets.c)")
+    """The native jet products and solves (:mod:`fpr._native`'s part ``jets``, ``fpr/_native/jets.c``), or None
+    for numpy's (the reference the tests hold them equal to)."""
+    return native.use("jets")
 
 
 def _suffix_batches(*batches):
