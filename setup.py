@@ -78,7 +78,7 @@ def extensions() -> list[Extension]:
     version = sysconfig.get_config_var("py_version_nodot")
     cpp = NATIVE / "cpp"
     parts.append(Extension(
-        "fpr._native._pinocchio", [str(cpp / f"{name}.cpp") for name in ("module", "bridge", "plant", "minimal")],
+        "fpr._native._pinocchio", [str(cpp / f"{name}.cpp") for name in ("module", "bridge", "plant", "minimal", "measure")],
         depends=[str(cpp / "native.hpp")], language="c++", define_macros=PINOCCHIO_MACROS,
         extra_compile_args=OPTIMISE + WARNINGS + ["-std=c++17", "-ffp-contract=off", f"-isystem{include}",
                                                   f"-isystem{include / 'eigen3'}"] + system,

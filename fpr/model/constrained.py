@@ -164,6 +164,11 @@ class ClosedChainModel:
         qc = check_shape("qc", qc, (self.model.nq,))
         if reference is not None:
             reference = check_shape("reference", reference, (r.nq,))
+            measure = None if vc is None else cache.native_measure(self)  # fpr._native's part "measure"
+            if measure is not None:  # the same steps natively, the placements left in self.data as below
+                out = measure.measure(qc, check_shape("vc", vc, (self.model.nv,)), reference)
+                if out is not None:  # else (K^T K not positive definite: not these robots) the Python path
+                    return out
         pin.forwardKinematics(self.model, self.data, qc)  # Plant.observe reads these placements after this call
         omi = self.data.oMi
         qp = np.zeros(r.nq)
@@ -286,6 +291,21 @@ class _MinimalCache:
         self.reader = r.kind.closure_reader(closed)
         self._robot = r
         self._native = None
+        self._native_measure = None
+
+    def native_measure(self, closed):
+        """The native measurement (:mod:`fpr._native`'s part ``measure``: forward kinematics on ``closed.data``,
+        the kind's reads, the unwrapping and the velocity), made at its first use; None when the part is off or
+        not built, or the kind's reader gives no native reads."""
+        if self.native_minimal() is None or not hasattr(self.reader, "native_reads"):
+            return None
+        if self._native_measure is None:
+            r = self._robot
+            eulers, angles = self.reader.native_reads()
+            self._native_measure = native.use("measure").Measure(
+                closed.model, closed.data, self._native, r.model.nq, self.reversed_q.tolist(),
+                self.reversed_q_source.tolist(), self.reversed_sign, eulers, angles, r.T_inv, self.angular_list)
+        return self._native_measure
 
     def native_minimal(self):
         """The native measured velocity (:mod:`fpr._native`'s part ``measure``: the minimal model, its own data,

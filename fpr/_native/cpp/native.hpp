@@ -94,4 +94,41 @@ namespace fpr_native
   // normal equations and a Cholesky factorisation; false when K^T K is not positive definite.
   bool minimal_velocity(Minimal * minimal, const double * q, const double * vc, double * v);
 
+  // ------------------------------------------------------------------ the measurement (measure.cpp)
+  class Measure;
+
+  // How the robot kind's reader takes a minimal coordinate off the closed chain's joint placements
+  // (fpr/model/constrained.py, ClosedChainModel.to_minimal; the readers of fpr/robots/):
+  struct EulerRead // M = A oMi[joint] B: its translation and Z-Y-X Euler angles into qp
+  {
+    int joint;
+    double A[16], B[16];  // homogeneous, row-major
+    int translation[3];   // qp indices of x, y, z, or -1 (not read)
+    int euler[3];         // qp indices of psi, theta, phi
+    int reference[3];     // thesis indices of psi, theta, phi: the solution nearer the reference is taken
+  };
+  struct AngleRead // the angle about x from (oMi[joint] P) to oMi[other]: atan2(R[2,1], R[1,1]) of the relative R
+  {
+    int joint, other, index; // index: into qp
+    double P[16];
+  };
+
+  // The measurement on the closed chain's model (`objects`: its model and data, the Python side's, which the
+  // forward kinematics leaves as the Python path would): qp gets the shared joints (qp[source[k]] = sign[k]
+  // qc[closed_q[k]]) and the reads, q = T_inv qp with every angle (thesis indices `angular`) within pi of the
+  // reference, v by minimal_velocity on `minimal`.
+  Measure * measure_new(const Objects & objects, Minimal * minimal, int nqp, const std::vector<int> & closed_q,
+                        const std::vector<int> & source, const std::vector<double> & sign,
+                        const std::vector<EulerRead> & eulers, const std::vector<AngleRead> & angles,
+                        const double * T_inv, int n, const std::vector<int> & angular, std::string & error);
+  void measure_delete(Measure * measure);
+  int measure_nq(const Measure * measure);
+  int measure_nv(const Measure * measure);
+  int measure_n(const Measure * measure);
+
+  // (q, v) in thesis coordinates at the closed chain's (qc, vc), the angles unwrapped to `reference` (n); false
+  // when the velocity's normal equations are not positive definite (q is then set, v not).
+  bool measure(Measure * measure, const double * qc, const double * vc, const double * reference, double * q,
+               double * v);
+
 } // namespace fpr_native

@@ -3,7 +3,8 @@
 #include "native.hpp"
 
 #include <pinocchio/multibody.hpp>
-#include <pinocchio/algorithm/constrained-dynamics.hpp>
+#include <pinocchio/constraints.hpp>
+#include <pinocchio/algorithm/proximal.hpp>
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
 #include <pinocchio/algorithm/joint-configuration.hpp>
@@ -13,6 +14,33 @@
 
 #include <cmath>
 #include <utility>
+
+// pinocchio::constraintDynamics as its header declares it, without the header: the header also defines it, as
+// an inline template, which the compiler then instantiates for this file's call (most of a minute of compile
+// time) although libpinocchio_default holds that very instantiation (declared `extern template` there) and
+// the call links to it. The declaration must be the header's, parameter for parameter, so that the call
+// names the library's symbol: a mismatch fails at load time (an undefined symbol), never silently.
+namespace pinocchio
+{
+  template<
+    typename Scalar,
+    int Options,
+    template<typename, int> class JointCollectionTpl,
+    typename ConfigVectorType,
+    typename TangentVectorType1,
+    typename TangentVectorType2,
+    class ConstraintModelAllocator,
+    class ConstraintDataAllocator>
+  const typename DataTpl<Scalar, Options, JointCollectionTpl>::TangentVectorType & constraintDynamics(
+    const ModelTpl<Scalar, Options, JointCollectionTpl> & model,
+    DataTpl<Scalar, Options, JointCollectionTpl> & data,
+    const Eigen::MatrixBase<ConfigVectorType> & q,
+    const Eigen::MatrixBase<TangentVectorType1> & v,
+    const Eigen::MatrixBase<TangentVectorType2> & tau,
+    const std::vector<RigidConstraintModelTpl<Scalar, Options>, ConstraintModelAllocator> & contact_models,
+    std::vector<RigidConstraintDataTpl<Scalar, Options>, ConstraintDataAllocator> & contact_datas,
+    ProximalSettingsTpl<Scalar> & settings);
+} // namespace pinocchio
 
 namespace fpr_native
 {
