@@ -128,10 +128,23 @@ def configure(value=True) -> None:
     """
     global _required
     on, required = _parse(value)
+    before = dict(_on), _required
     _on.clear()
     _on.update(on)
     _required = required
-    _resolve()
+    try:
+        _resolve()
+    except NativeError:  # the switch as it was
+        _on.clear()
+        _on.update(before[0])
+        _required = before[1]
+        _resolve()
+        raise
+
+
+def _parse_environment():
+    """The setting of the environment variable FPR_NATIVE (None when unset)."""
+    return os.environ.get("FPR_NATIVE")
 
 
 def use(part: str):
@@ -173,6 +186,6 @@ def switched(**on: bool):
         _resolve()
 
 
-configure(os.environ.get("FPR_NATIVE"))
+configure(_parse_environment())
 
 __all__ = ["BUILD_HINT", "PARTS", "NativeError", "built", "configure", "module", "parts", "switched", "use"]

@@ -293,6 +293,11 @@ class _MinimalCache:
         self._native = None
         self._native_measure = None
 
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_native"] = state["_native_measure"] = None  # native objects: made again where they are used
+        return state
+
     def native_measure(self, closed):
         """The native measurement (:mod:`fpr._native`'s part ``measure``: forward kinematics on ``closed.data``,
         the kind's reads, the unwrapping and the velocity), made at its first use; None when the part is off or

@@ -435,6 +435,11 @@ class Robot:
             np.ascontiguousarray(self.T_inv[attitude].T), rows[:, 2].copy(), rows[:, 3:].reshape(-1).copy(), vector)
         return constants
 
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("_native_minimal", None)  # a native object: made again where it is next used
+        return state
+
     def _native_terms(self):
         """The minimal model's native terms (``fpr._native._pinocchio.Minimal``: M_p, nle and the drones' LOCAL frame
         Jacobians at (T q, T v), on a data of its own), made at its first use; None when the model's nq != nv."""

@@ -194,6 +194,11 @@ class Plant:
                                   model.frames[f].placement.rotation[:, 2].copy())
                                  for j, f in zip(closed.freeflyer_ids, closed.drone_frame_ids, strict=True))
 
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_native_plant"] = None  # a native object: made again at the next step
+        return state
+
     @classmethod
     def from_minimal(cls, robot, q, v=None, w=None, baumgarte: tuple[float, float] = (400.0, 40.0),
                      max_iter: int = 3, closed: ClosedChainModel | None = None,
