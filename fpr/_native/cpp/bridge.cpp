@@ -16,6 +16,16 @@ namespace fpr_native
     return PINOCCHIO_VERSION;
   }
 
+  int model_nq(const Objects & objects)
+  {
+    return static_cast<const pinocchio::Model *>(objects.model)->nq;
+  }
+
+  int model_nv(const Objects & objects)
+  {
+    return static_cast<const pinocchio::Model *>(objects.model)->nv;
+  }
+
   namespace
   {
     template<typename T>

@@ -69,6 +69,11 @@ namespace fpr_native
   {
     const auto & model = *static_cast<const pin::Model *>(objects.model);
     const int nj = model.njoints;
+    if (minimal_rows(minimal) != model.nv)
+    {
+      error = "the velocity's constant rows must be the closed chain's nv";
+      return nullptr;
+    }
     if (n != minimal_n(minimal))
     {
       error = "T_inv must have the minimal model's thesis coordinates as rows";

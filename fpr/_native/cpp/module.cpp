@@ -136,19 +136,15 @@ namespace
         PyErr_SetString(PyExc_ValueError, "force_map_t: expected a 2D array (rotor speeds, nv)");
         return -1;
       }
-      const int nw = (int)PyArray_DIM(g, 0);
-      Plant * plant = plant_new(objects, data(g), nw, frames, error);
-      const npy_intp columns = PyArray_DIM(g, 1);
+      Plant * plant = nullptr;
+      if (PyArray_DIM(g, 1) != model_nv(objects))
+        error = "force_map_t: expected the model's nv columns";
+      else
+        plant = plant_new(objects, data(g), (int)PyArray_DIM(g, 0), frames, error);
       Py_DECREF(g);
       if (plant == nullptr)
       {
         PyErr_SetString(PyExc_ValueError, error.c_str());
-        return -1;
-      }
-      if (columns != plant_nv(plant))
-      {
-        plant_delete(plant);
-        PyErr_SetString(PyExc_ValueError, "force_map_t: expected nv columns");
         return -1;
       }
       plant_delete(p->plant);
@@ -193,7 +189,7 @@ namespace
     long done = 0;
     StepStatus status = STEPS_DONE;
     if ((q = input(args[0], nq, "q")) == nullptr || (v = input(args[1], nv, "v")) == nullptr
-        || (w = input(args[2], -1, "w")) == nullptr)
+        || (w = input(args[2], plant_nw(plant), "w")) == nullptr)
       goto end;
     nw = PyArray_SIZE(w);
     if ((wc = input(args[3], nw, "w_command")) == nullptr || (decay = input(args[5], 3, "decay")) == nullptr)
@@ -369,20 +365,12 @@ namespace
       Minimal * minimal = nullptr;
       if (rows != nullptr)
       {
-        if (PyArray_NDIM(T) != 2 || PyArray_NDIM(rows) != 2 || PyArray_DIM(rows, 1) != PyArray_DIM(T, 1))
-          error = "T must be (nq, n) and constant_rows (rows, n)";
+        if (PyArray_NDIM(T) != 2 || PyArray_NDIM(rows) != 2 || PyArray_DIM(rows, 1) != PyArray_DIM(T, 1)
+            || PyArray_DIM(T, 0) != model_nq(objects))
+          error = "T must be (the model's nq, n) and constant_rows (rows, n)";
         else
-        {
-          const auto & dims = PyArray_DIMS(T);
-          minimal = minimal_new(objects, data(T), (int)dims[1], frames, data(rows), (int)PyArray_DIM(rows, 0),
-                                freeflyer_rows, hinges, error);
-          if (minimal != nullptr && dims[0] != minimal_nv(minimal))
-          {
-            minimal_delete(minimal);
-            minimal = nullptr;
-            error = "T must have the model's nq rows";
-          }
-        }
+          minimal = minimal_new(objects, data(T), (int)PyArray_DIM(T, 1), frames, data(rows),
+                                (int)PyArray_DIM(rows, 0), freeflyer_rows, hinges, error);
         if (minimal == nullptr)
           PyErr_SetString(PyExc_ValueError, error.c_str());
       }

@@ -33,6 +33,10 @@ namespace fpr_native
   bool extract(PyObject * model, PyObject * data, PyObject * constraints, PyObject * constraint_datas,
                PyObject * settings, Objects & out, std::string & error);
 
+  // The model's nq and nv (bridge.cpp).
+  int model_nq(const Objects & objects);
+  int model_nv(const Objects & objects);
+
   // ------------------------------------------------------------------ the plant (plant.cpp)
   class Plant;
 
@@ -45,6 +49,7 @@ namespace fpr_native
   int plant_nq(const Plant * plant);
   int plant_nv(const Plant * plant);
   int plant_frames(const Plant * plant);
+  int plant_nw(const Plant * plant); // rotor speeds: the force map's rows
 
   // Status of plant_steps.
   enum StepStatus

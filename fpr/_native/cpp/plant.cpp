@@ -177,6 +177,11 @@ namespace fpr_native
     return (int)plant->frames.size();
   }
 
+  int plant_nw(const Plant * plant)
+  {
+    return (int)plant->force_map.rows();
+  }
+
   StepStatus plant_steps(Plant * p, double * q_io, double * v_io, double * w_io, const double * w_cmd,
                          const double * decay, double dt, long steps, const double * wind, long & done)
   {
