@@ -18,8 +18,8 @@ The switch: the environment variable ``FPR_NATIVE``, read at import, or :func:`c
 for a block of code):
 
 * unset, ``1`` or ``on``: every part that is built (a part not built runs its Python path, with one warning);
-* ``0`` or ``off``: no native part (every Python path); ``FPR_NATIVE=0 pip install -e .`` is also the
-  pure-Python install, which builds none;
+* ``0`` or ``off``: no native part (every Python path; in the environment, no native code is even loaded);
+  ``FPR_NATIVE=0 pip install -e .`` is also the pure-Python install, which builds none;
 * ``require``: every part, an error when one is not built;
 * a comma-separated list of parts, e.g. ``plant,measure``: those parts only.
 
@@ -48,6 +48,8 @@ _on: dict[str, bool] = {}  # part -> on
 _required = False
 _active: dict[str, object] = {}  # part -> its first module when on and built, else None (what use() returns)
 _warned: set[str] = set()
+#: FPR_NATIVE=0 (or off) in the environment: no native code is ever loaded in this process
+_NEVER = os.environ.get("FPR_NATIVE", "").strip().lower() in ("0", "off")
 
 
 class NativeError(RuntimeError):
@@ -62,6 +64,8 @@ def _load(name: str):
     """
     if name in _modules:
         return _modules[name]
+    if _NEVER:  # FPR_NATIVE=0 in the environment: this process loads no native code
+        return None
     full = f"{__name__}.{name}"
     module = None
     if importlib.util.find_spec(full) is not None:
