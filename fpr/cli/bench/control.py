@@ -5,7 +5,7 @@ the hover thrusts (bounds active):
 
 1. the full :meth:`controllers.allocation.Allocator.solve` call (its closed form when no bound is active,
    else its bounded route; the states cycled, so not warm from a neighbouring tick: the loop's figure is
-   :mod:`fpr.cli.bench.loop_allocation`'s; the row names the path, the compiled tick when it is built, and the
+   :mod:`fpr.cli.bench.loop_allocation`'s; the row names the path, the native tick when it is built, and the
    Python path has its own row then), and the allocator's ProxQP workspace warm-started: the QP solve
    alone (``allocator.qp.solve()`` after ``qp.update``, only the solve timed), with ``qp.update`` and the
    building of H, g on their own rows;
@@ -25,8 +25,12 @@ call and the real-time factor (median of 3 runs, 1 with ``--quick``; the CPU tim
 shared machine), and one more run with timers around the simulator's parts (observe: measure and logged
 kinematics, outer loop, attitude model, allocation, the rest of the inner loop, plant steps, the watch; the
 remainder is the loop itself and the logging) for the per-tick breakdown, with which parts of the tick run
-compiled (``setup.py``'s optional extensions). Goals (issue 13), each a row of ``targets`` with its value, goal
-and verdict: the allocation's whole call <= 20 us with and without an active bound, RTF >= 20.
+natively (:mod:`fpr._native`). Then :mod:`fpr.cli.bench.native_parts`: the machine yardstick (the raw
+``pin.crba`` and ``pin.constraintDynamics`` of the FPR), the Pinocchio calls a tick needs, and each native part on
+and off side by side. Goals, each a row of ``targets`` with its value, goal and verdict: the allocation's whole
+call <= 20 us with and without an active bound; the square's whole-simulate RTF normalised by the yardstick (RTF
+x raw ``pin.crba`` time / 2 us) >= 20; the tick's overhead ratio (its time over the time of the Pinocchio calls it
+needs) <= 2.
 """
 
 from __future__ import annotations
@@ -230,7 +234,7 @@ def _simulation(result, runs: int, say) -> dict:
     parts["loop, reference, logging, the rest"] = timed.wall_time - sum(parts.values())
     simulated = float(logs[0].t[-1] - logs[0].t[0])
     st = settings.controller
-    compiled = native.parts()
+    running = native.parts()
     return dict(mission=CONTROL_MISSION, method="two-step", plant_rate_hz=settings.plant_rate,
                 inner_rate_hz=st.inner_rate, outer_rate_hz=st.outer_rate, runs=runs, simulated_s=simulated,
                 wall_s=float(np.median(walls)), wall_min_s=float(min(walls)), wall_runs_s=walls,
@@ -240,7 +244,7 @@ def _simulation(result, runs: int, say) -> dict:
                 breakdown_wall_s=timed.wall_time, breakdown_real_time_factor=timed.real_time_factor,
                 breakdown_per_tick_s={k: v / ticks for k, v in parts.items()},
                 breakdown_fraction={k: v / timed.wall_time for k, v in parts.items()},
-                per_plant_step_s=acc.get("plant steps", 0.0) / max(1, 2 * steps), compiled=compiled)
+                per_plant_step_s=acc.get("plant steps", 0.0) / max(1, 2 * steps), native=running)
 
 
 
@@ -266,10 +270,10 @@ def run_control(bench: Bench, quick: bool, progress: bool) -> dict:
     simulation = _simulation(square, settings["runs"], say)
     stick = yardstick(bench, square.robot)
     pinocchio = pinocchio_per_tick(bench, square)
-    parts = parts_on_off(square, settings["runs"], say)
-    every = parts["rows"][0]  # every part native, the same runs as the others'
-    normalised = every["real_time_factor"] * stick["crba_s"] / stick["normalised_to_crba_s"]
-    overhead = every["tick_s"] / pinocchio["per_tick_s"]
+    parts = parts_on_off(square, settings["runs"], say, pinocchio, square.robot)
+    pinocchio.pop("arguments")
+    every = parts["rows"][0]  # every part native, the same rounds as the others' (and as the yardstick's)
+    normalised, overhead = every["normalised_real_time_factor"], every["overhead_ratio"]
     simulation.update(normalised_real_time_factor=normalised, overhead_ratio=overhead)
     targets = loops["targets"] + [
         dict(target="closed-loop simulation of the square, plant 1 kHz: real-time factor (whole simulate call, "
@@ -328,7 +332,7 @@ def control_table(control: dict) -> str:
     lines.append(f"per-tick breakdown ({sim['ticks']} ticks; timed run: wall "
                  f"{sim['breakdown_wall_s']:.2f} s, RTF {sim['breakdown_real_time_factor']:.2f}, timers "
                  f"included; {fmt(sim['per_plant_step_s'])} per plant step; native: "
-                 f"{', '.join(k for k, v in sim.get('compiled', {}).items() if v) or 'nothing'})")
+                 f"{', '.join(k for k, v in sim.get('native', {}).items() if v) or 'nothing'})")
     for k, v in sim["breakdown_per_tick_s"].items():
         lines.append(f"  {k:<50}  {fmt(v)}  {100 * sim['breakdown_fraction'][k]:5.1f} %")
     lines += native_lines(control["native_parts"], control["yardstick"], control["pinocchio_per_tick"], fmt)
