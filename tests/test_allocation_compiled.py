@@ -183,6 +183,7 @@ def test_pickled_allocator_continues_warm(name):
         _assert_same(python_copy.solve(*call), a, allocator.scale)
 
 
+@needs_kernel
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_without_the_part_the_python_path_is_used(name, monkeypatch):
     """A part not built runs its Python path (one warning); FPR_NATIVE=require makes it an error."""

@@ -129,6 +129,7 @@ def test_compiled_part_declines_a_matrix_that_is_not_positive_definite():
         kernel.post(m, nle, jacobians, constants[:-1])
 
 
+@needs_kernel
 def test_native_terms_are_pinocchios():
     """M_p (both triangles), nle and the frame Jacobians from C++ equal Pinocchio's Python calls' to round-off."""
     native_module("attitude")
