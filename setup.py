@@ -1,18 +1,19 @@
 """Build of fpr's native parts, all in ``fpr/_native/`` (everything else is in pyproject.toml).
 
 * ``fpr._native._pinocchio`` (C++, ``fpr/_native/cpp/``): the plant's steps, its kinematic points and the
-  minimal model's terms by Pinocchio's own algorithms, linked against the ``libpinocchio_default`` library of the
-  ``libpinocchio`` wheel (its headers and Boost's from the same wheels, Eigen's from ``cmeel-eigen``: the
+  minimal model's terms by Pinocchio's own algorithms, linked against the ``libpinocchio_default`` library of
+  the ``libpinocchio`` wheel (its headers and Boost's from the same wheels, Eigen's from ``cmeel-eigen``: the
   ``[build-system] requires`` of pyproject.toml);
-* ``fpr._native._alloc``, ``_attitude``, ``_watch``, ``_jets`` (C): the allocation tick and the inner loop's float
-  part, the attitude model's numpy part, the watch's screen, the jet products.
+* ``fpr._native._alloc``, ``_attitude``, ``_watch``, ``_jets`` (C): the allocation tick and the inner loop's
+  float part, the attitude model's numpy part, the watch's screen, the jet products.
 
-Every source is compiled with warnings as errors, all of them in parallel (one job per core; ``FPR_NATIVE_JOBS``
-sets another number). A part that does not build fails the install with the compiler's messages and a line
-saying how to get the pure-Python install instead: ``FPR_NATIVE=0 pip install -e .`` builds no native part (the
-same variable at run time chooses the Python paths, :mod:`fpr._native`). ``FPR_NATIVE_SANITIZE=1`` builds the
-parts with AddressSanitizer and UndefinedBehaviorSanitizer (CI's sanitizer job). ``-ffp-contract=off``: no fused
-multiply-adds, so that the C parts round as their Python references do, operation by operation.
+Every source is compiled with warnings as errors, all of them in parallel (one job per core;
+``FPR_NATIVE_JOBS`` sets another number). A part that does not build fails the install with the compiler's
+messages and a line saying how to get the pure-Python install instead: ``FPR_NATIVE=0 pip install -e .``
+builds no native part (the same variable at run time chooses the Python paths, :mod:`fpr._native`).
+``FPR_NATIVE_SANITIZE=1`` builds the parts with AddressSanitizer and UndefinedBehaviorSanitizer (CI's
+sanitizer job). ``-ffp-contract=off``: no fused multiply-adds, so that the C parts round as their Python
+references do, operation by operation.
 """
 
 import os
@@ -35,8 +36,9 @@ SANITIZERS = ["-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
 OPTIMISE = ["-O1", "-g"] + SANITIZERS if SANITIZE else ["-O2", "-g0"]
 # Pinocchio's own compile definitions (its CMake target pinocchio_headers / pinocchio_default): the Boost MPL
 # limits its joint variant needs, and the declarations of the algorithms the library instantiates (extern
-# template), which spare this build their instantiation. PINOCCHIO_DISABLE_UNSUPPORTED_WARNINGS: the constraint
-# dynamics' API is marked "will change" by a deprecation attribute, which -Werror would turn into an error.
+# template), which spare this build their instantiation. PINOCCHIO_DISABLE_UNSUPPORTED_WARNINGS: the
+# constraint dynamics' API is marked "will change" by a deprecation attribute, which -Werror would turn into
+# an error.
 PINOCCHIO_MACROS = [("BOOST_MPL_LIMIT_LIST_SIZE", "30"), ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
                     ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None), ("BOOST_FUSION_INVOKE_MAX_ARITY", "12"),
                     ("PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION", None),
@@ -88,8 +90,8 @@ def extensions() -> list[Extension]:
 
 
 class BuildNative(build_ext):
-    """build_ext with every source of every part compiled at once on a pool of threads, and a failure that says
-    what to do."""
+    """build_ext with every source of every part compiled at once on a pool of threads, and a failure that
+    says what to do."""
 
     def build_extensions(self):
         self.check_extensions_list(self.extensions)

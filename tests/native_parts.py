@@ -2,7 +2,8 @@
 
 A test of a native part runs it, and fails when the part is not built: a native install builds every part or
 fails (setup.py), so a missing part is a broken install, never a reason to skip. The pure-Python install
-(``FPR_NATIVE=0 pip install -e .``) runs its tests with ``FPR_NATIVE=0`` too: those tests then skip, saying why.
+(``FPR_NATIVE=0 pip install -e .``) runs its tests with ``FPR_NATIVE=0`` too: those tests then skip, saying
+why.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""fpr's native parts, all built from this folder (``setup.py``), and the one switch between each and its Python
-reference.
+"""fpr's native parts, all built from this folder (``setup.py``), and the one switch between each and its
+Python reference.
 
 The parts (each the same computation as its Python path, equal to round-off; ``tests/test_*_compiled.py``):
 
@@ -7,15 +7,15 @@ The parts (each the same computation as its Python path, equal to round-off; ``t
   ``constraintDynamics``, ``integrate`` and ``dIntegrate`` (``cpp/plant.cpp``);
 * ``measure``: the measured velocity's least squares (``ClosedChainModel.to_minimal``) on Pinocchio's joint
   Jacobians (``cpp/minimal.cpp``);
-* ``attitude``: the attitude model (``Robot.attitude_model``): M_p, the nonlinear effects and the drones' frame
-  Jacobians by Pinocchio's ``crba``, ``nonLinearEffects`` and ``getFrameJacobian`` (``cpp/minimal.cpp``), the rest
-  in C (``attitude.c``);
+* ``attitude``: the attitude model (``Robot.attitude_model``): M_p, the nonlinear effects and the drones'
+  frame Jacobians by Pinocchio's ``crba``, ``nonLinearEffects`` and ``getFrameJacobian``
+  (``cpp/minimal.cpp``), the rest in C (``attitude.c``);
 * ``allocation`` and ``inner``: the allocation tick and the inner loop's float part (``alloc.c``);
 * ``watch``: the watch's screen (``watch.c``);
 * ``jets``: the planner's jet products (``jets.c``).
 
-The switch: the environment variable ``FPR_NATIVE``, read at import, or :func:`configure` (and :func:`switched`
-for a block of code):
+The switch: the environment variable ``FPR_NATIVE``, read at import, or :func:`configure` (and
+:func:`switched` for a block of code):
 
 * unset, ``1`` or ``on``: every part that is built (a part not built runs its Python path, with one warning);
 * ``0`` or ``off``: no native part (every Python path; in the environment, no native code is even loaded);
@@ -53,7 +53,8 @@ _NEVER = os.environ.get("FPR_NATIVE", "").strip().lower() in ("0", "off")
 
 
 class NativeError(RuntimeError):
-    """A native part that must run cannot: not built (with ``FPR_NATIVE=require``), or built but not loadable."""
+    """A native part that must run cannot: not built (with ``FPR_NATIVE=require``), or built but not
+    loadable."""
 
 
 def _load(name: str):
@@ -101,8 +102,8 @@ def _resolve() -> None:
                                   f"{BUILD_HINT}")
             elif part not in _warned:
                 _warned.add(part)
-                logger.warning("the native part %r is not built: its Python path runs (a pure-Python install? "
-                               "FPR_NATIVE=0 says so and silences this; %s)", part, BUILD_HINT)
+                logger.warning("the native part %r is not built: its Python path runs (a pure-Python "
+                               "install? FPR_NATIVE=0 says so and silences this; %s)", part, BUILD_HINT)
         _active[part] = module
 
 
@@ -123,8 +124,8 @@ def _parse(value) -> tuple[dict[str, bool], bool]:
 
 
 def configure(value=True) -> None:
-    """Set the switch: True (every built part), False (none), ``"require"``, or an iterable (or comma-separated
-    string) of the parts to run native (module docstring).
+    """Set the switch: True (every built part), False (none), ``"require"``, or an iterable (or
+    comma-separated string) of the parts to run native (module docstring).
 
     Raises:
         ValueError: an unknown part or value.
@@ -173,8 +174,8 @@ def built() -> dict[str, bool]:
 
 @contextlib.contextmanager
 def switched(**on: bool):
-    """A block with some parts switched on or off, e.g. ``with switched(plant=False): ...``; the switch as it was
-    afterwards."""
+    """A block with some parts switched on or off, e.g. ``with switched(plant=False): ...``; the switch as it
+    was afterwards."""
     unknown = [p for p in on if p not in PARTS]
     if unknown:
         raise ValueError(f"unknown part(s) {', '.join(map(repr, unknown))}; give some of {', '.join(PARTS)}")

@@ -1,21 +1,22 @@
 """The control section's machine yardstick and the native parts' worth (:mod:`fpr.cli.bench.control`).
 
-* The yardstick: the raw Python calls ``pin.crba`` of the FPR's minimal model and ``pin.constraintDynamics`` of
-  its closed chain (the plant's model, closures and proximal settings) at hover, each timed as the model
+* The yardstick: the raw Python calls ``pin.crba`` of the FPR's minimal model and ``pin.constraintDynamics``
+  of its closed chain (the plant's model, closures and proximal settings) at hover, each timed as the model
   section times Pinocchio (:class:`fpr.cli.bench.timing.Bench`). A figure of the simulation divided by them
   compares across machines of different speed: the real-time factor normalised by the yardstick is
   RTF x (``pin.crba`` time / 2 us).
 * The tick's Pinocchio calls: one closed-loop run of the square's plan on the Python paths (every native part
   off), with counters on Pinocchio's algorithms (``constraintDynamics``, ``integrate``, ``dIntegrate``, the
   kinematics, ``crba``, ``nonLinearEffects``, the Jacobians), gives how many of each a tick needs (the native
-  parts make the same calls, from C++); each is then timed raw from Python on the arguments it was first called
-  with. Their sum per tick is the time of the Pinocchio calls the tick needs, and the tick's overhead ratio is
-  the tick's time (the whole ``simulate`` call's wall time over its ticks, every part native) over that sum.
+  parts make the same calls, from C++); each is then timed raw from Python on the arguments it was first
+  called with. Their sum per tick is the time of the Pinocchio calls the tick needs, and the tick's overhead
+  ratio is the tick's time (the whole ``simulate`` call's wall time over its ticks, every part native) over
+  that sum.
 * Each native part on and off: whole ``simulate`` calls of the square's plan with every part native, with one
   part switched off, and with none (the Python paths), alternating run by run so that the machine's load
-  changes all alike; the median real-time factor of each (by wall clock and by CPU time) and its ratio to every
-  part native. Each round also times the tick's Pinocchio calls and ``pin.crba`` again: the overhead ratio and
-  the normalised real-time factor divide figures taken in the same rounds, under the same load.
+  changes all alike; the median real-time factor of each (by wall clock and by CPU time) and its ratio to
+  every part native. Each round also times the tick's Pinocchio calls and ``pin.crba`` again: the overhead
+  ratio and the normalised real-time factor divide figures taken in the same rounds, under the same load.
 """
 
 from __future__ import annotations
@@ -40,7 +41,8 @@ LOOP_PARTS = ("plant", "measure", "attitude", "allocation", "inner", "watch")
 
 
 def yardstick(bench, robot) -> dict:
-    """The raw ``pin.crba`` (minimal model) and ``pin.constraintDynamics`` (closed chain) of ``robot`` at hover."""
+    """The raw ``pin.crba`` (minimal model) and ``pin.constraintDynamics`` (closed chain) of ``robot`` at
+    hover."""
     q = hover_configuration(robot, robot.kind.reference_chain)
     plant = Plant.from_minimal(robot, q, v=0.01 * np.ones(robot.nq), w=hover_speeds(robot, q))
     closed = plant.closed
@@ -106,9 +108,9 @@ def _raw_time(function, args, target: float = 0.02, repeats: int = 5) -> float:
 
 
 def pinocchio_per_tick(bench, result) -> dict:
-    """How many calls of each Pinocchio algorithm a tick of ``result``'s closed loop needs, each one's raw time,
-    and their sum per tick (module docstring); ``calls`` keeps each one's first arguments for :func:`parts_on_off`,
-    which times them again round by round."""
+    """How many calls of each Pinocchio algorithm a tick of ``result``'s closed loop needs, each one's raw
+    time, and their sum per tick (module docstring); ``arguments`` keeps each one's first arguments for
+    :func:`parts_on_off`, which times them again round by round."""
     counts, first, ticks = _counted_run(result)
     calls = {}
     for name in COUNTED:
@@ -128,9 +130,9 @@ def _round_figures(pinocchio: dict, crba) -> tuple[float, float]:
 
 
 def parts_on_off(result, runs: int, say, pinocchio: dict, robot) -> dict:
-    """Whole ``simulate`` calls with every part native, one part off, none; alternating (module docstring). Each
-    round also times the tick's Pinocchio calls and the raw ``pin.crba`` again, so that the overhead ratio and the
-    normalised real-time factor compare figures taken under the same load."""
+    """Whole ``simulate`` calls with every part native, one part off, none; alternating (module docstring).
+    Each round also times the tick's Pinocchio calls and the raw ``pin.crba`` again, so that the overhead
+    ratio and the normalised real-time factor compare figures taken under the same load."""
     configs = [("every part native", {})] + [(f"{part} off", {part: False}) for part in LOOP_PARTS] \
         + [("no part native (Python paths)", dict.fromkeys(native.PARTS, False))]
     configs = [(label, switches) for label, switches in configs
