@@ -60,7 +60,7 @@ def parser() -> argparse.ArgumentParser:
     p = contract.Parser(prog="python -m fpr.campaign", description=__doc__.split("\n\n")[0],
                         formatter_class=contract.HelpFormatter, epilog=EXIT_CODES)
     p.add_argument("--campaign", type=Path, default=None,
-                   help="a campaign TOML file (see README); the options below override its fields")
+                   help="a campaign TOML file (see the documentation, guides/campaigns); the options below override its fields")
     p.add_argument("--mission", default=None, help="built-in mission or mission TOML file (default square)")
     p.add_argument("--method", default=None, choices=list(METHODS), help="planning method (default two-step)")
     p.add_argument("--runs", type=int, default=None, help="number of closed-loop runs (default 100)")

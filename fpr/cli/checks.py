@@ -6,9 +6,10 @@ with the options: the robot's coordinates for ``--initial-error``, then the size
 the run would make, estimated from the mission's duration and via points, against the limits below.
 Each failure is a :class:`CommandLineError` naming the option or mission field and what to do.
 
-The limits are set from measurements on a 2-core laptop (Python 3.12): about 250 us and 3 kB of memory
-per sample of a motion (inverse dynamics, constraints, CSV row), 2 s per polynomial segment of an
-optimisation (it grows faster than linearly), 1.5 s per simulated second.
+The limits keep the largest accepted work to minutes on a 2-core machine, from its cost per unit: a
+fraction of a millisecond and about 3 kB of memory per sample of a motion (inverse dynamics, constraints,
+CSV row), seconds per polynomial segment of an optimisation (it grows faster than linearly), about a
+second and a half per simulated second.
 """
 
 from __future__ import annotations

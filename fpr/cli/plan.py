@@ -9,7 +9,7 @@ solve time, then the worst value of every constraint. Into ``--out`` (default
 * ``mission.toml``: the mission as planned (command-line overrides included), re-usable with --mission;
 * ``plan.json``: mission, robot parameters, summaries of both motions, solver stages, the
   points, durations and monomial coefficients of every segment;
-* ``trajectory.csv``: one row per sample at ``--rate`` (columns and units in README.md);
+* ``trajectory.csv``: one row per sample at ``--rate`` (columns and units in the documentation, guides/plan-command);
 * ``reference.csv``: the same for the stop-at-every-way-point motion;
 * ``manifest.json``: the command line, fpr's version, a hash of the inputs (the mission as planned and
   the options), the start time, the duration, the exit code and the wall-clock timings;
@@ -118,7 +118,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--optimal", action="store_true",
                    help="the SQP with the composite curvature and the KKT stopping rule: a KKT point to 1e-5, "
                         "2-20x slower (the default ends within 0.3 %% of the best J known on the built-in "
-                        "missions too; see README, Optimality)")
+                        "missions too; see the documentation, guides/planning-methods)")
     p.add_argument("--no-polish", action="store_true",
                    help="two-step: the thesis' method as it is, without the final one-step solve from its result")
     p.add_argument("--out", type=Path, default=None, help="output folder (default fpr-out/<mission>)")

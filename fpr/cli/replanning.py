@@ -35,7 +35,7 @@ def add_arguments(group) -> None:
         "--replan",
         action="store_true",
         help="replan in flight (with --simulate): on a move event, a tracking error past "
-        "--replan-bound, and optionally at --replan-rate; see README 'Replanning in flight'",
+        "--replan-bound, and optionally at --replan-rate; see the documentation, guides/replanning",
     )
     group.add_argument(
         "--replan-deadline",
@@ -225,7 +225,7 @@ def summary(hooks, done, log=None) -> str:
         lines.append(
             f"  {len(late)} of {len(hooks.replans)} replans were late: they need up to {need * 1e3:.0f} ms on this "
             f"machine ({hooks.replanner.options.timing} timing); --replan-deadline {_rounded_up(1.2 * need):g} "
-            "lets them in (README, Replanning in flight: latency)"
+            "lets them in (documentation: guides/replanning, latency)"
         )
     if done is not None:
         state = (
