@@ -12,7 +12,7 @@ Triggers (with a :class:`planners.replanning.replanner.Replanner`, ``--replan``)
 
 * **event**: a ``move`` event at its time: the way point moves and the rest of the motion is re-optimised
   from the plan in force's own state at the splice (C4 with it: the planned rotor speeds do not jump);
-* **tracking error**: |measured - planned| of a chain coordinate past ``tracking_bound`` (at most once every
+* **tracking error**: ``|measured - planned|`` of a chain coordinate past ``tracking_bound`` (at most once every
   ``min_interval``), and **the end of a gust**: re-optimised from the plan in force's state at the splice too
   (C4); not while a known gust blows (the error is then the wind's push, which the plan in force already
   flies against: replanning every 0.25 s from the plan's state gave short, violent travels that
@@ -145,7 +145,7 @@ class TriggerSettings:
     """When the closed loop asks for a replan.
 
     Attributes:
-        tracking_bound: largest |measured - planned| of a chain coordinate before a replan from the robot's
+        tracking_bound: largest ``|measured - planned|`` of a chain coordinate before a replan from the robot's
             state [m or rad] (None: no such trigger).
         min_interval: least simulated time between two tracking-error replans [s].
         rate: fixed replanning rate [Hz], or None.
