@@ -43,6 +43,14 @@ def test_every_guide_is_in_the_table_of_contents():
     assert [g for g in guides if f"guides/{g}\n" not in index] == []
 
 
+def test_repository_paths_named_in_the_documents_exist():
+    pattern = re.compile(r"`((?:tests|fpr|planners|controllers|urdf|notebooks|docs)/[A-Za-z0-9_./-]+)`")
+    documents = [README, ROOT / "CHANGELOG.md", *(ROOT / "docs").rglob("*.md")]
+    named = {m for p in documents for m in pattern.findall(p.read_text())}
+    assert len(named) > 50
+    assert sorted(n for n in named if not (ROOT / n).exists()) == []
+
+
 def test_readme_first_example_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # it writes scene.html
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), re.S)
