@@ -93,7 +93,9 @@ def _text(items) -> str:
 
 
 def test_committed_run_renders_every_part(bench_tables, committed_run):
-    for part in bench_tables.PARTS:
+    # the native parts' rows come with the benchmark's native section; a run made before it has none
+    absent = set() if "native_parts" in committed_run.get("control", {}) else {"native"}
+    for part in set(bench_tables.PARTS) - absent:
         rendered = bench_tables.render(committed_run, part)
         assert rendered and all(isinstance(t, bench_tables.Table) and t.rows for t in rendered), part
         assert "Not measured" not in _text(rendered), part
@@ -112,6 +114,19 @@ def test_missing_or_reshaped_parts_say_not_measured(bench_tables, committed_run)
     assert "Not measured" in _text(bench_tables.render(reshaped, "simulation"))
     # the parts still present render as before
     assert "Not measured" not in _text(bench_tables.render(partial, "planning"))
+
+
+def test_native_parts_render_when_the_run_has_them(bench_tables, committed_run):
+    run = copy.deepcopy(committed_run)
+    run["control"].update(
+        yardstick=dict(crba_s=4e-6, constraint_dynamics_s=2e-5, normalised_to_crba_s=2e-6),
+        pinocchio_per_tick=dict(ticks=6501, calls={"crba": dict(per_tick=1.0, raw_s=4e-6)}, per_tick_s=4e-6),
+        native_parts=dict(runs=3, simulated_s=13.0, ticks=6501, rows=[
+            dict(label="every part native", wall_s=0.5, real_time_factor=26.0, tick_s=8e-5, slowdown=1.0),
+            dict(label="no part native (Python paths)", wall_s=1.3, real_time_factor=10.0, tick_s=2e-4, slowdown=2.6)]))
+    on_off = bench_tables.render(run, "native")[-1]
+    assert [r[0] for r in on_off.rows] == ["every part native", "no part native (Python paths)"]
+    assert on_off.rows[0][3] == "52" and on_off.rows[0][5] == "20"  # RTF x crba / 2 us; tick / its Pinocchio calls
 
 
 def test_time_format(bench_tables):

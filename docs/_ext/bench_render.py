@@ -241,6 +241,30 @@ def part_simulation(doc: dict) -> list[Table]:
     return lines
 
 
+def part_native(doc: dict) -> list[Table]:
+    """The machine yardstick, the Pinocchio calls a tick needs, and the native parts switched on and off."""
+    control = need(doc, "control")
+    stick, pinocchio, parts = need(control, "yardstick"), need(control, "pinocchio_per_tick"), need(control, "native_parts")
+    crba, reference = need(stick, "crba_s"), need(stick, "normalised_to_crba_s")
+    tables = list_table(["machine yardstick (raw Python calls)", "time"],
+                        [["pin.crba (FPR minimal model)", fmt_time(crba)],
+                         ["pin.constraintDynamics (FPR closed chain)", fmt_time(stick.get("constraint_dynamics_s"))]])
+    per_tick = need(pinocchio, "per_tick_s")
+    tables += list_table([f"Pinocchio calls a tick needs ({fmt_num(pinocchio.get('ticks'))} ticks counted)", "per tick",
+                          "raw time of one call"],
+                         [[f"pin.{name}", fmt_num(c.get("per_tick"), 3), fmt_time(c.get("raw_s"))]
+                          for name, c in need(pinocchio, "calls").items()]
+                         + [["all, per tick", "", fmt_time(per_tick)]])
+    tables += list_table(["whole simulate call of the square", "wall (median)", "real-time factor",
+                          f"normalised to pin.crba = {fmt_time(reference)}", "time per tick",
+                          "overhead ratio (tick / its Pinocchio calls)", "slowdown"],
+                         [[r["label"], fmt_time(r.get("wall_s")), fmt_num(r.get("real_time_factor"), 3),
+                           fmt_num(r["real_time_factor"] * crba / reference, 3), fmt_time(r.get("tick_s")),
+                           fmt_num(r["tick_s"] / per_tick, 3), f"{r.get('slowdown', float('nan')):.2f} ×"]
+                          for r in need(parts, "rows")])
+    return tables
+
+
 def _stats_row(name: str, item: dict) -> list:
     wall, cpu, model = item.get("wall") or {}, item.get("cpu") or {}, item.get("model") or {}
     return [name, fmt_num(wall.get("n")), fmt_time(wall.get("median_s")), fmt_time(wall.get("p95_s")),
@@ -288,7 +312,7 @@ PARTS = {
     "run": part_run, "goals": part_goals, "model": part_model, "residuals": part_residuals,
     "planning": part_planning, "optimality": part_optimality, "sensitivities": part_sensitivities,
     "scaling": part_scaling, "allocation": part_allocation, "allocation-loops": part_allocation_loops,
-    "simulation": part_simulation, "replan": part_replan, "replan-phases": part_replan_phases,
+    "simulation": part_simulation, "native": part_native, "replan": part_replan, "replan-phases": part_replan_phases,
     "work-cost": part_work_cost,
 }
 
