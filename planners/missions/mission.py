@@ -43,7 +43,7 @@ File format (every key at the top level, except the optional ``[robot_parameters
 ``times`` (array of numbers, required)
     k - 1 travel times [s], finite and > 0: ``times[i]`` is the time from way point i to i + 1.
 ``via_points`` (integer or array of integers, optional)
-    n_vp >= 0, the number of via points the optimiser places inside each travel; one integer is
+    0 <= n_vp <= 1000, the number of via points the optimiser places inside each travel; one integer is
     used for every travel, an array gives one per travel (k - 1 entries). Default 1.
 ``alpha`` (number, optional)
     Weight in [0, 1] of the energy term of the objective (seed 3.25)
@@ -99,6 +99,7 @@ import importlib.resources
 import logging
 import numbers
 import os
+import re
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -110,7 +111,9 @@ import numpy as np
 
 from fpr import robots
 from fpr.model import description
-from fpr.model.errors import MissionError
+from fpr.model.errors import MissionError, ModelArgumentError
+from fpr.model.parameters import check_parameters
+from planners.missions import BUILTIN_MISSIONS
 from planners.missions.events import events_toml, parse_events
 
 if sys.version_info >= (3, 11):
@@ -122,8 +125,9 @@ logger = logging.getLogger(__name__)
 
 SPACES = ("task", "joint")
 ARMS = ("down", "up")
-BUILTIN_MISSIONS = ("square", "study", "prototype-tour", "cross-singularity", "moving-target", "gust")
-"""Names of the built-in missions, files ``planners/missions/<name>.toml``."""
+
+MAX_VIA_POINTS = 1000
+"""Most via points in one travel (``python -m fpr.plan`` optimises at most 64 polynomial segments in all)."""
 
 _REQUIRED_KEYS = ("robot", "way_points", "times")
 _FILE_KEYS = ("name", "description", "robot", "space", "arm", "way_points", "times", "via_points", "alpha",
@@ -221,14 +225,14 @@ class Mission:
 
     def _text(self, field_name: str, value, allow_empty: bool = True) -> str:
         if not isinstance(value, str):
-            raise self._error(field_name, f"{value!r} is a {type(value).__name__}: write a string in quotes")
+            raise self._error(field_name, f"{_short(value)} is a {type(value).__name__}: write a string in quotes")
         if not allow_empty and not value.strip():
             raise self._error(field_name, "is empty: give the mission a name")
         return value
 
     def _choice(self, field_name: str, value, choices: tuple[str, ...], meaning: str) -> str:
         if not isinstance(value, str) or value not in choices:
-            raise self._error(field_name, f"{value!r} is not known ({meaning}): use one of "
+            raise self._error(field_name, f"{_short(value)} is not known ({meaning}): use one of "
                                           f"{', '.join(map(repr, choices))}")
         return value
 
@@ -242,7 +246,7 @@ class Mission:
         n, listed = len(coords), ", ".join(coords)
         shape_hint = f"a list of way points, each a list of {n} numbers [{listed}]"
         if not _is_sequence(value):
-            raise self._error("way_points", f"{value!r} is not a list: give {shape_hint}")
+            raise self._error("way_points", f"{_short(value)} is not a list: give {shape_hint}")
         rows = list(value)
         if len(rows) < 2:
             reason = f"{len(rows)} way point(s): give at least 2 (a start and an end), as {shape_hint}"
@@ -250,21 +254,21 @@ class Mission:
         for i, row in enumerate(rows):
             name = f"way_points[{i}]"
             if not _is_sequence(row) or np.ndim(row) != 1:
-                raise self._error(name, f"{row!r} is not a list of numbers: give {n} numbers [{listed}]")
+                raise self._error(name, f"{_short(row)} is not a list of numbers: give {n} numbers [{listed}]")
             if len(row) != n:
                 reason = f"has {len(row)} entries; a {self.robot} way point in {self.space} space has {n}: " \
                          f"[{listed}]"
                 raise self._error(name, reason)
             for j, x in enumerate(row):
                 if not _is_number(x):
-                    raise self._error(name, f"entry {j} ({coords[j]}) is {x!r}, not a number")
+                    raise self._error(name, f"entry {j} ({coords[j]}) is {_short(x)}, not a number")
                 if not np.isfinite(x):
                     raise self._error(name, f"entry {j} ({coords[j]}) is {x}: give a finite number")
         return _read_only(np.array([[float(x) for x in row] for row in rows], dtype=float))
 
     def _crossing(self, value, k: int) -> bool:
         if not isinstance(value, (bool, np.bool_)):
-            raise self._error("cross_singularity", f"{value!r}: write true or false")
+            raise self._error("cross_singularity", f"{_short(value)}: write true or false")
         if value and (not self.kind.crosses_singularity or k != 2):
             able = [name for name in robots.names() if robots.get(name).crosses_singularity]
             reason = (f"true needs a robot that can cross its singularity ({', '.join(map(repr, able))}) and "
@@ -281,12 +285,12 @@ class Mission:
     def _times(self, value, k: int, travels: int) -> np.ndarray:
         count = f"{self._travels_text(k, travels)}: give {travels} travel time(s) [s]"
         if not _is_sequence(value) or np.ndim(value) != 1:
-            raise self._error("times", f"{value!r} is not a list: {count}, e.g. times = {[3.0] * travels}")
+            raise self._error("times", f"{_short(value)} is not a list: {count}, e.g. times = {_short([3.0] * travels)}")
         if len(value) != travels:
             raise self._error("times", f"has {len(value)} entries; {count}, one per travel")
         for i, t in enumerate(value):
             if not _is_number(t):
-                raise self._error(f"times[{i}]", f"{t!r} is not a number: give a travel time in seconds")
+                raise self._error(f"times[{i}]", f"{_short(t)} is not a number: give a travel time in seconds")
             if not (np.isfinite(t) and t > 0):
                 raise self._error(f"times[{i}]", f"{t} s: a travel time must be finite and > 0 [s]")
         return _read_only(np.array([float(t) for t in value], dtype=float))
@@ -305,21 +309,24 @@ class Mission:
 
     def _check_via_point(self, field_name: str, value) -> None:
         if not _is_integer(value):
-            reason = (f"{value!r} is not an integer: give the number of via points of a travel as an integer "
+            reason = (f"{_short(value)} is not an integer: give the number of via points of a travel as an integer "
                       ">= 0 (e.g. 1, not 1.0)")
             raise self._error(field_name, reason)
         if value < 0:
             raise self._error(field_name, f"{value}: the number of via points must be >= 0")
+        if value > MAX_VIA_POINTS:
+            raise self._error(field_name, f"{_short(value)}: give at most {MAX_VIA_POINTS} via points a travel (no "
+                                          "planner optimises more)")
 
     def _alpha(self, value) -> float:
         if not _is_number(value) or not np.isfinite(value) or not 0.0 <= value <= 1.0:
-            reason = f"{value!r}: give a number in [0, 1] (1: energy only, 0: drone perturbation only)"
+            reason = f"{_short(value)}: give a number in [0, 1] (1: energy only, 0: drone perturbation only)"
             raise self._error("alpha", reason)
         return float(value)
 
     def _robot_parameters(self, value) -> Mapping[str, float]:
         if not isinstance(value, Mapping):
-            reason = f"{value!r} is not a table: write [robot_parameters] then lines like link_length = 1.0"
+            reason = f"{_short(value)} is not a table: write [robot_parameters] then lines like link_length = 1.0"
             raise self._error("robot_parameters", reason)
         known = description.xacro_arguments(self.kind.xacro)
         checked = {}
@@ -330,7 +337,11 @@ class Mission:
                           f"{', '.join(known)} (rotor constants, margins: edit urdf/parameters.yaml instead)")
                 raise self._error(name, reason)
             if not _is_number(x) or not np.isfinite(x) or x < 0 or (key == "link_length" and x == 0):
-                raise self._error(name, f"{x!r}: give a finite number >= 0 (> 0 for link_length) [SI units]")
+                raise self._error(name, f"{_short(x)}: give a finite number >= 0 (> 0 for link_length) [SI units]")
+            try:
+                check_parameters({key: float(x)}, {})
+            except ModelArgumentError as error:
+                raise self._error(name, error.reason) from None
             checked[key] = float(x)
         return MappingProxyType(checked)
 
@@ -525,7 +536,13 @@ class Mission:
 
 
 def _text_of(values: np.ndarray) -> str:
-    return np.array2string(values, precision=6, separator=", ")
+    return "[" + ", ".join(f"{x:.6g}" for x in np.asarray(values, dtype=float).reshape(-1)) + "]"
+
+
+def _short(value, limit: int = 80) -> str:
+    """``repr(value)`` for a message, cut to ``limit`` characters (a list of 20,000 numbers is not echoed)."""
+    text = repr(value.tolist() if isinstance(value, np.ndarray) else value)
+    return text if len(text) <= limit else f"{text[:limit - 20]}... ({len(text)} characters)"
 
 
 def _field_equal(a, b) -> bool:
@@ -581,7 +598,7 @@ def mission_from_dict(data: Mapping[str, Any], source: str = "", *,
         if key not in _FILE_KEYS:
             reason = f"unknown key{_did_you_mean(key, _FILE_KEYS)}: the keys of a mission are " \
                      f"{', '.join(_FILE_KEYS)}"
-            raise MissionError(str(key), reason, source)
+            raise MissionError(_short(str(key), 60).strip("'\""), reason, source)
     missing = [key for key in _REQUIRED_KEYS if key not in data]
     if missing:
         raise MissionError(missing[0], f"missing: a mission needs {', '.join(_REQUIRED_KEYS)} (missing: "
@@ -606,6 +623,13 @@ def mission_from_toml(text: str, source: str = "", *, default_name: str | None =
         MissionError: a TOML syntax error (field ``"<toml>"``, the reason gives line and column),
             or any error of :func:`mission_from_dict`.
     """
+    text = text.removeprefix("\ufeff")  # a byte-order mark, as some editors write
+    deep = _DEEP_KEY.search(text)
+    if deep is not None:  # tomllib needs memory quadratic in a dotted key's depth: refuse before parsing
+        line = text.count("\n", 0, deep.start()) + 1
+        raise MissionError("<toml>", f"a key of more than {MAX_KEY_DEPTH} dotted parts (line {line}); a mission's "
+                                     "keys have at most 2 (robot_parameters.link_length): see the format in "
+                                     "planners/missions/mission.py", source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
@@ -614,6 +638,10 @@ def mission_from_toml(text: str, source: str = "", *, default_name: str | None =
             reason += f" (line {text.count(chr(10)) + 1})"
         raise MissionError("<toml>", f"not valid TOML: {reason}; see the format in planners/missions/mission.py",
                            source) from error
+    except RecursionError:
+        raise MissionError("<toml>", "arrays or tables nested too deeply (a mission nests at most 3 levels: "
+                                     "way_points = [[...], ...]): see the format in planners/missions/mission.py",
+                           source) from None
     return mission_from_dict(data, source, default_name=default_name)
 
 
@@ -630,6 +658,54 @@ def builtin_mission_text(name: str) -> str:
     return folder.joinpath(f"{name}.toml").read_text(encoding="utf-8")
 
 
+MAX_FILE_BYTES = 16 * 1024 * 1024
+"""Largest mission file read [bytes]: 16 MiB, a hundred times the largest mission the planner accepts (a
+400 s mission of 2 ms travels, 200,000 way points of the FPR, about 16 MB of TOML is already beyond what the
+planner's size limits let through); a larger file (or a device such as ``/dev/zero``) is refused unread."""
+
+MAX_KEY_DEPTH = 16
+"""Most dotted parts of a TOML key a mission file may have (its own keys have at most 2)."""
+_SEGMENT = r"""(?:[A-Za-z0-9_-]+|"[^"\n]*"|'[^'\n]*')"""
+_DEEP_KEY = re.compile(rf"(?:{_SEGMENT}[ \t]*\.[ \t]*){{{MAX_KEY_DEPTH}}}{_SEGMENT}")
+
+_BOMS = {b"\xff\xfe\x00\x00": "UTF-32", b"\x00\x00\xfe\xff": "UTF-32", b"\xff\xfe": "UTF-16",
+         b"\xfe\xff": "UTF-16"}
+
+
+def read_mission_text(path: str | os.PathLike) -> str:
+    """The text of a mission file: UTF-8 (a leading byte-order mark is skipped), at most :data:`MAX_FILE_BYTES`.
+
+    Raises:
+        MissionError: a file that cannot be read, is larger than the limit (a device is not read to its
+            end), or is not UTF-8 text (field ``"<file>"``, the message says what to do).
+    """
+    path = Path(path)
+    source = str(path)
+    hint = f"give the path of a .toml mission file or a built-in mission: {', '.join(BUILTIN_MISSIONS)}"
+    try:
+        with open(path, "rb") as stream:
+            data = stream.read(MAX_FILE_BYTES + 1)
+    except OSError as error:
+        reason = f"cannot read {source!r} ({error.__class__.__name__}: {error.strerror or error}): {hint}"
+        raise MissionError("<file>", reason, source) from error
+    if len(data) > MAX_FILE_BYTES:
+        raise MissionError("<file>", f"{source!r} is larger than {MAX_FILE_BYTES // (1024 * 1024)} MiB (a mission "
+                                     f"file is a few kB; the planner's size limits refuse far smaller missions): "
+                                     f"{hint}", source)
+    for bom, encoding in _BOMS.items():
+        if data.startswith(bom):
+            raise MissionError("<file>", f"{source!r} is {encoding} text; TOML files are UTF-8: save it as UTF-8",
+                               source)
+    try:
+        text = data.decode("utf-8-sig")  # a byte-order mark (some Windows editors write one) is skipped
+    except UnicodeDecodeError as error:
+        line = data[:error.start].count(b"\n") + 1
+        raise MissionError("<file>", f"{source!r} is not UTF-8 text (byte {error.start}, line {line}: "
+                                     f"{error.reason}); TOML files are UTF-8: save it as UTF-8, or {hint}",
+                           source) from None
+    return text
+
+
 def load_mission(name_or_path: str | os.PathLike) -> Mission:
     """Load a built-in mission by name, or a mission file.
 
@@ -639,21 +715,16 @@ def load_mission(name_or_path: str | os.PathLike) -> Mission:
 
     Raises:
         MissionError: no such built-in mission or readable file (field ``"<file>"``, the message
-            lists the built-in missions), or an invalid file.
+            lists the built-in missions), a file larger than :data:`MAX_FILE_BYTES` or not UTF-8
+            (:func:`read_mission_text`), or an invalid file.
     """
     if isinstance(name_or_path, str) and name_or_path in BUILTIN_MISSIONS:
         logger.debug("loading the built-in mission %s", name_or_path)
         return mission_from_toml(builtin_mission_text(name_or_path), f"built-in {name_or_path}",
                                  default_name=name_or_path)
-    path = Path(name_or_path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        reason = (f"cannot read {str(path)!r} ({error.__class__.__name__}: {error}): give the path of a "
-                  f".toml mission file or a built-in mission: {', '.join(BUILTIN_MISSIONS)}")
-        raise MissionError("<file>", reason, str(name_or_path)) from error
-    logger.debug("loading the mission file %s", path)
-    return mission_from_toml(text, str(path))
+    text = read_mission_text(name_or_path)
+    logger.debug("loading the mission file %s", name_or_path)
+    return mission_from_toml(text, str(name_or_path))
 
 
 __all__ = [
@@ -662,7 +733,9 @@ __all__ = [
     "Mission",
     "SPACES",
     "builtin_mission_text",
+    "MAX_FILE_BYTES",
     "load_mission",
     "mission_from_dict",
     "mission_from_toml",
+    "read_mission_text",
 ]
