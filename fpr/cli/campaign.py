@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 import time
 from pathlib import Path
@@ -29,6 +30,7 @@ from pathlib import Path
 from fpr import robots
 from fpr.cli import checks, contract, launch, workers
 from fpr.cli.campaign_options import EXIT_CODES, MAX_RUNS, parser
+from fpr.cli.text import plural
 from fpr.model.errors import CampaignError
 from fpr.robustness.campaign_file import campaign_to_toml, load_campaign
 from fpr.robustness.runner import make_flight, mission_of, run_campaign
@@ -192,7 +194,7 @@ def work(args, argv) -> int:
     safe_name = "".join(c if c.isalnum() or c in "-_." else "_" for c in mission.name).lstrip(".") or "mission"
     out = args.out or Path("fpr-out") / f"campaign-{safe_name[:100]}"
     key = campaign.key(mission.to_toml())
-    say(f"campaign: mission {mission.name!r} ({mission.robot}), {campaign.runs} runs, seed {campaign.seed}, "
+    say(f"campaign: mission {mission.name!r} ({mission.robot}), {plural(campaign.runs, 'run')}, seed {campaign.seed}, "
         f"varied: {', '.join(f'{k}={d.text()}' for k, d in sorted(campaign.vary.items())) or 'nothing'}")
     flight, result = make_flight(campaign, mission)
     store = RunStore(out, key, {"campaign": campaign_to_toml(campaign, "mission.toml"),
@@ -207,6 +209,7 @@ def work(args, argv) -> int:
         done = run_campaign(campaign, flight, store, client, progress)
     except KeyboardInterrupt:
         launch.ending()  # a second Ctrl-C ends the process at once
+        logging.disable(logging.CRITICAL)  # the cluster's complaints about its killed workers are not news
         workers.end_children()  # the worker processes end now, not after a graceful close
         stored = len(store.load(campaign.runs))
         print(f"interrupted: {stored} of {campaign.runs} runs stored in {out}; the same command resumes",
@@ -229,7 +232,7 @@ def work(args, argv) -> int:
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the table
             print(f"warning: figures not written: {contract.one_line(error)}", file=sys.stderr)
     low, high = summary["success_rate_wilson95"]
-    say(f"{summary['successes']} of {summary['runs']} runs succeeded ({summary['success_rate']:.1%}, 95 % "
+    say(f"{summary['successes']} of {plural(summary['runs'], 'run')} succeeded ({summary['success_rate']:.1%}, 95 % "
         f"Wilson interval {low:.1%} .. {high:.1%}); lost {summary['lost']}, errors {summary['errors']}; "
         f"{done.reused} reused, {done.computed} simulated in {done.wall_time:.1f} s on {done.workers} "
         f"worker{'s' if done.workers != 1 else ''}")

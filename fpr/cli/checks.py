@@ -263,26 +263,33 @@ def least_travel_times(mission, robot, chunk: int = 500) -> np.ndarray:
     return out
 
 
-def _check_travel_times(args, mission, robot) -> None:
-    """Each travel at least two steps of the dense grid, and long enough for the rotors (:func:`least_travel_times`)."""
-    where = _field(args, "--times", "times", mission)
+def _check_grid_times(args, mission) -> None:
+    """Each travel at least :data:`GRID_STEPS` steps of the dense check grid."""
     times = [float(t) for t in mission.times]
     grid = GRID_STEPS / DENSE_RATE
     for i, t in enumerate(times):
         if t < grid:
-            raise CommandLineError(where, times, f"times[{i}] = {t:g} s is shorter than {GRID_STEPS} steps of the "
-                                                 f"planner's {DENSE_RATE:g} Hz check grid: give at least {grid:g} s")
-    if mission.cross_singularity:  # the times of a crossing are first guesses, optimised with it
+            raise CommandLineError(_field(args, "--times", "times", mission), times,
+                                   f"times[{i}] = {t:g} s is shorter than {GRID_STEPS} steps of the planner's "
+                                   f"{DENSE_RATE:g} Hz check grid: give at least {grid:g} s")
+
+
+def _check_travel_times(args, mission, robot) -> None:
+    """Each travel long enough for the rotors (:func:`least_travel_times`; not for a singularity crossing, whose
+    times are first guesses the planner optimises)."""
+    if mission.cross_singularity:
         return
+    times = [float(t) for t in mission.times]
     least = least_travel_times(mission, robot)
     short = np.flatnonzero(np.asarray(times) < least)
     if short.size:
         i = int(short[0])
-        raise CommandLineError(where, times,
+        need = _round_up(least[i])
+        raise CommandLineError(_field(args, "--times", "times", mission), times,
                                f"times[{i}] = {times[i]:g} s is too short for the robot's rotors: over the travel "
-                               f"from way point {i} to {i + 1}, even the gentlest rest-to-rest motion would need "
-                               f"more than their full thrust ({full_thrust(robot).max():.3g} N a drone) below "
-                               f"{_round_up(least[i]):g} s: give at least that")
+                               f"from way point {i} to {i + 1}, even the time-optimal rest-to-rest motion needs "
+                               f"more than their full thrust ({full_thrust(robot).max():.3g} N a drone) in less "
+                               f"than {need:g} s: give at least {need:g} s")
 
 
 def _round_up(seconds: float) -> float:
@@ -314,6 +321,7 @@ def check_work(args, mission, robot, optimised: bool) -> None:
             raise CommandLineError("--initial-error", f"{name}=...", f"unknown coordinate {name!r}: use one of "
                                                                      f"{', '.join(known)}")
     _check_lift(args, mission, robot)
+    _check_grid_times(args, mission)
     duration = mission.duration
     dense = duration * DENSE_RATE + 1
     if dense > MAX_SAMPLES:
@@ -329,10 +337,6 @@ def check_work(args, mission, robot, optimised: bool) -> None:
                                f"trajectory.csv would have {rows:.3g} rows ({duration:g} s at {args.rate:g} Hz, about "
                                f"{_bytes(rows * BYTES_PER_SAMPLE)} of memory); the limit is {MAX_ROWS:,} rows: "
                                f"give --rate {math.floor((MAX_ROWS - 1) / duration):d} or less")
-    least_rate = 1.0 / float(np.min(mission.times))
-    if args.rate < least_rate:
-        raise CommandLineError("--rate", args.rate, f"fewer samples than travels: give at least {least_rate:.3g} Hz "
-                                                    "(one sample per shortest travel)")
     segments = int(sum(int(n) + 1 for n in mission.via_points))
     if optimised and segments > MAX_SEGMENTS:
         where = _field(args, "--via-points", "via_points", mission)
@@ -350,6 +354,10 @@ def check_work(args, mission, robot, optimised: bool) -> None:
                                    f"{MAX_SIMULATED:g} s: shorten the mission or --hold")
         _check_replanning(args, simulated)
     _check_travel_times(args, mission, robot)
+    least_rate = 1.0 / float(np.min(mission.times))
+    if args.rate < least_rate:
+        raise CommandLineError("--rate", args.rate, f"fewer samples than travels: give at least {least_rate:.3g} Hz "
+                                                    f"(a sample per travel; the shortest lasts {1 / least_rate:g} s)")
 
 
 def _check_replanning(args, simulated: float) -> None:

@@ -20,11 +20,13 @@ import argparse
 import contextlib
 import copy
 import errno
+import logging
 import re
 import signal
 import sys
 import threading
 import traceback
+import warnings
 
 import fpr
 from fpr.cli import launch
@@ -158,10 +160,35 @@ def command(parser: argparse.ArgumentParser, argv, work) -> int:
     return run(lambda: work(args, argv), debug=args.debug)
 
 
+class _LineFormatter(logging.Formatter):
+    """A library's log record as one line: ``warning: ...`` (the level in lower case)."""
+
+    def format(self, record):
+        return f"{record.levelname.lower()}: {one_line(record.getMessage())}"
+
+
+def _log_lines() -> None:
+    """Log records of warnings and above from the libraries, as one line each on stderr (when nothing else
+    handles them: an application that configured logging keeps its own)."""
+    root = logging.getLogger()
+    if not root.handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(_LineFormatter())
+        handler.setLevel(logging.WARNING)
+        root.addHandler(handler)
+
+
 def run(work, debug: bool = False) -> int:
-    """Call ``work()`` (it returns 0 or 1) and map what it raises to an exit code and one line on stderr."""
+    """Call ``work()`` (it returns 0 or 1) and map what it raises to an exit code and one line on stderr.
+
+    Python warnings of the libraries (numpy's ``RuntimeWarning`` on an overflow...) are not shown, since the
+    checks of the result say what matters in one line; ``--debug`` shows them.
+    """
+    _log_lines()
     try:
-        with _terminate_as_interrupt():
+        with _terminate_as_interrupt(), warnings.catch_warnings():
+            if not debug:
+                warnings.simplefilter("ignore")
             return work()
     except (KeyboardInterrupt, Exception) as error:  # noqa: BLE001 - the contract: an exit code and one line
         if isinstance(error, KeyboardInterrupt):

@@ -175,7 +175,7 @@ def summary(hooks, done, log=None) -> str:
     if late:
         need = max(r.latency_s for r in late)
         lines.append(
-            f"  {len(late)} of {len(hooks.replans)} replans were late: they need up to {need * 1e3:.0f} ms on this "
+            f"  {len(late)} of {plural(len(hooks.replans), 'replan')} {'was' if len(late) == 1 else 'were'} late: they need up to {need * 1e3:.0f} ms on this "
             f"machine ({hooks.replanner.options.timing} timing); --replan-deadline {_rounded_up(1.2 * need):g} "
             "lets them in (README, Replanning in flight: latency)"
         )

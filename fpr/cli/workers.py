@@ -142,22 +142,55 @@ def local_client(workers: int):
     from distributed import Client
 
     os.environ[PARENT_VARIABLE] = str(os.getpid())  # inherited by the worker processes
+    _quiet_resource_tracker()
     return Client(n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=":0",
                   silence_logs=logging.ERROR, preload=[__name__])
 
 
+def _quiet_resource_tracker() -> None:
+    """Start Python's multiprocessing resource tracker (the process that removes the semaphores of a process
+    that ended without removing them) with its stderr on the null device.
+
+    After Ctrl-C the campaign ends at once (:func:`fpr.cli.launch.finish`) and the tracker removes the worker
+    queues' semaphores itself; it would print a warning and a traceback per semaphore over the campaign's one
+    line.
+    """
+    try:
+        from multiprocessing import resource_tracker
+    except ImportError:  # pragma: no cover - every CPython has it
+        return
+    saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        resource_tracker.ensure_running()
+    except OSError:
+        pass
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
+
+
 def children() -> list[int]:
-    """The process ids of every descendant of this process."""
+    """The process ids of every descendant of this process but the resource tracker (which cleans up after it)."""
     try:
         import psutil
 
-        return [child.pid for child in psutil.Process().children(recursive=True)]
+        found = []
+        for child in psutil.Process().children(recursive=True):
+            try:
+                if "resource_tracker" not in " ".join(child.cmdline()):
+                    found.append(child.pid)
+            except psutil.Error:
+                continue
+        return found
     except (ImportError, OSError):
         return []
 
 
 def end_children() -> None:
-    """Kill (SIGKILL) every descendant of this process: the campaign is ending after Ctrl-C or SIGTERM."""
+    """Kill (SIGKILL) every descendant of this process (the worker processes): the campaign is ending after
+    Ctrl-C or SIGTERM."""
     for pid in children():
         try:
             os.kill(pid, signal.SIGKILL)

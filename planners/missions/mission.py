@@ -280,7 +280,7 @@ class Mission:
     def _travels_text(self, k: int, travels: int) -> str:
         if self.cross_singularity:
             return "a singularity crossing has 2 travels (start -> crossing -> end)"
-        return f"{k} way points make {travels} travel(s)"
+        return f"{k} way points make {travels} travel{'' if travels == 1 else 's'}"
 
     def _times(self, value, k: int, travels: int) -> np.ndarray:
         count = f"{self._travels_text(k, travels)}: give {travels} travel time(s) [s]"
