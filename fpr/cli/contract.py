@@ -186,10 +186,14 @@ def run(work, debug: bool = False) -> int:
     """
     _log_lines()
     try:
-        with _terminate_as_interrupt(), warnings.catch_warnings():
-            if not debug:
-                warnings.simplefilter("ignore")
-            return work()
+        with _terminate_as_interrupt(), warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always" if debug else "ignore")
+            try:
+                return work()
+            finally:
+                for warning in caught:  # --debug only (else none is recorded)
+                    print(warnings.formatwarning(warning.message, warning.category, warning.filename,
+                                                 warning.lineno, warning.line).rstrip(), file=sys.stderr)
     except (KeyboardInterrupt, Exception) as error:  # noqa: BLE001 - the contract: an exit code and one line
         if isinstance(error, KeyboardInterrupt):
             launch.ending()  # a second Ctrl-C now ends the process at once

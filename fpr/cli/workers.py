@@ -97,34 +97,33 @@ def bounded_workers(requested: int | None, per_worker: int | None = None) -> tup
                    f"using {bound} worker{'s' if bound != 1 else ''} ({why})")
 
 
-def _parent_alive(parent: int) -> bool:
-    if os.getppid() != parent:  # re-parented: the campaign's process is gone
+def _exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
         return False
+    except OSError:  # another user's process: it exists
+        return True
     return True
 
 
-def watch_parent(parent: int | None = None) -> None:
-    """End this process (``os._exit``) as soon as the campaign's process is gone (a daemon thread; once).
+def watch_parent() -> None:
+    """End this process (``os._exit``) as soon as its parent process is gone (a daemon thread; once).
 
-    Args:
-        parent: the campaign's process id (default: :data:`PARENT_VARIABLE` of the environment, else this
-            process's parent now).
+    When :data:`PARENT_VARIABLE` names a campaign's process that is already gone (it was killed while this
+    process started), this process ends at once.
     """
     global _watching
     if _watching:
         return
-    try:
-        parent = int(parent if parent is not None else os.environ.get(PARENT_VARIABLE) or os.getppid())
-    except ValueError:
-        parent = os.getppid()
-    if parent == os.getpid():  # the campaign's own process (e.g. its variable inherited by a test): no watch
-        return
-    if not _parent_alive(parent):
+    parent = os.getppid()
+    campaign = os.environ.get(PARENT_VARIABLE, "")
+    if campaign.isdigit() and int(campaign) != parent and not _exists(int(campaign)):
         os._exit(1)
     _watching = True
 
     def watch():
-        while _parent_alive(parent):
+        while os.getppid() == parent:
             time.sleep(WATCH_INTERVAL)
         os._exit(1)
 
@@ -141,10 +140,17 @@ def local_client(workers: int):
     process (:func:`watch_parent`); its dashboard on a free port; closing the client closes the cluster."""
     from distributed import Client
 
-    os.environ[PARENT_VARIABLE] = str(os.getpid())  # inherited by the worker processes
     _quiet_resource_tracker()
-    return Client(n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=":0",
-                  silence_logs=logging.ERROR, preload=[__name__])
+    previous = os.environ.get(PARENT_VARIABLE)
+    os.environ[PARENT_VARIABLE] = str(os.getpid())  # inherited by the worker processes as they are spawned
+    try:
+        return Client(n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=":0",
+                      silence_logs=logging.ERROR, preload=[__name__])
+    finally:
+        if previous is None:
+            os.environ.pop(PARENT_VARIABLE, None)
+        else:
+            os.environ[PARENT_VARIABLE] = previous
 
 
 def _quiet_resource_tracker() -> None:
