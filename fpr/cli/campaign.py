@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 
 from fpr import robots
-from fpr.cli import checks, contract, launch, workers
+from fpr.cli import checks, contract, interrupts, workers
 from fpr.cli.campaign_options import EXIT_CODES, MAX_RUNS, parser
 from fpr.cli.text import plural
 from fpr.model.errors import CampaignError
@@ -208,7 +208,7 @@ def work(args, argv) -> int:
         client = _client(args, say)
         done = run_campaign(campaign, flight, store, client, progress)
     except KeyboardInterrupt:
-        launch.ending()  # a second Ctrl-C ends the process at once
+        interrupts.ending()  # a second Ctrl-C ends the process at once
         logging.disable(logging.CRITICAL)  # the cluster's complaints about its killed workers are not news
         workers.end_children()  # the worker processes end now, not after a graceful close
         stored = len(store.load(campaign.runs))

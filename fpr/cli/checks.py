@@ -21,8 +21,9 @@ Where the ranges come from (they exclude the absurd, not the unusual):
   (beyond any measured gust) on a large multirotor (:data:`planners.missions.events.MAX_FORCE`);
 * offsets and noise: :data:`MAX_OFFSET` [m or rad] (beyond it the robot starts outside any workspace of the
   built-in robots), :data:`MAX_RATE_NOISE` [m/s or rad/s] (faster than a drone ever moves);
-* replanning: a deadline of at least one step of the simulated plant and at most the flight; a rate between one replan per flight and the controller's outer-loop rate; a tracking bound
-  at most the error at which the simulation counts the robot lost;
+* replanning: a deadline of at least one step of the simulated plant and at most the flight; a rate between
+  one replan per flight and the controller's outer-loop rate; a tracking bound at most the error at which the
+  simulation counts the robot lost;
 * robot parameters: :data:`fpr.model.parameters.PARAMETER_RANGES` (broad physical ranges for a multirotor and
   its chain) and the lift of the drones' rotors.
 
@@ -175,7 +176,7 @@ def check_options(args) -> None:
         if len(args.noise) != 2:
             raise CommandLineError("--noise", args.noise, f"{len(args.noise)} number(s): give two, SQ,SV "
                                                           "(standard deviations on q and v)")
-        for s, high, unit in zip(args.noise, (MAX_OFFSET, MAX_RATE_NOISE), ("m or rad", "m/s or rad/s")):
+        for s, high, unit in zip(args.noise, (MAX_OFFSET, MAX_RATE_NOISE), ("m or rad", "m/s or rad/s"), strict=True):
             _number("--noise", s, low=0.0, high=high, shown=args.noise,
                     meaning=f"a standard deviation [{unit}], >= 0; beyond {high:g} a sensor measures nothing")
     if getattr(args, "hold", None) is not None:

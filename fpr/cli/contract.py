@@ -29,7 +29,7 @@ import traceback
 import warnings
 
 import fpr
-from fpr.cli import launch
+from fpr.cli import interrupts
 from fpr.model.errors import FprError
 
 OK, LIMIT_BROKEN, BAD_INPUT, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 130
@@ -196,7 +196,7 @@ def run(work, debug: bool = False) -> int:
                                                  warning.lineno, warning.line).rstrip(), file=sys.stderr)
     except (KeyboardInterrupt, Exception) as error:  # noqa: BLE001 - the contract: an exit code and one line
         if isinstance(error, KeyboardInterrupt):
-            launch.ending()  # a second Ctrl-C now ends the process at once
+            interrupts.ending()  # a second Ctrl-C now ends the process at once
         code, line = ending_of(error)
         if debug:
             traceback.print_exc()
@@ -211,7 +211,7 @@ NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
 def ending_of(error: BaseException) -> tuple[int, str]:
     """The exit code and the stderr line of an exception that ended a command (:func:`run`)."""
     if isinstance(error, KeyboardInterrupt):
-        return INTERRUPTED, launch.INTERRUPTED_LINE
+        return INTERRUPTED, interrupts.INTERRUPTED_LINE
     if isinstance(error, FprError):
         return BAD_INPUT, f"error: {one_line(error)}"
     if isinstance(error, MemoryError):

@@ -23,38 +23,9 @@ from __future__ import annotations
 
 import importlib
 import os
-import signal
 import sys
 
-INTERRUPTED = 130
-INTERRUPTED_LINE = ("interrupted (Ctrl-C or SIGTERM): nothing written; a previous --out folder is left as it "
-                    "was")
-
-
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
-def _end_now(signum, frame):
-    os._exit(INTERRUPTED)
-
-
-def handle_signals() -> None:
-    """SIGINT and SIGTERM raise ``KeyboardInterrupt`` (main thread; elsewhere nothing changes)."""
-    try:
-        signal.signal(signal.SIGINT, _interrupt)
-        signal.signal(signal.SIGTERM, _interrupt)
-    except ValueError:  # not the main thread of the main interpreter
-        pass
-
-
-def ending() -> None:
-    """An interruption is being handled: a second SIGINT or SIGTERM ends the process at once (exit 130)."""
-    try:
-        signal.signal(signal.SIGINT, _end_now)
-        signal.signal(signal.SIGTERM, _end_now)
-    except ValueError:
-        pass
+from fpr.cli.interrupts import INTERRUPTED, INTERRUPTED_LINE, ending, handle_signals
 
 
 def _target(path: str):

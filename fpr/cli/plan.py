@@ -54,13 +54,13 @@ from fpr.cli.plan_options import parser
 from fpr.cli.text import plural
 from fpr.model.errors import FprError, MissionError
 from fpr.sim.closed_loop import SimulationSettings, simulate
-from fpr.sim.margins import (broken_message, closed_loop_margins, margin_lines, margin_series,
-                             eaten, simulation_document, thrust_floor)
+from fpr.sim.margins import (broken_message, closed_loop_margins, eaten, margin_lines, margin_series,
+                             simulation_document, thrust_floor)
 from fpr.sim.plant import PlantDivergedError
 from fpr.views.figures import margins_figure, plan_figures, simulation_figures
 from fpr.views.figures.all_figures import CROSSING_FIGURES
 from fpr.views.scene import view
-from planners.methods import CROSSING_METHODS, METHODS, method_for
+from planners.methods import CROSSING_METHODS, method_for
 from planners.missions.mission import load_mission
 from planners.optimize import PlanResult, plan
 

@@ -25,8 +25,8 @@ from fpr.cli.checks import CommandLineError
 from fpr.cli.text import length, plural
 from fpr.sim.replanning import InFlight, TriggerSettings
 from fpr.views.figures.replanning import write_replanning_figure
-from planners.problem.disturbance import evaluate_in_gusts
 from planners.missions.events import moved_positions
+from planners.problem.disturbance import evaluate_in_gusts
 from planners.replanning.replanner import Replanner, ReplanOptions
 
 
