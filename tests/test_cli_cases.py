@@ -182,6 +182,19 @@ def test_a_gust_on_a_drone_the_robot_has_not_exits_2(tmp_path, capsys):
     assert code == 2 and "events[" in line and "].body" in line and "has 2 drone(s)" in line, err
 
 
+@pytest.mark.parametrize("key, value, words", [("duration", "1e-300", ["events[0].duration", "at least 0.001 s"]),
+                                              ("rise", "1e-300", ["events[0].rise", "0 (a step)"])])
+def test_a_gust_shorter_than_a_step_of_the_simulation_exits_2(tmp_path, capsys, key, value, words):
+    event = {"duration": "2.0", "rise": "0.0"} | {key: value}
+    text = HOVER + ("\n[[events]]\nat = 1.0\nkind = \"gust\"\nforce = [0.0, 1.0, 0.0]\n"
+                    f"duration = {event['duration']}\nrise = {event['rise']}\n")
+    code, _, err = _run(capsys, "--mission", _file(tmp_path, text), "--method", "none", *FAST, "--out", tmp_path / "o")
+    line = _one_line(err)
+    assert code == 2
+    for word in words:
+        assert word in line, (word, line)
+
+
 def builtin(name):
     from planners.missions.mission import builtin_mission_text
 

@@ -31,20 +31,32 @@ from fpr import robots
 from fpr.cli import checks, contract, interrupts, workers
 from fpr.cli.campaign_options import EXIT_CODES, MAX_RUNS, parser
 from fpr.cli.text import plural
-from fpr.model.errors import CampaignError
-from fpr.robustness.campaign_file import campaign_to_toml, load_campaign
+from fpr.model.errors import CampaignError, MissionError
+from fpr.robustness.campaign_file import campaign_from_dict, campaign_to_toml
 from fpr.robustness.runner import make_flight, mission_of, run_campaign
 from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign, components
 from fpr.robustness.store import RunStore, write_atomic
 from fpr.robustness.summary import summarise, write_table
 from fpr.sim.closed_loop import SimulationSettings
 from fpr.views.figures.campaign import campaign_figures
+from planners.missions.files import parse_toml, read_toml_text
 
 __all__ = ["EXIT_CODES", "MAX_RUNS", "Progress", "main", "parser", "work"]
 
+def _campaign_file(path) -> Campaign:
+    """The campaign file, read as a mission file is (a size cap, UTF-8 with or without a byte-order mark, no
+    pathological TOML: :mod:`planners.missions.files`), its fields as
+    :func:`fpr.robustness.campaign_file.load_campaign` reads them."""
+    try:
+        document = parse_toml(read_toml_text(path, "campaign", "give the path of a .toml campaign file"), str(path))
+    except MissionError as error:
+        raise CampaignError(f"--campaign {path}", error.reason) from None
+    return campaign_from_dict(document, Path(path))
+
+
 def _campaign(args) -> Campaign:
     """The campaign: the file's fields, the options over them, fixed perturbations as constants."""
-    campaign = load_campaign(args.campaign) if args.campaign is not None else Campaign()
+    campaign = _campaign_file(args.campaign) if args.campaign is not None else Campaign()
     changes = {k: getattr(args, k) for k in ("mission", "method", "runs", "seed", "hold", "tracking_tolerance")
                if getattr(args, k) is not None}
     if args.robot_parameters:

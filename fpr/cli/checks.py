@@ -21,6 +21,7 @@ Where the ranges come from (they exclude the absurd, not the unusual):
   (beyond any measured gust) on a large multirotor (:data:`planners.missions.events.MAX_FORCE`);
 * offsets and noise: :data:`MAX_OFFSET` [m or rad] (beyond it the robot starts outside any workspace of the
   built-in robots), :data:`MAX_RATE_NOISE` [m/s or rad/s] (faster than a drone ever moves);
+* a gust (a mission's event): at least one step of the simulated plant, its onset 0 or at least one step;
 * replanning: a deadline of at least one step of the simulated plant and at most the flight; a rate between
   one replan per flight and the controller's outer-loop rate; a tracking bound at most the error at which the
   simulation counts the robot lost;
@@ -323,6 +324,7 @@ def check_work(args, mission, robot, optimised: bool) -> None:
                                                                      f"{', '.join(known)}")
     _check_lift(args, mission, robot)
     _check_grid_times(args, mission)
+    _check_events(mission)
     duration = mission.duration
     dense = duration * DENSE_RATE + 1
     if dense > MAX_SAMPLES:
@@ -359,6 +361,22 @@ def check_work(args, mission, robot, optimised: bool) -> None:
     if args.rate < least_rate:
         raise CommandLineError("--rate", args.rate, f"fewer samples than travels: give at least {least_rate:.3g} Hz "
                                                     f"(a sample per travel; the shortest lasts {1 / least_rate:g} s)")
+
+
+def _check_events(mission) -> None:
+    """A gust lasts at least one step of the simulated plant, and its onset is 0 (a step) or at least one step."""
+    step = 1.0 / SimulationSettings().plant_rate
+    for i, event in enumerate(mission.events):
+        if event.kind != "gust":
+            continue
+        where = f"{mission.source}: field 'events[{i}].{{}}' ="
+        if event.duration < step:
+            raise CommandLineError(where.format("duration"), event.duration,
+                                   f"a gust shorter than one step of the simulation ({step:g} s) does not push: give "
+                                   f"at least {step:g} s")
+        if 0.0 < event.rise < step:
+            raise CommandLineError(where.format("rise"), event.rise,
+                                   f"give 0 (a step) or an onset of at least one step of the simulation ({step:g} s)")
 
 
 def _check_replanning(args, simulated: float) -> None:

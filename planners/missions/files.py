@@ -46,9 +46,19 @@ def read_mission_text(path: str | os.PathLike) -> str:
         MissionError: a file that cannot be read, is larger than the limit (a device is not read to its
             end), or is not UTF-8 text (field ``"<file>"``, the message says what to do).
     """
+    return read_toml_text(path, "mission", f"give the path of a .toml mission file or a built-in mission: "
+                                           f"{', '.join(BUILTIN_MISSIONS)}")
+
+
+def read_toml_text(path: str | os.PathLike, kind: str, hint: str) -> str:
+    """The text of one of the toolkit's TOML files (``kind``: "mission", "campaign"), as
+    :func:`read_mission_text` reads it; ``hint``: what to give instead, for the messages.
+
+    Raises:
+        MissionError: as :func:`read_mission_text` (field ``"<file>"``).
+    """
     path = Path(path)
     source = str(path)
-    hint = f"give the path of a .toml mission file or a built-in mission: {', '.join(BUILTIN_MISSIONS)}"
     try:
         with open(path, "rb") as stream:
             data = stream.read(MAX_FILE_BYTES + 1)
@@ -56,21 +66,19 @@ def read_mission_text(path: str | os.PathLike) -> str:
         reason = f"cannot read {source!r} ({error.__class__.__name__}: {error.strerror or error}): {hint}"
         raise MissionError("<file>", reason, source) from error
     if len(data) > MAX_FILE_BYTES:
-        raise MissionError("<file>", f"{source!r} is larger than {MAX_FILE_BYTES // (1024 * 1024)} MiB (a mission "
-                                     f"file is a few kB; the planner's size limits refuse far smaller missions): "
-                                     f"{hint}", source)
+        raise MissionError("<file>", f"{source!r} is larger than {MAX_FILE_BYTES // (1024 * 1024)} MiB (a {kind} "
+                                     f"file is a few kB): {hint}", source)
     for bom, encoding in _BOMS.items():
         if data.startswith(bom):
             raise MissionError("<file>", f"{source!r} is {encoding} text; TOML files are UTF-8: save it as UTF-8",
                                source)
     try:
-        text = data.decode("utf-8-sig")  # a byte-order mark (some Windows editors write one) is skipped
+        return data.decode("utf-8-sig")  # a byte-order mark (some Windows editors write one) is skipped
     except UnicodeDecodeError as error:
         line = data[:error.start].count(b"\n") + 1
         raise MissionError("<file>", f"{source!r} is not UTF-8 text (byte {error.start}, line {line}: "
                                      f"{error.reason}); TOML files are UTF-8: save it as UTF-8, or {hint}",
                            source) from None
-    return text
 
 
 def parse_toml(text: str, source: str = "") -> dict:
@@ -84,9 +92,9 @@ def parse_toml(text: str, source: str = "") -> dict:
     deep = _DEEP_KEY.search(text)
     if deep is not None:  # tomllib needs memory quadratic in a dotted key's depth: refuse before parsing
         line = text.count("\n", 0, deep.start()) + 1
-        raise MissionError("<toml>", f"a key of more than {MAX_KEY_DEPTH} dotted parts (line {line}); a mission's "
-                                     "keys have at most 2 (robot_parameters.link_length): see the format in "
-                                     "planners/missions/mission.py", source)
+        raise MissionError("<toml>", f"a key of more than {MAX_KEY_DEPTH} dotted parts (line {line}); the keys of "
+                                     "the toolkit's files have at most 2 (robot_parameters.link_length): see the "
+                                     "format in planners/missions/mission.py", source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
