@@ -7,8 +7,8 @@ ends such a process as soon as the campaign's process is gone (:mod:`fpr.cli.wor
 """
 
 
-def main(argv=None) -> int:
-    """The process's entry point: returns the exit code, or ends the process at once after Ctrl-C (130).
+def main(argv=None) -> None:
+    """The process's entry point: ends the process with the exit code (at once after Ctrl-C: 130).
 
     In a program of your own, call :func:`fpr.cli.campaign.main` instead: it returns in every case.
     """

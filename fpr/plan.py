@@ -5,8 +5,8 @@ Ctrl-C and SIGTERM are handled from the first instruction (:mod:`fpr.cli.launch`
 """
 
 
-def main(argv=None) -> int:
-    """The process's entry point: returns the exit code, or ends the process at once after Ctrl-C (130).
+def main(argv=None) -> None:
+    """The process's entry point: ends the process with the exit code (at once after Ctrl-C: 130).
 
     In a program of your own, call :func:`fpr.cli.plan.main` instead: it returns in every case.
     """

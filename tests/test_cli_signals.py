@@ -90,7 +90,8 @@ def test_help_imports_neither_the_planner_nor_the_simulator(tmp_path):
                          ids=["ctrl-c-at-once", "ctrl-c-50ms", "ctrl-c-300ms", "ctrl-c-1s", "sigterm-at-once",
                               "sigterm-500ms"])
 def test_plan_interrupted_from_its_first_instruction(tmp_path, signum, delay):
-    process = _start("fpr.plan", "--no-plots", "--out", str(tmp_path / "out"))
+    # a mission that plans for seconds after the imports: the last delays reach the work, not its end
+    process = _start("fpr.plan", "--mission", "cross-singularity", "--no-plots", "--out", str(tmp_path / "out"))
     _wait_for_handlers(process)
     time.sleep(delay)
     process.send_signal(signum)

@@ -4,8 +4,8 @@ Ctrl-C and SIGTERM are handled from the first instruction, through the imports (
 """
 
 
-def main(argv=None) -> int:
-    """The process's entry point: returns the exit code, or ends the process at once after Ctrl-C (130)."""
+def main(argv=None) -> None:
+    """The process's entry point: ends the process with the exit code (at once after Ctrl-C: 130)."""
     from fpr.cli.launch import finish, launch
 
     finish(launch(None, "fpr.cli.studies:main", argv))
