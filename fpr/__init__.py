@@ -61,11 +61,17 @@ def _tune_allocator() -> bool:
 
 ALLOCATOR_TUNED = _tune_allocator()
 
-from fpr.model.errors import FprError, ShapeError, SingularityError, UnknownRobotError, WorkspaceError  # noqa: E402
+_ERRORS = ("FprError", "ShapeError", "SingularityError", "UnknownRobotError", "WorkspaceError")
 
 
 def __getattr__(name):
-    # Pinocchio is imported on first use, so that ``python -m fpr.model.description`` stays light.
+    # Pinocchio is imported on first use, so that ``python -m fpr.model.description`` stays light; the errors
+    # (which import numpy) too, so that a command line handles Ctrl-C before its first heavy import
+    # (fpr.cli.launch).
+    if name in _ERRORS:
+        from fpr.model import errors
+
+        return getattr(errors, name)
     if name in ("ROBOTS", "load", "register"):
         from fpr import robots
 
