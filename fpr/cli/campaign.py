@@ -34,6 +34,7 @@ from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign, components
 from fpr.robustness.store import RunStore, write_atomic
 from fpr.robustness.summary import summarise, write_table
 from fpr.views.figures.campaign import campaign_figures
+from fpr.tuning import tune_process
 from planners.methods import METHODS
 
 MAX_RUNS = 1_000_000
@@ -275,6 +276,7 @@ def _close(client) -> None:
 
 def main(argv=None) -> int:
     """Command line entry point; returns the exit code (0, 1, 2, 3 or 130: see ``--help``)."""
+    tune_process()  # one BLAS thread, freed memory kept in glibc's heap (fpr.tuning)
     return contract.command(parser(), argv, _run)
 
 

@@ -59,6 +59,7 @@ from fpr.sim.plant import PlantDivergedError
 from fpr.views.figures import margins_figure, plan_figures, simulation_figures
 from fpr.views.figures.all_figures import CROSSING_FIGURES
 from fpr.views.scene import view
+from fpr.tuning import tune_process
 from planners.methods import METHODS, method_for
 from planners.missions.mission import BUILTIN_MISSIONS, load_mission
 from planners.optimize import PlanResult, plan
@@ -463,6 +464,7 @@ def _run(args, argv) -> int:
 
 def main(argv=None) -> int:
     """Command line entry point; returns the exit code (0, 1, 2, 3 or 130: see ``--help``)."""
+    tune_process()  # one BLAS thread, freed memory kept in glibc's heap (fpr.tuning)
     return contract.command(parser(), argv, _run)
 
 
