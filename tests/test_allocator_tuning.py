@@ -1,4 +1,4 @@
-"""Importing fpr changes nothing process-wide; ``fpr.tune_process()`` (fpr/tuning.py) keeps freed memory in glibc's heap.
+"""Importing fpr changes nothing process-wide; ``fpr.tune_process()`` keeps freed memory in glibc's heap.
 
 Each check runs in a fresh interpreter. The allocator's state is read through glibc: a 1 MiB block is mapped on
 its own (``mallinfo2().hblkhd`` grows by it) under glibc's defaults (mmap threshold 128 KiB), and comes from the
@@ -39,8 +39,8 @@ block = libc.malloc(1 << 20)
 mapped = libc.mallinfo2().hblkhd - mapped >= 1 << 20
 libc.free(block)
 changed = sorted(k for k in set(before) | set(after_import) if before.get(k) != after_import.get(k))
-print(json.dumps({"changed_by_import": changed, "mapped": bool(mapped), "tuning": TUNING,
-                  "blas_env": {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}}))
+blas = {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+print(json.dumps({"changed_by_import": changed, "mapped": bool(mapped), "tuning": TUNING, "blas_env": blas}))
 """
 
 

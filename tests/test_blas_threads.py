@@ -1,5 +1,6 @@
 """``fpr.tune_process()`` runs BLAS on one thread, whether numpy was imported before or after; importing fpr alone
-leaves BLAS as numpy started it (fpr/tuning.py)."""
+leaves BLAS as numpy started it (fpr/tuning.py).
+"""
 
 import os
 import subprocess

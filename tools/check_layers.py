@@ -112,7 +112,8 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def robot_names(root: Path) -> tuple[str, ...]:
     """The built-in robots' names: the modules of fpr/robots/ but ``base`` and the private ones, and the prefixes
-    of their variants (``prototype_thrust`` is the prototype's)."""
+    of their variants (``prototype_thrust`` is the prototype's).
+    """
     names = set()
     for path in (root / ROBOTS_FOLDER).glob("*.py"):
         if path.stem not in ("__init__", "base") and not path.stem.startswith("_"):
