@@ -104,8 +104,9 @@ class CampaignRun:
 def local_client(workers: int | None = None):
     """A Dask client of a new local cluster: ``workers`` processes (default: the number of cores), one thread
     each, its dashboard on a free port; closing the client closes the cluster. (Worker processes are
-    spawned: in a script, call it under ``if __name__ == "__main__":``.) Each worker process tunes itself
-    (:func:`fpr.tune_process`: one BLAS thread, freed memory kept in its heap) before its first run.
+    spawned: in a script, call it under ``if __name__ == "__main__":``.) Each worker process calls
+    :func:`fpr.tune_process` before its first run; it leaves alone what Dask's nanny already chose for its
+    workers (by default one BLAS thread and ``MALLOC_TRIM_THRESHOLD_``, in ``distributed.nanny.pre-spawn-environ``).
 
     Raises:
         fpr.extras.MissingExtraError: the campaign extra is not installed.
