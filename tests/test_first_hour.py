@@ -179,3 +179,15 @@ def test_python_in_the_folder_above_a_clone_named_fpr_imports_the_clone(tmp_path
     package, planners, loads = json.loads(done.stdout.strip().splitlines()[-1])
     assert Path(package).resolve() == ROOT / "fpr" / "__init__.py"
     assert Path(planners).resolve() == ROOT / "planners" / "__init__.py" and loads
+
+
+def test_a_long_title_wraps_inside_the_canvas(tmp_path):
+    """A singularity crossing's titles ran past both edges of its rotor figures; now they wrap."""
+    from fpr.views.figures.style import _finish, _new_figure, _save
+
+    with _styled():
+        fig, (ax,) = _new_figure(1)
+        ax.plot([0, 1], [0, 1], label="a line")
+        _finish(fig, "Singularity crossing (thesis ch. 4; cf. Fig. 4.2-4.9) — rotor speeds of the drone of the "
+                     "prototype, and some more words so that no canvas could hold it on one line", [ax])
+    assert _edges_blank(_save(fig, tmp_path / "long.png"))

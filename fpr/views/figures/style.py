@@ -106,7 +106,7 @@ def _finish(fig: Figure, title: str, axes: Sequence[Axes], legend_below: bool = 
         axes: the axes that get a legend (one entry per distinct label).
         legend_below: put the legends under their axes instead of inside them.
     """
-    fig.suptitle(title)
+    fig.suptitle(title, wrap=True)  # a long title (a crossing's) wraps inside the canvas
     for ax in axes:
         handles, labels = ax.get_legend_handles_labels()
         if not handles:
