@@ -39,6 +39,7 @@ from fpr.robustness.store import RunStore, write_atomic
 from fpr.robustness.summary import summarise, write_table
 from fpr.sim.closed_loop import SimulationSettings
 from fpr.views.figures.campaign import campaign_figures
+from fpr.tuning import tune_process
 from planners.missions.files import parse_toml, read_toml_text
 
 __all__ = ["EXIT_CODES", "MAX_RUNS", "Progress", "main", "parser", "work"]
@@ -274,6 +275,7 @@ def _close(client) -> None:
 
 def main(argv=None) -> int:
     """Command line entry point; returns the exit code (0, 1, 2, 3 or 130: see ``--help``)."""
+    tune_process()  # one BLAS thread, freed memory kept in glibc's heap (fpr.tuning)
     return contract.command(parser(), argv, work)
 
 

@@ -54,6 +54,9 @@ def launch(parser: str | None, work: str, argv=None) -> int:
     """
     handle_signals()
     try:
+        from fpr.tuning import tune_process
+
+        tune_process()  # before numpy loads: one BLAS thread, freed memory kept in glibc's heap (fpr.tuning)
         from fpr.cli import contract
 
         if parser is None:

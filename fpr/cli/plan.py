@@ -60,6 +60,7 @@ from fpr.sim.plant import PlantDivergedError
 from fpr.views.figures import margins_figure, plan_figures, simulation_figures
 from fpr.views.figures.all_figures import CROSSING_FIGURES
 from fpr.views.scene import view
+from fpr.tuning import tune_process
 from planners.methods import CROSSING_METHODS, method_for
 from planners.missions.mission import load_mission
 from planners.optimize import PlanResult, plan
@@ -412,6 +413,7 @@ def work(args, argv) -> int:
 
 def main(argv=None) -> int:
     """Command line entry point; returns the exit code (0, 1, 2, 3 or 130: see ``--help``)."""
+    tune_process()  # one BLAS thread, freed memory kept in glibc's heap (fpr.tuning)
     return contract.command(parser(), argv, work)
 
 
