@@ -10,12 +10,9 @@ read from the file; nothing is typed here.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import re
-from pathlib import Path
-
 from typing import NamedTuple
 
 LOG = logging.getLogger(__name__)
@@ -121,7 +118,8 @@ def part_run(doc: dict) -> list[Table]:
 
 def part_goals(doc: dict) -> list[Table]:
     """Every goal the bench checks, its value and verdict."""
-    rows = [[g.get("section", ""), g.get("target", ""), fmt_goal_value(g.get("value"), g.get("unit"), str(g.get("target", ""))), verdict(g)]
+    rows = [[g.get("section", ""), g.get("target", ""),
+             fmt_goal_value(g.get("value"), g.get("unit"), str(g.get("target", ""))), verdict(g)]
             for g in need(doc, "goals")]
     return list_table(["section", "goal", "value", "verdict"], rows)
 
@@ -244,7 +242,8 @@ def part_simulation(doc: dict) -> list[Table]:
 def part_native(doc: dict) -> list[Table]:
     """The machine yardstick, the Pinocchio calls a tick needs, and the native parts switched on and off."""
     control = need(doc, "control")
-    stick, pinocchio, parts = need(control, "yardstick"), need(control, "pinocchio_per_tick"), need(control, "native_parts")
+    stick, pinocchio = need(control, "yardstick"), need(control, "pinocchio_per_tick")
+    parts = need(control, "native_parts")
     crba, reference = need(stick, "crba_s"), need(stick, "normalised_to_crba_s")
     tables = list_table(["machine yardstick (raw Python calls)", "time"],
                         [["pin.crba (FPR minimal model)", fmt_time(crba)],

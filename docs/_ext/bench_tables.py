@@ -15,10 +15,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from bench_render import PARTS, Table, render
 from docutils import nodes
 from sphinx.util.docutils import SphinxDirective
-
-from bench_render import PARTS, Table, render
 
 
 def table_node(table: Table) -> nodes.table:
@@ -59,6 +58,7 @@ class BenchTable(SphinxDirective):
     has_content = False
 
     def run(self):
+        """The nodes of the part's tables, or of its "not measured" note."""
         part = self.arguments[0]
         if part not in PARTS:
             raise self.error(f"bench-table: unknown part {part!r}; choose one of {', '.join(PARTS)}")
@@ -74,6 +74,7 @@ class BenchTable(SphinxDirective):
 
 
 def setup(app):
+    """Register the ``bench_json`` setting and the ``bench-table`` directive."""
     app.add_config_value("bench_json", "bench/bench.json", "env")
     app.add_directive("bench-table", BenchTable)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}

@@ -74,9 +74,6 @@ from planners.optimisation.active_set import BANDED_MIN_SIZE, shifted, solve_ste
 from planners.optimisation.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
 from planners.problem.motion import POWER_SMOOTHING
 
-# the portable build: its results do not depend on memory alignment (fpr.model.qp): plans repeat bit for bit
-proxsuite = proxsuite_module()
-
 
 #: The curvature models of :class:`SqpOptions` (see the module docstring).
 CURVATURES = ("gauss-newton", "composite", "smoothed")
@@ -309,11 +306,12 @@ def _proxqp(h, g, rows, lower, upper):
     the dense one on small ones, where it is as fast (and gives the results the planner's figures were
     measured with).
     """
+    proxqp = proxsuite_module().proxqp  # the portable build (fpr.model.qp): plans repeat bit for bit
     if h.shape[0] < BANDED_MIN_SIZE:
         rows = rows.toarray() if sparse.issparse(rows) else rows
-        return proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
-    return proxsuite.proxqp.sparse.solve(sparse.csc_matrix(np.triu(h)), g, None, None, sparse.csc_matrix(rows),
-                                         lower, upper, eps_abs=1e-9, max_iter=300)
+        return proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
+    return proxqp.sparse.solve(sparse.csc_matrix(np.triu(h)), g, None, None, sparse.csc_matrix(rows),
+                               lower, upper, eps_abs=1e-9, max_iter=300)
 
 
 def _shift(hess) -> float:
@@ -383,7 +381,8 @@ def _composite_qp_step(ev, radius: float, penalty: float, hessian):
     rows[m_c + 2 * q:] = np.eye(size)
     lower = np.concatenate([-c_k, pv_k, -pv_k, np.full(n, -radius), np.full(q, -np.inf), np.zeros(p)])
     upper = np.concatenate([np.full(m_c + 2 * q, np.inf), np.full(n, radius), np.full(q + p, np.inf)])
-    res = proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
+    proxqp = proxsuite_module().proxqp  # the portable build (fpr.model.qp)
+    res = proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
     d = np.clip(np.asarray(res.x)[:n], -radius, radius)
     z = np.asarray(res.z)
     model = g_phi @ d + 0.5 * d @ hessian @ d + pw @ (_smooth_abs(pv + pj @ d) - _smooth_abs(pv))

@@ -284,10 +284,12 @@ def _sim_rotors(robot, log, plan: SampledPlan | None, which: str) -> Figure:
     with _styled():
         fig, axes = _new_figure(n_d)
         for i, ax in enumerate(axes):
-            if trace is not None:
+            if trace is not None:  # each rotor's plan thin, dashed and faded in its colour; one legend entry
                 for k in range(4):
-                    ax.plot(trace.t, value(trace.rotor_speed[:, i, k]), label="planned", gid="planned",
-                            **_planned_line(STYLE["thin_width"]))
+                    ax.plot(trace.t, value(trace.rotor_speed[:, i, k]), gid="planned",
+                            **dict(_planned_line(STYLE["thin_width"]), color=STYLE["rotor_colors"][k],
+                                   alpha=STYLE["reference_alpha"]))
+                ax.plot([], [], label="planned", **_planned_line(STYLE["thin_width"]))
             for k in range(4):
                 ax.plot(sim.t, value(sim.speed[:, i, k]), label=f"rotor {k + 1}", gid="simulated",
                         color=STYLE["rotor_colors"][k], linestyle=ROTOR_STYLES[k], linewidth=STYLE["thin_width"] * 1.25,
