@@ -221,7 +221,7 @@ def unit(name: str) -> str:
     if name.startswith("max_error_"):
         return coordinate_unit(name[len("max_error_"):])
     if name in PARAMETER_RANGES:
-        return PARAMETER_RANGES[name][3]
+        return PARAMETER_RANGES[name].unit
     return ""
 
 
