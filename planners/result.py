@@ -12,7 +12,7 @@ all way points equal), J_phi0 when no drone rolls (an FPR that moves straight up
 J_phi0 comes out near 1e-33). Dividing by it makes J a ratio of round-off (or 0 / 0). Each term is therefore
 divided by the larger of its reference value and a floor, the least value of the term that means anything:
 
-* J_e: n_d eps T, the planner's own resolution of J_e (it smooths |P| with eps =
+* J_e: n_d eps T, the planner's own resolution of J_e (it smooths ``|P|`` with eps =
   :data:`planners.problem.motion.POWER_SMOOTHING` W, which changes J_e by up to eps per drone);
 * J_phi: n_d theta^2 / T with theta = :data:`ROLL_RESOLUTION` (a micro-radian): every drone rolling by less than
   any attitude sensor resolves, at a steady rate over the mission.

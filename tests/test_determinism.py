@@ -1,4 +1,4 @@
-"""The same plan, bit for bit, in fresh interpreters with different hash seeds and heap layouts (issue 12).
+"""The same plan, bit for bit, in fresh interpreters with different hash seeds and heap layouts.
 
 The singularity crossing is the planner's most sensitive NLP: a last-bit difference in one QP step
 (ProxQP's vectorised builds sum in an order that depends on the alignment of the memory they get,

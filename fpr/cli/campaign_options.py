@@ -50,7 +50,7 @@ def parser() -> argparse.ArgumentParser:
     p = contract.Parser(prog="python -m fpr.campaign", description=DESCRIPTION,
                         formatter_class=contract.HelpFormatter, epilog=EXIT_CODES)
     p.add_argument("--campaign", type=Path, default=None,
-                   help="a campaign TOML file (see README); the options below override its fields")
+                   help="a campaign TOML file (see the documentation, guides/campaigns); the options below override its fields")
     p.add_argument("--mission", default=None, help="built-in mission or mission TOML file (default: square)")
     p.add_argument("--method", default=None, choices=contract.LazyChoices(_method_names), metavar="METHOD",
                    help=f"planning method ({', '.join(HELP_METHODS)}; default: two-step)")

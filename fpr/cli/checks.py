@@ -28,9 +28,10 @@ Where the ranges come from (they exclude the absurd, not the unusual):
 * robot parameters: :data:`fpr.model.parameters.PARAMETER_RANGES` (broad physical ranges for a multirotor and
   its chain) and the lift of the drones' rotors.
 
-The size limits are set from measurements on a 2-core laptop (Python 3.12): about 250 us and 3 kB of memory
-per sample of a motion (inverse dynamics, constraints, CSV row), 2 s per polynomial segment of an
-optimisation (it grows faster than linearly), 1.5 s per simulated second.
+The size limits keep the largest accepted work to minutes on a 2-core machine, from its cost per unit: a
+fraction of a millisecond and about 3 kB of memory per sample of a motion (inverse dynamics, constraints,
+CSV row), seconds per polynomial segment of an optimisation (it grows faster than linearly), about a
+second and a half per simulated second.
 """
 
 from __future__ import annotations

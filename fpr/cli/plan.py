@@ -9,7 +9,7 @@ solve time, then the worst value of every constraint. Into ``--out`` (default
 * ``mission.toml``: the mission as planned (command-line overrides included), re-usable with --mission;
 * ``plan.json``: mission, robot parameters, summaries of both motions, solver stages, the
   points, durations and monomial coefficients of every segment;
-* ``trajectory.csv``: one row per sample at ``--rate`` (columns and units in README.md);
+* ``trajectory.csv``: one row per sample at ``--rate`` (columns and units in the documentation, guides/plan-command);
 * ``reference.csv``: the same for the stop-at-every-way-point motion;
 * ``manifest.json``: the command line, fpr's version, a hash of the inputs (the mission as planned and
   the options), the start time, the duration, the exit code and the wall-clock timings;

@@ -117,7 +117,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--optimal", action="store_true",
                    help="the SQP with the composite curvature and the KKT stopping rule: a KKT point to 1e-5, "
                         "2-20x slower (the default ends within 0.3 %% of the best J known on the built-in "
-                        "missions too; see README, Optimality)")
+                        "missions too; see the documentation, guides/planning-methods)")
     p.add_argument("--no-polish", action="store_true",
                    help="two-step: the thesis' method as it is, without the final one-step solve from its result")
     p.add_argument("--out", type=Path, default=None, help="output folder (default: fpr-out/<mission>)")
@@ -160,7 +160,7 @@ def add_replanning(group) -> None:
     group.add_argument(
         "--replan", action="store_true",
         help="replan in flight (with --simulate): on a move event, a tracking error past --replan-bound, and "
-             "optionally at --replan-rate; see README 'Replanning in flight'")
+             "optionally at --replan-rate; see the documentation, guides/replanning")
     group.add_argument(
         "--replan-deadline", type=float, default=None,
         help="simulated time between a trigger and the splice; a later solve is not used [s] (default 0.05)")

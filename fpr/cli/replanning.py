@@ -177,7 +177,7 @@ def summary(hooks, done, log=None) -> str:
         lines.append(
             f"  {len(late)} of {plural(len(hooks.replans), 'replan')} {'was' if len(late) == 1 else 'were'} late: they need up to {need * 1e3:.0f} ms on this "
             f"machine ({hooks.replanner.options.timing} timing); --replan-deadline {_rounded_up(1.2 * need):g} "
-            "lets them in (README, Replanning in flight: latency)"
+            "lets them in (documentation: guides/replanning, latency)"
         )
     if done is not None:
         state = (

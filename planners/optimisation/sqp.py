@@ -29,7 +29,7 @@ rule, which the replanner and the singularity crossing keep): H is the problem's
 matrix, where J_e's |P| (drone powers P, seed 3.24) gets the reweighted majoriser
 a_e w |nabla P|^2 / |P|. It overestimates the curvature along the steps (accepted steps decrease the
 merit by twice the prediction) and converges linearly: the square one-step stops 1 % above the best
-known J, and reaches 0.5036 only after 305 iterations (issue 17). ``"composite"``:
+known J, and reaches 0.5036 only after 305 iterations. ``"composite"``:
 J = a_phi J_phi + sum_k pw_k |P_k| is modelled as what it is, a smooth part plus a weighted l1 sum:
 each |P_k| that can change sign inside the trust region becomes a QP variable
 t_k >= |P_k + nabla P_k d| (the rest are linear there),

@@ -126,7 +126,7 @@ def _run(args, argv) -> int:
         print()
         print(scaling_table(scaling))
     if goals:
-        print("\ngoals (issue 13)")
+        print("\ngoals")
         for g in goals:
             print(f"  [{g['section']}] {g['target']}: {g['value']:.4g} -> {g['verdict']}")
     return 0

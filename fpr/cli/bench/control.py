@@ -25,7 +25,7 @@ call and the real-time factor (median of 3 runs, 1 with ``--quick``; the CPU tim
 shared machine), and one more run with timers around the simulator's parts (observe: measure and logged
 kinematics, outer loop, attitude model, allocation, the rest of the inner loop, plant steps, the watch; the
 remainder is the loop itself and the logging) for the per-tick breakdown, with which parts of the tick run
-compiled (``setup.py``'s optional extensions). Goals (issue 13), each a row of ``targets`` with its value, goal
+compiled (``setup.py``'s optional extensions). Goals, each a row of ``targets`` with its value, goal
 and verdict: the allocation's whole call <= 20 us with and without an active bound, RTF >= 20.
 """
 

@@ -255,8 +255,8 @@ def plan_figures(out_dir: str | Path, robot, plan: SampledPlan,
     * path: ground z = -L and the margin z = -L + m_gd (3.27; 3.44), for the prototype also the
       fixed point and y = m_gd (3.44);
     * coordinates: pi + m_ga <= phi <= 2 pi - m_ga, m_ga <= q21 <= pi - m_ga (3.28-3.29), or
-      |q1| <= pi/2 - m_ga, m_ga <= q2 <= pi - m_ga (3.44, 3.46);
-    * roll: |phi_i| <= pi/2 - m_ga (3.33, 3.45); rotor speeds: 0 <= w_ij <= w_max - m_gr (3.48);
+      ``|q1| <= pi/2 - m_ga``, m_ga <= q2 <= pi - m_ga (3.44, 3.46);
+    * roll: ``|phi_i| <= pi/2 - m_ga`` (3.33, 3.45); rotor speeds: 0 <= w_ij <= w_max - m_gr (3.48);
       rotor forces: 0 <= c_T w_ij^2 <= c_T (w_max - m_gr)^2.
 
     Args:

@@ -382,7 +382,7 @@ def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None
     * ``sim_coordinates.png``: planning coordinates with their bounds, and the tracking errors
       (Fig. 3.21-3.22, 3.25-3.26 / 3.43-3.45);
     * ``sim_out_of_plane.png``: x (FPR), pitch, yaw (Fig. 3.20, 3.23-3.24);
-    * ``sim_roll.png``: rolls planned, desired, simulated, |phi_i| <= pi/2 - m_ga (Fig. 3.27-3.28 / 3.48);
+    * ``sim_roll.png``: rolls planned, desired, simulated, ``|phi_i| <= pi/2 - m_ga`` (Fig. 3.27-3.28 / 3.48);
     * ``sim_heights.png``: drone joint / joint 2 and 3 heights and the drones' centres of mass, with
       z >= -L + m_gd (Fig. 3.29-3.30 / 3.46-3.47);
     * ``sim_rotor_speeds.png`` and ``sim_rotor_forces.png``: the plant's rotors against 0 and
