@@ -49,7 +49,8 @@ HINT = ("fpr: a native part did not build (the compiler's messages are above). F
 
 def cmeel_prefix() -> Path:
     """The folder of the cmeel wheels (``<site-packages>/cmeel.prefix``) that holds Pinocchio's, Boost's and
-    Eigen's headers and Pinocchio's library: in pip's build environment, the ``[build-system] requires``."""
+    Eigen's headers and Pinocchio's library: in pip's build environment, the ``[build-system] requires``.
+    """
     for entry in sys.path:
         prefix = Path(entry or ".") / "cmeel.prefix"
         if (prefix / "include" / "pinocchio" / "config.hpp").is_file():
@@ -61,6 +62,7 @@ def cmeel_prefix() -> Path:
 
 
 def numpy_include() -> str:
+    """numpy's C headers' folder (numpy imported only when a part is built)."""
     import numpy
 
     return numpy.get_include()
@@ -79,8 +81,9 @@ def extensions() -> list[Extension]:
     include = prefix / "include"
     version = sysconfig.get_config_var("py_version_nodot")
     cpp = NATIVE / "cpp"
+    sources = [str(cpp / f"{name}.cpp") for name in ("module", "bridge", "plant", "minimal", "measure")]
     parts.append(Extension(
-        "fpr._native._pinocchio", [str(cpp / f"{name}.cpp") for name in ("module", "bridge", "plant", "minimal", "measure")],
+        "fpr._native._pinocchio", sources,
         depends=[str(cpp / "native.hpp")], language="c++", define_macros=PINOCCHIO_MACROS,
         extra_compile_args=OPTIMISE + WARNINGS + ["-std=c++17", "-ffp-contract=off", f"-isystem{include}",
                                                   f"-isystem{include / 'eigen3'}"] + system,
@@ -91,9 +94,11 @@ def extensions() -> list[Extension]:
 
 class BuildNative(build_ext):
     """build_ext with every source of every part compiled at once on a pool of threads, and a failure that
-    says what to do."""
+    says what to do.
+    """
 
     def build_extensions(self):
+        """Compile every source of every part on a pool of threads, then link each part."""
         self.check_extensions_list(self.extensions)
         jobs = int(os.environ.get("FPR_NATIVE_JOBS", "0") or 0) or os.cpu_count() or 1
         compile_one = self.compiler.compile

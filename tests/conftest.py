@@ -1,6 +1,6 @@
-"""Test configuration: single-threaded BLAS before numpy is imported (see fpr/__init__.py)."""
+"""Test configuration: the test process tuned as the command lines tune theirs (one BLAS thread, freed memory
+kept in glibc's heap: fpr.tune_process), before numpy is imported."""
 
-import os
+import fpr
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+fpr.tune_process()

@@ -78,7 +78,8 @@ def test_native_steps_follow_the_python_steps(name, windy):
     assert fast.time == python.time
     np.testing.assert_allclose(fast.qc, python.qc, rtol=0, atol=1e-10)
     np.testing.assert_allclose(fast.vc, python.vc, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(fast.rotor_speeds, python.rotor_speeds, rtol=1e-15)
+    # the rotors' lag in C++ and in numpy: the same sums, to round-off (another CPU may order them otherwise)
+    np.testing.assert_allclose(fast.rotor_speeds, python.rotor_speeds, rtol=1e-12)
     assert np.abs(python.vc).max() > 0.05
     if windy:
         calm = _run(robot, q, w, True, 250)

@@ -57,7 +57,7 @@ def _run(tmp_path, name, *extra):
 def runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("replan")
     return {
-        "replan": _run(tmp, "a", "--replan", "--replan-deadline", "0.25"),  # what this machine meets (README)
+        "replan": _run(tmp, "a", "--replan", "--replan-deadline", "0.25"),  # what a slow machine meets (guides/replanning)
         "again": _run(tmp, "b", "--replan", "--replan-deadline", "0.25"),
         "plain": _run(tmp, "c"),
     }
@@ -149,7 +149,7 @@ def test_late_replans_say_which_deadline_would_let_them_in(tmp_path, capsys):
     out = capsys.readouterr().out
     replans = json.loads((tmp_path / "late" / "replans.json").read_text())["replans"]
     assert replans and not any(r["used"] for r in replans)
-    line = next(x for x in out.splitlines() if "were late" in x)
+    line = next(x for x in out.splitlines() if " late: " in x)
     suggested = float(line.split("--replan-deadline ")[1].split()[0])
     assert suggested >= max(r["latency_s"] for r in replans)
     assert code in (0, 1)

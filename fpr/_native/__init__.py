@@ -5,14 +5,15 @@ The parts (each the same computation as its Python path, equal to round-off; ``t
 
 * ``plant``: the plant's RKMK4 steps and its kinematic points (``fpr/sim/plant.py``) by Pinocchio's C++
   ``constraintDynamics``, ``integrate`` and ``dIntegrate`` (``cpp/plant.cpp``);
-* ``measure``: the measured velocity's least squares (``ClosedChainModel.to_minimal``) on Pinocchio's joint
-  Jacobians (``cpp/minimal.cpp``);
+* ``measure``: the measurement (``ClosedChainModel.to_minimal``): Pinocchio's forward kinematics of the closed
+  chain, the robot kind's reads of its placements, the unwrapping and the velocity's least squares on Pinocchio's
+  joint Jacobians (``cpp/measure.cpp``, ``cpp/minimal.cpp``);
 * ``attitude``: the attitude model (``Robot.attitude_model``): M_p, the nonlinear effects and the drones'
   frame Jacobians by Pinocchio's ``crba``, ``nonLinearEffects`` and ``getFrameJacobian``
   (``cpp/minimal.cpp``), the rest in C (``attitude.c``);
 * ``allocation`` and ``inner``: the allocation tick and the inner loop's float part (``alloc.c``);
 * ``watch``: the watch's screen (``watch.c``);
-* ``jets``: the planner's jet products (``jets.c``).
+* ``jets``: the planner's jet products and small batched solves (``jets.c``).
 
 The switch: the environment variable ``FPR_NATIVE``, read at import, or :func:`configure` (and
 :func:`switched` for a block of code):
@@ -40,7 +41,7 @@ logger = logging.getLogger(__name__)
 #: each part and the extension modules it calls (fpr._native.<name>)
 PARTS = {"plant": ("_pinocchio",), "measure": ("_pinocchio",), "attitude": ("_attitude", "_pinocchio"),
          "allocation": ("_alloc",), "inner": ("_alloc",), "watch": ("_watch",), "jets": ("_jets",)}
-#: how to get the native parts: said by every error that wants one
+#: how to get the native parts, said by every error that wants one
 BUILD_HINT = "build them with `pip install -e .` (a C++ compiler is needed)"
 
 _modules: dict[str, object] = {}  # extension name -> module, or None when not built
@@ -54,7 +55,8 @@ _NEVER = os.environ.get("FPR_NATIVE", "").strip().lower() in ("0", "off")
 
 class NativeError(RuntimeError):
     """A native part that must run cannot: not built (with ``FPR_NATIVE=require``), or built but not
-    loadable."""
+    loadable.
+    """
 
 
 def _load(name: str):
@@ -124,8 +126,12 @@ def _parse(value) -> tuple[dict[str, bool], bool]:
 
 
 def configure(value=True) -> None:
-    """Set the switch: True (every built part), False (none), ``"require"``, or an iterable (or
-    comma-separated string) of the parts to run native (module docstring).
+    """Set the switch (what ``FPR_NATIVE`` sets at import; the module docstring says what each value means).
+
+    Args:
+        value: True, ``"1"`` or ``"on"`` (every built part), False, ``"0"`` or ``"off"`` (none), ``"require"``
+            (every part, an error when one is not built), or an iterable or comma-separated string of the parts
+            to run natively (the others run their Python paths).
 
     Raises:
         ValueError: an unknown part or value.
@@ -174,8 +180,10 @@ def built() -> dict[str, bool]:
 
 @contextlib.contextmanager
 def switched(**on: bool):
-    """A block with some parts switched on or off, e.g. ``with switched(plant=False): ...``; the switch as it
-    was afterwards."""
+    """A block of code with some parts switched on or off; the switch as it was afterwards.
+
+    Example: ``with fpr._native.switched(plant=False): ...`` runs the plant's Python steps in the block.
+    """
     unknown = [p for p in on if p not in PARTS]
     if unknown:
         raise ValueError(f"unknown part(s) {', '.join(map(repr, unknown))}; give some of {', '.join(PARTS)}")

@@ -1,4 +1,4 @@
-/* The numpy part of fpr/model/robot.py's Robot.attitude_model in C (issue 13): the same quantities as its
+/* The numpy part of fpr/model/robot.py's Robot.attitude_model in C: the same quantities as its
  * Python reference (Robot._attitude_python) from the same Pinocchio outputs, without numpy's per-call costs
  * (about a microsecond per small-array call; the Python path makes a dozen).
  *
@@ -145,7 +145,8 @@ static PyMethodDef methods[] = {
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr._native._attitude",
-                                    "Robot.attitude_model's numpy part in C (fpr.model.robot).", -1, methods, NULL, NULL, NULL, NULL};
+                                    "Robot.attitude_model's numpy part in C (fpr.model.robot).",
+                                    -1, methods, NULL, NULL, NULL, NULL};
 
 PyMODINIT_FUNC PyInit__attitude(void)
 {

@@ -56,18 +56,12 @@ from planners.optimisation.solving import Grid
 
 #: Cost of the solver's work for the deterministic latency [s]: (per derivative evaluation per grid node,
 #: per value evaluation per grid node, per second of re-optimised motion: the dense check and the set-up).
-#: Fitted (non-negative least squares) by ``python -m fpr.bench --section replan`` on the 2-core machine
-#: with nothing else running (load average about 1, one BLAS thread), three runs in a row of today's
-#: replanner (the dense check fused with the last evaluation): (1.77e-3, 0, 0.83e-3), (2.22e-3, 0, 0),
-#: (2.60e-3, 0, 0); the moving-target replan (28 nodes, one derivative evaluation) measured 54, 54 and 67 ms
-#: by median. Taken as the middle fit, 2.2e-3: that replan is modelled at 62 ms, late against the default
-#: 50 ms deadline, as it was on the wall clock in every run (a model that called it on time, 1.75e-3 = 49
-#: ms, was the optimistic end of an estimate made on a loaded machine). Since the cut travel keeps only
-#: via points leaving segments as long as the offline plan's (:meth:`Replanner._layout`), that replan has
-#: 21 nodes: 46.2 ms, on time. The same virtual machine has since run 3.6 times faster (fit 4.3e-4 to
-#: 5.4e-4 on 2026-11-23, the moving-target replan 8-10 ms): kept at the slow day's fit, so that a replan
-#: called on time is on time on that day too. The bench prints the ratio of this model to the measured
-#: latency (README "Replanning in flight"). Refit it on another machine.
+#: Fitted (non-negative least squares) by ``python -m fpr.bench --section replan``, which prints the fit
+#: and the ratio of this model to the measured latency. The value in use is the fit of a slow machine (one
+#: BLAS thread, nothing else running), so that a replan the model calls on time is on time there too. With
+#: it the built-in moving-target replan (21 nodes, one derivative evaluation; the cut travel keeps only via
+#: points leaving segments as long as the offline plan's, :meth:`Replanner._layout`) is modelled at 46.2 ms,
+#: within the default 50 ms deadline. Refit it on another machine (documentation: guides/replanning).
 WORK_COST = (2.2e-3, 0.0, 0.0)
 TIMINGS = ("work", "wall")
 
@@ -83,7 +77,7 @@ class ReplanOptions:
         tolerance: the SQP stops when an iteration improves J by less than this.
         samples_per_segment, windows_per_segment: the optimisation grid: 7 nodes per segment (the offline
             planner uses 17); the dense check at ``dense_rate`` decides feasibility.
-        dense_rate: rate of the dense check of the new part [Hz] (plus its knots; README: why 100 Hz).
+        dense_rate: rate of the dense check of the new part [Hz] (plus its knots; documentation, guides/replanning: why 100 Hz).
         radius: the SQP's initial trust region (x's scaled units).
         timing: ``"work"`` (deterministic latency from the solver's work, :data:`WORK_COST`) or ``"wall"``
             (the measured wall time) for the used / not-used decision.
@@ -95,7 +89,7 @@ class ReplanOptions:
         refine_margin: an SQP iteration after the first (a refinement: the first gives a plan) starts only
             if ``refine_margin`` times the deterministic latency (:meth:`Replanner.latency`) with its
             evaluations is within the deadline: the work model has been up to 1.7 times below the measured
-            latency (1 / 0.58, README "Replanning in flight"), and optional work must not make the plan late.
+            latency (1 / 0.58, documentation: guides/replanning), and optional work must not make the plan late.
             0: every iteration up to ``max_iterations`` whatever the deadline (the replanner before the
             latency work); values in (0, 1) are refused (a refinement could then make an on-time plan late).
     """

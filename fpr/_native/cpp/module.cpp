@@ -313,7 +313,8 @@ namespace
     {nullptr, nullptr, 0, nullptr}};
 
   PyType_Slot plant_slots[] = {
-    {Py_tp_doc, const_cast<char *>("The plant's steps on Pinocchio's constraint dynamics (fpr/_native/cpp/module.cpp).")},
+    {Py_tp_doc,
+     const_cast<char *>("The plant's steps on Pinocchio's constraint dynamics (fpr/_native/cpp/module.cpp).")},
     {Py_tp_new, reinterpret_cast<void *>(PyType_GenericNew)},
     {Py_tp_init, reinterpret_cast<void *>(plant_init)},
     {Py_tp_dealloc, reinterpret_cast<void *>(plant_dealloc)},
@@ -484,7 +485,8 @@ namespace
     {nullptr, nullptr, 0, nullptr}};
 
   PyType_Slot minimal_slots[] = {
-    {Py_tp_doc, const_cast<char *>("The minimal model's terms by Pinocchio's algorithms (fpr/_native/cpp/module.cpp).")},
+    {Py_tp_doc,
+     const_cast<char *>("The minimal model's terms by Pinocchio's algorithms (fpr/_native/cpp/module.cpp).")},
     {Py_tp_new, reinterpret_cast<void *>(PyType_GenericNew)},
     {Py_tp_init, reinterpret_cast<void *>(minimal_init)},
     {Py_tp_dealloc, reinterpret_cast<void *>(minimal_dealloc)},

@@ -40,9 +40,9 @@ namespace fpr_native
   // ------------------------------------------------------------------ the plant (plant.cpp)
   class Plant;
 
-  // The plant's stepper on the closed chain (`objects` with its constraints). `force_map_t` (nw x nv, row-major) maps the squared rotor speeds to the generalised
-  // force; `frames` are the drones' centre frames: the wind pushes them, and plant_points returns their
-  // world positions.
+  // The plant's stepper on the closed chain (`objects` with its constraints). `force_map_t` (nw x nv, row-major)
+  // maps the squared rotor speeds to the generalised force; `frames` are the drones' centre frames: the wind
+  // pushes them, and plant_points returns their world positions.
   Plant * plant_new(const Objects & objects, const double * force_map_t, int nw, const std::vector<int> & frames,
                     std::string & error);
   void plant_delete(Plant * plant);

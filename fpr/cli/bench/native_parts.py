@@ -42,7 +42,8 @@ LOOP_PARTS = ("plant", "measure", "attitude", "allocation", "inner", "watch")
 
 def yardstick(bench, robot) -> dict:
     """The raw ``pin.crba`` (minimal model) and ``pin.constraintDynamics`` (closed chain) of ``robot`` at
-    hover."""
+    hover.
+    """
     q = hover_configuration(robot, robot.kind.reference_chain)
     plant = Plant.from_minimal(robot, q, v=0.01 * np.ones(robot.nq), w=hover_speeds(robot, q))
     closed = plant.closed
@@ -61,7 +62,8 @@ def yardstick(bench, robot) -> dict:
 
 def _counted_run(result) -> tuple[dict, dict, int]:
     """One Python-path closed loop of ``result`` with counters on :data:`COUNTED`: (calls by name, the first
-    arguments of each, ticks)."""
+    arguments of each, ticks).
+    """
     counts, first = dict.fromkeys(COUNTED, 0), {}
     originals = {name: getattr(pin, name) for name in COUNTED}
 
@@ -86,7 +88,8 @@ def _counted_run(result) -> tuple[dict, dict, int]:
 
 def _raw_time(function, args, target: float = 0.02, repeats: int = 5) -> float:
     """Median time per call of ``function(*args)`` over ``repeats`` loops of about ``target`` seconds each (as
-    :class:`fpr.cli.bench.timing.Bench` times, shorter)."""
+    :class:`fpr.cli.bench.timing.Bench` times, shorter).
+    """
     function(*args)
     loops, elapsed = 1, 0.0
     while True:
@@ -110,7 +113,8 @@ def _raw_time(function, args, target: float = 0.02, repeats: int = 5) -> float:
 def pinocchio_per_tick(bench, result) -> dict:
     """How many calls of each Pinocchio algorithm a tick of ``result``'s closed loop needs, each one's raw
     time, and their sum per tick (module docstring); ``arguments`` keeps each one's first arguments for
-    :func:`parts_on_off`, which times them again round by round."""
+    :func:`parts_on_off`, which times them again round by round.
+    """
     counts, first, ticks = _counted_run(result)
     calls = {}
     for name in COUNTED:
@@ -132,7 +136,8 @@ def _round_figures(pinocchio: dict, crba) -> tuple[float, float]:
 def parts_on_off(result, runs: int, say, pinocchio: dict, robot) -> dict:
     """Whole ``simulate`` calls with every part native, one part off, none; alternating (module docstring).
     Each round also times the tick's Pinocchio calls and the raw ``pin.crba`` again, so that the overhead
-    ratio and the normalised real-time factor compare figures taken under the same load."""
+    ratio and the normalised real-time factor compare figures taken under the same load.
+    """
     configs = [("every part native", {})] + [(f"{part} off", {part: False}) for part in LOOP_PARTS] \
         + [("no part native (Python paths)", dict.fromkeys(native.PARTS, False))]
     configs = [(label, switches) for label, switches in configs
