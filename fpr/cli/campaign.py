@@ -32,7 +32,8 @@ from fpr.robustness.campaign_file import campaign_to_toml, load_campaign
 from fpr.robustness.runner import local_client, make_flight, mission_of, run_campaign
 from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign, components
 from fpr.robustness.store import RunStore, write_atomic
-from fpr.robustness.summary import summarise, write_table
+from fpr.robustness.events import FAMILIES
+from fpr.robustness.summary import event_summary, summarise, write_table
 from fpr.views.figures.campaign import campaign_figures
 from planners.methods import METHODS
 
@@ -75,6 +76,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--hold", type=float, default=None, help="time simulated after the plan's end [s] (default 1)")
     p.add_argument("--tracking-tolerance", type=float, default=None,
                    help="a run succeeds only if every planning coordinate stays within this of the plan [m, rad]")
+    p.add_argument("--events", choices=list(FAMILIES), default=None,
+                   help="one random event per run: a way point that moves, or a gust (fpr.robustness.events; "
+                        "options in a campaign file's [event_options])")
+    p.add_argument("--replan", action="store_true", default=None, help="fly with the replanner (moves need it)")
+    p.add_argument("--without-observer", action="store_true", default=None,
+                   help="also fly each run with the controller without its observer, its outcomes beside")
     fixed = p.add_argument_group("fixed perturbations (as python -m fpr.plan --simulate; --vary wins)")
     fixed.add_argument("--model-mass-scale", type=float, default=None, help="the controller's masses times this")
     fixed.add_argument("--rotor-constant-scale", type=float, default=None, help="the plant's rotor force times this")
@@ -101,7 +108,8 @@ def parser() -> argparse.ArgumentParser:
 def _campaign(args) -> Campaign:
     """The campaign: the file's fields, the options over them, fixed perturbations as constants."""
     campaign = load_campaign(args.campaign) if args.campaign is not None else Campaign()
-    changes = {k: getattr(args, k) for k in ("mission", "method", "runs", "seed", "hold", "tracking_tolerance")
+    changes = {k: getattr(args, k) for k in ("mission", "method", "runs", "seed", "hold", "tracking_tolerance",
+                                             "events", "replan", "without_observer")
                if getattr(args, k) is not None}
     if args.robot_parameters:
         changes["robot_parameters"] = {**campaign.robot_parameters, **dict(args.robot_parameters)}
@@ -238,6 +246,8 @@ def _run(args, argv) -> int:
                     "wall_time_s": round(done.wall_time, 3),
                     "runs_per_second": done.computed / done.wall_time if done.computed else None,
                     "plan_feasible": bool(result.feasible)})
+    if campaign.events is not None:
+        summary["events"] = event_summary(done.rows, campaign.events, campaign.without_observer)
     write_atomic(out / "summary.json", json.dumps(summary, indent=1) + "\n")
     if not args.no_plots:
         try:
@@ -251,6 +261,9 @@ def _run(args, argv) -> int:
         f"worker{'s' if done.workers != 1 else ''}")
     for kind, count in summary["lost_by_kind"].items():
         say(f"  lost: {kind}: {count}")
+    if campaign.events is not None:
+        for line in event_lines(summary["events"]):
+            say(line)
     say(f"wrote runs.parquet, summary.json{'' if args.no_plots else ', figures'} into {out}")
     problems = []
     if not result.feasible:
@@ -260,6 +273,30 @@ def _run(args, argv) -> int:
     for problem in problems:
         print(f"error: {problem}", file=sys.stderr)
     return contract.LIMIT_BROKEN if problems else contract.OK
+
+
+def event_lines(events: dict) -> list[str]:
+    """The event family's lines (:func:`fpr.robustness.summary.event_summary`)."""
+    def rate(name, r):
+        low, high = r["wilson95"]
+        return (f"  {name}: {r['successes']} of {r['runs']} succeeded ({r['success_rate']:.1%}, 95 % Wilson "
+                f"interval {low:.1%} .. {high:.1%})")
+
+    lines = [f"{events['family']} events:"]
+    if "not_holdable" in events:
+        lines.append(f"  {len(events['not_holdable'])} gusts cannot be held even as a steady force within the rotor "
+                     "limits (counted apart)" + "".join(f"; run {g['index']}: {g['force_n']:.2g} N on {g['body']}"
+                                                      for g in events["not_holdable"]))
+    lines.append(rate("with the observer" if "without_observer" in events else "runs", events["with_observer"]))
+    if "without_observer" in events:
+        lines.append(rate("without the observer (same events)", events["without_observer"]))
+    for miss in events["misses"]:
+        lines.append(f"  miss, run {miss['index']}: {miss['why']}")
+    wall = events["replan_wall_s"]
+    if wall.get("count"):
+        lines.append(f"  replan wall latency over {wall['count']} replans: median {wall['median'] * 1e3:.1f} ms, "
+                     f"p95 {wall['p95'] * 1e3:.1f} ms, max {wall['max'] * 1e3:.1f} ms")
+    return lines
 
 
 def _close(client) -> None:

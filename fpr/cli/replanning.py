@@ -4,12 +4,16 @@
   (tracking error that triggers a replan from the robot's state, default 0.05 m or rad), ``--replan-rate``
   (an optional fixed rate [Hz]), ``--replan-wind`` (``known``, default: the replanner is told the force of
   each gust with a ``rise`` as it starts, a step gust stays unknown; ``estimated``: it estimates a steady wind from the tracking error; ``blind``),
-  ``--replan-timing`` (``work``: the deterministic latency, default; ``wall``: the measured solve time,
-  not reproducible bit for bit);
+  ``--replan-timing`` (``work``: the modelled latency of the solver's work on this machine, default;
+  ``wall``: the measured solve time, not reproducible bit for bit), ``--replan-calibration`` (the latency
+  model: default this machine's calibration file, measured and written on first use; a file to pin a run
+  to, e.g. an earlier run's ``replans.json``; ``measure``: timed at start, for this run only),
+  ``--no-observer`` (the thesis' controller without the external-force observer, and the replanner's wind
+  estimate from the tracking error);
 * the simulation gets a :class:`fpr.sim.replanning.InFlight` when the mission has events or ``--replan``
   is given (gusts always push; ``move`` events need ``--replan``);
-* files: ``replans.json`` (each replan: time, trigger, splice time, latency against the deadline, J,
-  feasible, used or not and why; the executed plan's points and knots), the executed plan (the plan in
+* files: ``replans.json`` (the latency model used; each replan: time, trigger, splice time, latency against
+  the deadline, J, feasible, used or not and why; the executed plan's points and knots), the executed plan (the plan in
   force at each instant) in the planned columns of ``trajectory.csv``, and ``replanning.png``
   (:mod:`fpr.views.figures.replanning`). The solves' wall times go to ``manifest.json`` only.
 """
@@ -22,11 +26,13 @@ import json
 import numpy as np
 
 from fpr.cli.checks import CommandLineError
+from fpr.model.errors import PlannerArgumentError
 from fpr.sim.replanning import InFlight, TriggerSettings
 from fpr.views.figures.replanning import write_replanning_figure
 from planners.problem.disturbance import evaluate_in_gusts
 from planners.missions.events import moved_positions
-from planners.replanning.replanner import TIMINGS, Replanner, ReplanOptions
+from planners.replanning.latency import load_latency, machine_latency
+from planners.replanning.replanner import TIMINGS, Replanner, ReplanOptions, measure_latency
 
 
 def add_arguments(group) -> None:
@@ -63,8 +69,17 @@ def add_arguments(group) -> None:
         "--replan-timing",
         choices=list(TIMINGS),
         default="work",
-        help="what is compared with the deadline: the solver's work times a measured cost "
-        "(deterministic) or the measured wall time (not reproducible)",
+        help="what is compared with the deadline: the solver's work times this machine's measured costs "
+        "(--replan-calibration; the same bytes on this machine) or the measured wall time (not reproducible)",
+    )
+    group.add_argument(
+        "--replan-calibration",
+        default=None,
+        metavar="FILE|measure",
+        help="the replanner's latency model: a calibration file or a run's replans.json (the run is then "
+        "pinned to it: the same bytes on any machine); 'measure': timed at start, this run only; default: "
+        "this machine's calibration file (measured and written once, on first use; python -m fpr.bench "
+        "--section replan rewrites it)",
     )
 
 
@@ -88,6 +103,12 @@ def check_options(args, mission, robot) -> None:
             "a singularity-crossing mission cannot be replanned (its crossing "
             "is optimised as a whole): drop --replan",
         )
+    calibration = getattr(args, "replan_calibration", None)
+    if calibration not in (None, "measure"):
+        try:
+            load_latency(calibration, robot.name)
+        except PlannerArgumentError as error:
+            raise CommandLineError("--replan-calibration", calibration, error.reason) from None
     for option, value in (
         ("--replan-deadline", args.replan_deadline),
         ("--replan-bound", args.replan_bound),
@@ -105,7 +126,9 @@ def in_flight(args, final, settings):
         return None
     replanner = None
     if replan:
-        replanner = Replanner(final, ReplanOptions(deadline=args.replan_deadline, timing=args.replan_timing))
+        options = ReplanOptions(deadline=args.replan_deadline, timing=args.replan_timing,
+                                latency=latency_model(getattr(args, "replan_calibration", None), robot))
+        replanner = Replanner(final, options)
     triggers = TriggerSettings(
         tracking_bound=args.replan_bound,
         rate=args.replan_rate,
@@ -115,6 +138,15 @@ def in_flight(args, final, settings):
     return InFlight(
         mission, replanner, triggers, settings.controller, [robot.index[c] for c in robot.layout.chain], robot
     )
+
+
+def latency_model(calibration, robot):
+    """The replanner's :class:`planners.replanning.latency.LatencyModel` for ``--replan-calibration``."""
+    if calibration is None:
+        return machine_latency(robot, measure_latency)
+    if calibration == "measure":
+        return measure_latency(robot)
+    return load_latency(calibration, robot.name)
 
 
 def executed(final, hooks):
@@ -146,6 +178,7 @@ def write(out, hooks, done, written, log=None, final=None) -> dict:
     document = {
         "deadline_s": hooks.replanner.options.deadline,
         "timing": hooks.replanner.options.timing,
+        "latency_model": hooks.replanner.latency_model.to_dict(),
         "replans": records,
         "used": sum(r["used"] for r in records),
         "executed_plan": None
@@ -170,32 +203,11 @@ def write(out, hooks, done, written, log=None, final=None) -> dict:
 
 
 def passes(hooks, log) -> list[dict]:
-    """For each move event: how close the simulated task point passes to the moved way point at its time [m].
-
-    The task point is the robot kind's (the FPR's end-effector); the time is when the mission reaches the
-    way point. Without replanning (the move ignored) the same distance shows by how much the robot misses.
-    """
+    """For each move event: how close the simulated task point passes to the moved way point
+    (:meth:`fpr.sim.replanning.InFlight.passes`); none without hooks or a log."""
     if hooks is None or log is None:
         return []
-    mission, out = hooks.mission, []
-    robot = hooks.robot
-    ways = np.concatenate([[0.0], np.cumsum(mission.times)])
-    chain = [log.coordinates.index(c) for c in log.chain]
-    for i, event in enumerate(mission.events):
-        if event.kind != "move":
-            continue
-        k = int(np.argmin(np.abs(log.t - ways[event.way_point])))
-        target = robot.kind.task_points(hooks.moves[i][None])[0][0]
-        where = robot.kind.task_points(log.q[k, chain][None])[0][0]
-        out.append(
-            {
-                "event": i,
-                "way_point": event.way_point,
-                "time_s": float(log.t[k]),
-                "distance_m": float(np.linalg.norm(where - target)),
-            }
-        )
-    return out
+    return hooks.passes(log)
 
 
 def summary(hooks, done, log=None) -> str:
@@ -212,7 +224,7 @@ def summary(hooks, done, log=None) -> str:
     moved = lines
     lines = [
         f"replanning in flight (deadline {hooks.replanner.options.deadline * 1e3:.0f} ms, "
-        f"{hooks.replanner.options.timing} timing):"
+        f"{hooks.replanner.options.timing} timing, latency model: {hooks.replanner.latency_model.source}):"
     ]
     for r in hooks.replans:
         lines.append(
