@@ -11,7 +11,9 @@
   ``--no-observer`` (the thesis' controller without the external-force observer, and the replanner's wind
   estimate from the tracking error);
 * the simulation gets a :class:`fpr.sim.replanning.InFlight` when the mission has events or ``--replan``
-  is given (gusts always push; ``move`` events need ``--replan``);
+  is given (gusts always push; ``move`` events need ``--replan``); each gust is checked before the flight:
+  can the robot hold it at all, as a steady force within its rotor limits along the plan
+  (:func:`fpr.robustness.holding.hold_check`, one line in the summary, and a warning on stderr when it cannot);
 * files: ``replans.json`` (the latency model used; each replan: time, trigger, splice time, latency against
   the deadline, J, feasible, used or not and why; the executed plan's points and knots), the executed plan (the plan in
   force at each instant) in the planned columns of ``trajectory.csv``, and ``replanning.png``
@@ -22,11 +24,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
 
 import numpy as np
 
 from fpr.cli.checks import CommandLineError
 from fpr.model.errors import PlannerArgumentError
+from fpr.robustness.holding import hold_check
 from fpr.sim.replanning import InFlight, TriggerSettings
 from fpr.views.figures.replanning import write_replanning_figure
 from planners.problem.disturbance import evaluate_in_gusts
@@ -71,6 +75,13 @@ def add_arguments(group) -> None:
         default="work",
         help="what is compared with the deadline: the solver's work times this machine's measured costs "
         "(--replan-calibration; the same bytes on this machine) or the measured wall time (not reproducible)",
+    )
+    group.add_argument(
+        "--no-observer",
+        action="store_true",
+        help="the controller without its external-force observer (the thesis' law with the integral term): "
+        "an unknown wind is held by the feedback alone, and --replan-wind estimated reads it from the "
+        "tracking error",
     )
     group.add_argument(
         "--replan-calibration",
@@ -118,12 +129,24 @@ def check_options(args, mission, robot) -> None:
             raise CommandLineError(option, value, "give a finite number > 0")
 
 
+def with_observer(args, settings):
+    """The simulation ``settings`` with the controller's observer off under ``--no-observer``."""
+    if not getattr(args, "no_observer", False):
+        return settings
+    return dataclasses.replace(settings, controller=dataclasses.replace(settings.controller, observer_bandwidth=0.0))
+
+
 def in_flight(args, final, settings):
-    """The closed loop's :class:`InFlight` for this run, or None (no events, no --replan)."""
+    """The closed loop's :class:`InFlight` for this run, or None (no events, no --replan); its ``verdicts``
+    hold each gust's :func:`fpr.robustness.holding.hold_check` (by event index), made before the flight."""
     mission, robot = final.mission, final.robot
     replan = getattr(args, "replan", False)
     if not mission.events and not replan:
         return None
+    verdicts = {i: hold_check(robot, mission, e) for i, e in enumerate(mission.events) if e.kind == "gust"}
+    for i, verdict in verdicts.items():
+        if not verdict.holdable and not getattr(args, "quiet", False):
+            print(f"warning: gust {i}: {verdict.line()}", file=sys.stderr, flush=True)
     replanner = None
     if replan:
         options = ReplanOptions(deadline=args.replan_deadline, timing=args.replan_timing,
@@ -135,9 +158,11 @@ def in_flight(args, final, settings):
         known_gusts=getattr(args, "replan_wind", "known") == "known",
         estimate_wind=getattr(args, "replan_wind", "known") == "estimated",
     )
-    return InFlight(
+    hooks = InFlight(
         mission, replanner, triggers, settings.controller, [robot.index[c] for c in robot.layout.chain], robot
     )
+    hooks.verdicts = verdicts
+    return hooks
 
 
 def latency_model(calibration, robot):
@@ -211,17 +236,19 @@ def passes(hooks, log) -> list[dict]:
 
 
 def summary(hooks, done, log=None) -> str:
-    """Lines for stdout: each replan, how close the robot passed to moved way points, the executed plan."""
+    """Lines for stdout: each gust's holding verdict, each replan, how close the robot passed to moved way
+    points, the executed plan."""
     if hooks is None:
         return ""
-    lines = [
+    held = [f"  gust {i}: {v.line()}" for i, v in sorted(getattr(hooks, "verdicts", {}).items())]
+    moved = [
         f"  move event {p['event']}: the simulated {hooks.robot.kind.task_point_labels[0]} passes "
         f"{p['distance_m'] * 100:.2f} cm from the moved way point {p['way_point']} at t = {p['time_s']:.3f} s"
         for p in passes(hooks, log)
     ]
     if hooks.replanner is None:
+        lines = held + moved
         return "\n".join(["events in flight (no --replan: move events ignored):", *lines]) if lines else ""
-    moved = lines
     lines = [
         f"replanning in flight (deadline {hooks.replanner.options.deadline * 1e3:.0f} ms, "
         f"{hooks.replanner.options.timing} timing, latency model: {hooks.replanner.latency_model.source}):"
@@ -237,7 +264,7 @@ def summary(hooks, done, log=None) -> str:
         lines.append(
             f"  {len(late)} of {len(hooks.replans)} replans were late: they need up to {need * 1e3:.0f} ms on this "
             f"machine ({hooks.replanner.options.timing} timing); --replan-deadline {_rounded_up(1.2 * need):g} "
-            "lets them in (README, Replanning in flight: latency)"
+            "lets them in"
         )
     if done is not None:
         state = (
@@ -246,7 +273,7 @@ def summary(hooks, done, log=None) -> str:
             else "violates " + ", ".join(c.name for c in done.report.violations)
         )
         lines.append(f"  the executed plan (the plan in force at each instant) {state}")
-    return "\n".join(lines + moved)
+    return "\n".join(lines + held + moved)
 
 
 def _rounded_up(seconds: float) -> float:

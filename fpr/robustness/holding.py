@@ -17,8 +17,14 @@ dynamics at rest, :func:`fpr.model.inverse_dynamics.inverse_dynamics`, whose thr
 rest; the full model adds the drones' offset torques and a force at a drone's centre rather than its joint).
 Each drone's rotor speeds follow from R_f^-1 [f_i, tau_i, 0, 0] (seed 3.31): the gust is **holdable** at s
 when every rotor speed is within [0, w_max], the physical limits (no design margin: the question is whether
-the robot can hold it at all). Along a plan, :func:`hold_check` takes the plan's configurations while the
-gust blows, at ``rate``, with the gust at its full force.
+the robot can hold it at all).
+
+**Where.** :func:`hold_check` asks it at the mission's way points the robot must reach while the gust blows
+(those whose time falls in the gust, and at least the first one reached after it starts), with the gust at
+its full force: poses the mission fixes, whatever the plan. (Between them the plan chooses its path, and a
+replanner may move it where the gust can be held: the built-in ``gust`` mission's offline plan passes, at
+7.6 s, a configuration where 6 N cannot be held at rest, which its replanned motion avoids.) A gust the
+robot cannot hold at such a way point cannot be flown through within the rotor limits by any controller.
 """
 
 from __future__ import annotations
@@ -133,17 +139,18 @@ def _external_chain(robot, s, body, force) -> np.ndarray:
 
 @dataclass(frozen=True)
 class HoldVerdict:
-    """Whether a gust can be held as a steady force along a plan (:func:`hold_check`).
+    """Whether a gust can be held as a steady force at the way points it blows on (:func:`hold_check`).
 
     Attributes:
-        holdable: every rotor within [0, w_max] at every configuration checked.
+        holdable: every rotor within [0, w_max] at every way point checked.
         body, force: the gust's body and force (world [x, y, z] [N]).
-        worst_time: the plan's time of the configuration with the least margin [s].
+        worst_time: the mission's time of the way point with the least margin [s].
         drone, rotor: the rotor with the least margin there (1-based).
         speed: its rotor speed [rad/s] (signed: below 0 means no real speed gives it).
         margin: its distance to the nearer limit [rad/s] (negative: beyond it).
         limit: w_max [rad/s].
-        samples: configurations checked.
+        samples: way points checked.
+        way_point: the way point with the least margin (index).
     """
 
     holdable: bool
@@ -156,51 +163,52 @@ class HoldVerdict:
     margin: float
     limit: float
     samples: int
+    way_point: int = 0
 
     def line(self) -> str:
         """One line for people."""
         size = float(np.linalg.norm(self.force[1:]))
-        where = f"rotor {self.rotor} of drone {self.drone} at {self.speed:.0f} rad/s at t = {self.worst_time:.2f} s"
+        where = (f"rotor {self.rotor} of drone {self.drone} at {self.speed:.0f} rad/s at way point "
+                 f"{self.way_point}, t = {self.worst_time:.2f} s")
         if self.holdable:
-            return (f"holdable: {size:.2g} N on {self.body} can be held as a steady force along the plan (least "
-                    f"margin {self.margin:.0f} rad/s to the rotor limits 0 .. {self.limit:.0f}: {where})")
+            return (f"holdable: {size:.2g} N on {self.body} can be held as a steady force at the way points it "
+                    f"blows on (least margin {self.margin:.0f} rad/s to the rotor limits 0 .. {self.limit:.0f}: "
+                    f"{where})")
         side = "below 0" if self.speed < self.limit / 2 else f"above {self.limit:.0f}"
         return (f"not holdable: {size:.2g} N on {self.body} cannot be held even as a steady force within the "
                 f"rotor limits ({where}, {side})")
 
 
-def hold_check(robot, trajectory, gust, rate: float = 10.0) -> HoldVerdict:
-    """Whether ``gust`` (a :class:`planners.missions.events.GustEvent`) can be held at its full force at every
-    configuration of ``trajectory`` while it blows (sampled at ``rate`` [Hz], its ends included; the
-    motion's last configuration after its end).
+def hold_check(robot, mission, gust) -> HoldVerdict:
+    """Whether ``gust`` (a :class:`planners.missions.events.GustEvent`) can be held at its full force at the
+    way points of ``mission`` the robot must reach while it blows (module docstring).
 
     Args:
-        robot: the robot.
-        trajectory: the plan (:class:`planners.trajectory.polynomial.PiecewisePolynomial`).
+        robot: the robot of the mission.
+        mission: the :class:`planners.missions.mission.Mission` (its way points and times).
         gust: the gust (``body``, ``force``, ``at``, ``duration``).
-        rate: configurations per second [Hz].
     """
-    end = min(gust.at + gust.duration, trajectory.total_duration)
-    begin = min(gust.at, end)
-    times = np.unique(np.concatenate([np.arange(begin, end, 1.0 / rate), [begin, end]]))
-    s = trajectory.evaluate_held(times, order=0)[0]
+    poses = np.asarray(mission.positions(robot), dtype=float)
+    times = np.concatenate([[0.0], np.cumsum(mission.times)])
+    inside = [j for j, t in enumerate(times) if gust.at <= t <= gust.at + gust.duration]
+    after = [j for j, t in enumerate(times) if t >= gust.at]
+    chosen = sorted(set(inside) | ({after[0]} if after else {len(times) - 1}))
     limit = float(robot.rotor_constants.max_speed)
     worst = None
-    for t, pose in zip(times, s, strict=True):
-        hold = static_hold(robot, pose, gust.body, gust.force)
-        speeds = hold.speeds
+    for j in chosen:
+        speeds = static_hold(robot, poses[j], gust.body, gust.force).speeds
         margins = np.minimum(speeds, limit - speeds)
         i, k = np.unravel_index(np.argmin(margins), margins.shape)
         if worst is None or margins[i, k] < worst[0]:
-            worst = (float(margins[i, k]), float(t), int(i) + 1, int(k) + 1, float(speeds[i, k]))
-    margin, when, drone, rotor, speed = worst
+            worst = (float(margins[i, k]), float(times[j]), int(i) + 1, int(k) + 1, float(speeds[i, k]), j)
+    margin, when, drone, rotor, speed, way_point = worst
     return HoldVerdict(margin >= 0.0, gust.body, tuple(float(f) for f in gust.force), when, drone, rotor, speed,
-                       margin, limit, int(times.size))
+                       margin, limit, len(chosen), way_point)
 
 
-def hold_verdict(robot, trajectory, gust, rate: float = 10.0) -> str:
+def hold_verdict(robot, mission, gust) -> str:
     """:func:`hold_check`'s one line."""
-    return hold_check(robot, trajectory, gust, rate).line()
+    return hold_check(robot, mission, gust).line()
 
 
 __all__ = ["HoldVerdict", "StaticHold", "hold_check", "hold_verdict", "static_hold"]

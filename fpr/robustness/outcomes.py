@@ -293,7 +293,7 @@ def fly_event(flight: Flight, robot, settings: SimulationSettings, event) -> dic
     setup = flight.setup
     row = {}
     if setup.family == "gust":
-        verdict = hold_check(robot, flight.trajectory, event)
+        verdict = hold_check(robot, flight.mission, event)
         force = np.asarray(event.force, dtype=float)
         row.update(gust_body=event.body, gust_at_s=event.at, gust_duration_s=event.duration, gust_rise_s=event.rise,
                    gust_force_n=float(np.linalg.norm(force[1:])), gust_force_y_n=float(force[1]),
