@@ -112,10 +112,12 @@ def test_a_solve_that_cannot_be_ready_by_the_deadline_is_spliced_when_it_can(mov
 
 
 def test_a_late_wall_clock_solve_is_solved_again_after_its_end(moving):
-    """Against an impossible wall-clock deadline the first solve is late (not used: the plan in force stays
-    then), and is solved again at once, triggered when it ended."""
+    """Against an impossible wall-clock deadline (and a model that calls every solve instant, so the splice is
+    not delayed) the first solve is late (not used: the plan in force stays then), and is solved again at
+    once, triggered when it ended."""
     mission, result = moving
-    replanner, record = _replanned(result, timing="wall", deadline=1e-6)
+    instant = LatencyModel((0.0,) * 5)
+    replanner, record = _replanned(result, timing="wall", deadline=1e-6, latency=instant)
     late, again = replanner.replans
     assert not late.used and "late" in late.why and late.latency_s == late.solve_wall_s
     assert again is record and "again" in again.trigger
