@@ -231,11 +231,15 @@ class CascadedController:
 
     def estimated_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """The observer's estimate as forces, world [x, y, z] [N]: (on the task point (3,), on the drones'
-        joints (n_d, 3)), equal to r_s in generalised force at the configuration of the last outer update.
+        joints (n_d, 3)), equal to r_s in generalised force on the chain at the configuration of the last
+        outer update.
 
         The task point takes what a force on it can explain (least squares of J_p^T f_p = r_s: all of r_s when
-        it comes from a force there), the drones the rest (J_h^T F = r_s - J_p^T f_p, least squares): an
-        estimate cannot tell a force on the end-effector from one on a drone when both give the same r_s.
+        it comes from a force there), the drones the rest (J_h^T F = r_s - J_p^T f_p, least squares). The
+        estimate's roll rows could tell a force at a drone's centre from one at the task point in a steady
+        state, but in transients they carry the motor lag's torque errors, which turned such a split into
+        opposite forces of 10 N and more: the chain's rows alone are used, so an estimate cannot tell a force
+        on the end-effector from one on a drone when both give the same r_s.
         """
         n_d = self.robot.n_drones
         task, drones = np.zeros(3), np.zeros((n_d, 3))

@@ -105,7 +105,8 @@ def test_a_step_gust_on_the_end_effector_is_estimated_and_read_as_that_force(hov
 
 
 def test_estimated_forces_reproduce_the_estimate(hover):
-    """J_p^T f_p + sum_i J_h,i^T f_i of the forces the controller reads = its generalised estimate."""
+    """J_p^T f_p + sum_i J_h,i^T f_i of the forces the controller reads = its generalised estimate; a wind on
+    both drones is read as the same generalised force (the end-effector takes the share it can explain)."""
     robot = hover.robot
     log_settings = SimulationSettings(wind=(0.0, -1.5, 0.5), hold=0.0)
     chain = [robot.index[c] for c in robot.layout.chain]
@@ -116,6 +117,7 @@ def test_estimated_forces_reproduce_the_estimate(hover):
     jac_task, jac_hinges = controller._seen
     rebuilt = jac_task.T @ task[1:] + jac_hinges.T @ drones[:, 1:].reshape(-1)
     np.testing.assert_allclose(rebuilt, controller.disturbance, atol=1e-9)
+    np.testing.assert_allclose(task[1:], [-3.0, 1.0], atol=0.05)  # the two drones' y, z forces, summed
 
 
 def test_the_observer_holds_winds_the_controller_without_it_does_not(hover):

@@ -21,29 +21,32 @@ Triggers (with a :class:`planners.replanning.replanner.Replanner`, ``--replan``)
   which a C4 piecewise polynomial cannot hold, and on a step gust it did not remove the saturation (README);
 * **rate** (optional, ``rate`` Hz): from the plan in force's state, like an event;
 * **wind**: by default (``known_gusts``) the replanner is *told* each gust event's force and profile at
-  the gust's start (a forecast, a wind sensor); with ``estimate_wind`` instead (opt-in) a steady force on
-  the task point is estimated from the tracking error (:class:`fpr.sim.wind_estimate.WindEstimator`)
-  and, once it has held ``estimate_delay``, the replanner plans against it. Either way it replans then
+  the gust's start (a forecast, a wind sensor); with ``estimate_wind`` instead it plans against the wind it
+  estimates: by default the controller's external-force observer's estimate (:mod:`controllers.observer`,
+  read as forces on the task point and the drones, :meth:`controllers.ctc.CascadedController.estimated_forces`),
+  taken once it has stayed above ``estimate_threshold`` for ``observed_delay`` (3 / K_O: the observer's 95 %
+  settling), and again whenever it has moved by more than the threshold for as long; without an observer
+  (``observer_bandwidth = 0``) a steady force on the task point estimated from the tracking error
+  (:class:`fpr.sim.wind_estimate.WindEstimator`), taken after ``estimate_delay``. Either way it replans then
   with the force in the NLP's inverse dynamics (:mod:`planners.problem.disturbance`), and again ``wind_lead``
   before each way point while the wind blows: the rest of the travel and the next one are re-optimised
   against the wind together, so the splice lies in the part already planned in the wind. (Replanning
   once the way point was passed spliced into the offline plan's next travel, planned without the wind:
   from that state the next travel in the wind had no feasible C4 continuation the warm SQP could reach,
-  e.g. at 6.3 s on the built-in ``gust`` mission, README "Replanning in flight".)
+  e.g. at 6.3 s on the built-in ``gust`` mission.)
   Against a sustained wind (a gust with a ``rise``, the built-in ``gust`` mission) every closed-loop margin
-  then holds; against a short step blast it cannot help: the saturation there is the controller's
-  transient (README "Replanning in flight").
+  then holds; against a short gust it does not help (the replans come while the gust still changes: the
+  campaigns of random gusts fly them with the controller alone).
 
-**What the controller knows** (``feed_forward``, default on): the wind the replanner plans against, fed
-forward in the controller's outer loop (:class:`controllers.ctc.Reference` ``task_force``,
-``drone_forces``) and in the plan's inputs it tracks (the rolls, roll rates and accelerations of the plan
-flown in that wind, :meth:`InFlight.inputs`): with ``known_gusts`` every gust with a ``rise`` as it blows,
-*with or without* a replanner (the same forecast; without replanning the controller then tracks the
-offline plan in the wind it knows); with ``estimate_wind`` the gusts the replanner assumed from the
-estimate (so only with a replanner); blind: none. Without it the feedback alone holds the wind (its
-integral is clamped: on the built-in ``gust``, 6 N, the robot is blown off the plan and lost at 7.75 s),
-which is how the closed loop ran
-before (``feed_forward=False``).
+**What the controller knows** (``feed_forward``, default on): the wind it is told, fed forward in its outer
+loop (:class:`controllers.ctc.Reference` ``task_force``, ``drone_forces``), and the wind the plan in force was
+made for, in the plan's inputs it tracks (the rolls, roll rates and accelerations of the plan flown in that
+wind, :meth:`InFlight.inputs`): with ``known_gusts`` every gust with a ``rise`` as it blows, *with or
+without* a replanner (the same forecast); with ``estimate_wind`` and the observer, the observer's own
+estimate is what the controller feeds forward (it is not told it twice), and the plan's inputs are those in
+the gusts the replanner assumed; without an observer, the assumed gusts are fed forward (ramped on from
+their take-up, :meth:`InFlight._taken_up_from`); blind: none. The controller's observer, when it has one,
+feeds forward whatever wind it is not told of, with or without a replanner.
 
 **Deadline of the wind replans.** A replan in a known or estimated wind (at the gust's start, ``wind_lead``
 before a way point, on a new estimate) is given ``wind_deadline`` (default 0.3 s) when it is longer than the
@@ -316,7 +319,8 @@ class InFlight:
             self._prepared = due
             if any(g.active(t) for g in rp.gusts):  # the next travel enters the horizon: fly it in the wind
                 if rp.assumed is not None and estimated is not None:  # the newest estimate, blending from t on
-                    rp.assume(self._estimated_gust(t, estimated, ramp_from=t))
+                    # (the observer's estimate is the wind now, fully on; the tracking error's, blended from t)
+                    rp.assume(self._estimated_gust(t, estimated, ramp_from=None if self.observed else t))
                     self._assumed_forces = (np.array(estimated[0], dtype=float), np.array(estimated[1], dtype=float))
                 self._wind_replan(t, f"way point {due} ahead in the wind", through=due + 1)
         bound = self.triggers.tracking_bound
@@ -471,7 +475,7 @@ class InFlight:
             self._moved_since = (self._moved_since if self._moved_since is not None else t) if moved else None
             if moved and t - self._moved_since >= delay - 1e-9:
                 self._moved_since = None
-                self._assume(t, forces, ramp_from=t, trigger="wind estimate changed")
+                self._assume(t, forces, ramp_from=None, trigger="wind estimate changed")
             return forces
         if assumed is None and t - self._above_since >= delay - 1e-9:
             self._assume(t, forces, ramp_from=None, trigger="wind estimated")
