@@ -292,10 +292,11 @@ def event_lines(events: dict) -> list[str]:
         lines.append(rate("without the observer (same events)", events["without_observer"]))
     for miss in events["misses"]:
         lines.append(f"  miss, run {miss['index']}: {miss['why']}")
-    wall = events["replan_wall_s"]
-    if wall.get("count"):
-        lines.append(f"  replan wall latency over {wall['count']} replans: median {wall['median'] * 1e3:.1f} ms, "
-                     f"p95 {wall['p95'] * 1e3:.1f} ms, max {wall['max'] * 1e3:.1f} ms")
+    for key, name in (("replan_wall_s", "wall latency"), ("replan_cpu_s", "CPU time")):
+        got = events.get(key, {})
+        if got.get("count"):
+            lines.append(f"  replan {name} over {got['count']} replans: median {got['median'] * 1e3:.1f} ms, "
+                         f"p95 {got['p95'] * 1e3:.1f} ms, max {got['max'] * 1e3:.1f} ms")
     return lines
 
 

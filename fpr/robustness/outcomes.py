@@ -29,7 +29,8 @@ it, which estimates the wind from the controller's observer), and adds the event
 for a miss, why; for a gust, whether it could be held at all (:mod:`fpr.robustness.holding`), the physical
 limits broken and the share of saturated ticks; with ``without_observer`` the same run flown by the
 controller without its observer, its outcomes beside (``no_observer_*``). A run's replans' wall times are
-kept in its stored row (``replan_wall_s``, for the latency distribution of the summary), not in the table.
+kept in its stored row (``replan_wall_s``, ``replan_cpu_s``: for the latency distribution of the summary), not
+in the table.
 """
 
 from __future__ import annotations
@@ -312,6 +313,7 @@ def fly_event(flight: Flight, robot, settings: SimulationSettings, event) -> dic
                   splice_delay_s=max((r.delayed_s for r in replans), default=0.0))
     row.update({k: v for k, v in judged.items() if k in flight.columns})
     row["replan_wall_s"] = [float(r.solve_wall_s) for r in replans]
+    row["replan_cpu_s"] = [float(r.solve_cpu_s) for r in replans]
     row["replan_latency_s"] = [float(r.latency_s) for r in replans]
     if setup.without_observer:
         log, hooks, plan = _flown(flight, robot, settings, event, observer=False)

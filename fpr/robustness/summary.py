@@ -113,7 +113,7 @@ def event_summary(rows: list[dict], family: str, without_observer: bool = False)
     the robot cannot hold even as a steady force (:mod:`fpr.robustness.holding`) are counted apart, listed;
     over the others, the success rate (with and without the observer, each with its interval), the runs
     that broke a physical limit or had more than the allowed share of ticks saturated. Both: the replans'
-    wall latency (count, median, p95, max) and their modelled latency.
+    wall latency (count, median, p95, max), their CPU time and their modelled latency.
     """
     def rate(flags) -> dict:
         flags = [bool(f) for f in flags]
@@ -140,10 +140,9 @@ def event_summary(rows: list[dict], family: str, without_observer: bool = False)
                       **({"way_point": r.get("event_way_point"), "pass_distance_m": r.get("pass_distance_m")}
                          if family == "move" else {"body": r.get("gust_body"), "force_n": r.get("gust_force_n")})}
                      for r in counted if not r["success"]]
-    walls = [w for r in rows for w in r.get("replan_wall_s") or []]
-    modelled = [w for r in rows for w in r.get("replan_latency_s") or []]
-    out["replan_wall_s"] = _distribution(walls)
-    out["replan_modelled_s"] = _distribution(modelled)
+    for key in ("replan_wall_s", "replan_cpu_s", "replan_latency_s"):
+        out[key if key != "replan_latency_s" else "replan_modelled_s"] = _distribution(
+            [w for r in rows for w in r.get(key) or []])
     return out
 
 
