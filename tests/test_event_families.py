@@ -121,7 +121,7 @@ def test_a_move_run_passes_the_moved_way_point_and_its_row_says_so():
     flight = _flight(mission, "move", result, replan=True)
     row = fly(flight, 0, {}, 0)
     assert row["error"] == "" and row["success"] and row["miss"] == ""
-    assert row["pass_distance_m"] <= 0.02 and row["replans_used"] >= 1
+    assert row["pass_distance_m"] <= 0.02 and row["replans_used"] >= 1 and row["executed_violates"] == ""
     assert set(flight.columns) <= set(row) and len(row["replan_wall_s"]) == row["replans"]
     # without the replanner the robot flies to where the way point was: a miss that says why
     flown = dataclasses.replace(flight, setup=dataclasses.replace(flight.setup, replan=False))

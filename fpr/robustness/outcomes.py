@@ -51,16 +51,19 @@ from fpr.sim.closed_loop import SimulationSettings, simulate
 from fpr.sim.margins import broken, closed_loop_margins
 from fpr.sim.plant import PlantDivergedError
 from fpr.sim.replanning import InFlight, TriggerSettings
+from planners.problem.disturbance import evaluate_in_gusts
 from planners.replanning.replanner import Replanner, ReplanOptions
 
 OUTCOMES = ("success", "lost", "failure", "failure_time_s", "error", "least_clearance_m", "saturated_ticks",
             "peak_rotor_speed_rad_s", "simulated_s")
 """Outcome columns every row has (``max_error_<coordinate>`` columns come after them)."""
 MOVE_COLUMNS = ("event_way_point", "event_at_s", "event_lead_s", "event_distance_m", "pass_distance_m", "replans",
-                "replans_used", "splice_delay_s", "broken", "miss")
+                "replans_used", "splice_delay_s", "executed_violates", "broken", "miss")
 """Columns of a move event's run: the way point, when it moved, how long before the robot got there [s], how
 far [m]; how close the robot passed [m], the replans (and those used), the largest delay of a splice past
-its deadline [s], the physical limits broken, and for a miss why ("" when it passed)."""
+its deadline [s], the constraints the executed plan (the plan in force at each instant, checked on the
+dense grid at 500 Hz) violates ("" when none), the physical limits the closed loop broke, and for a miss
+why ("" when it passed)."""
 GUST_COLUMNS = ("gust_body", "gust_at_s", "gust_duration_s", "gust_rise_s", "gust_force_n", "gust_force_y_n",
                 "gust_force_z_n", "holdable", "hold_margin_rad_s", "replans", "broken", "saturated_share", "miss")
 """Columns of a gust's run: the gust; whether it can be held as a steady force within the rotor limits and with
@@ -250,11 +253,23 @@ def _flown(flight: Flight, robot, settings: SimulationSettings, event, observer:
     return simulate(plan, settings, in_flight=hooks), hooks, plan
 
 
-def _miss(flight: Flight, log, hooks, distance, broken_names, share) -> str:
+def _executed_violations(hooks) -> str:
+    """The constraints the executed plan violates on its dense grid, in the gusts it was made for ("": none,
+    or nothing replanned)."""
+    replanner = hooks.replanner
+    if replanner is None or not replanner.revisions:
+        return ""
+    report = evaluate_in_gusts(replanner.robot, replanner.trajectory, tuple(replanner.gusts), 500.0)
+    return ", ".join(c.name for c in report.violations)
+
+
+def _miss(flight: Flight, log, hooks, distance, broken_names, share, executed="") -> str:
     """Why a run failed, in a line ("" when it succeeded)."""
     setup = flight.setup
     if log.failure is not None:
         return f"lost: {log.failure}"
+    if executed:
+        return f"the executed plan violates {executed}"
     if setup.family == "move":
         if distance is not None and distance <= setup.pass_tolerance:
             return ""
@@ -282,9 +297,10 @@ def _judged(flight: Flight, robot, log, hooks, plan) -> dict:
     distance = passed[0]["distance_m"] if passed else None
     broken_names = ", ".join(m.name for m in broken(closed_loop_margins(plan, log))) if log.t.size else ""
     share = out["saturated_ticks"] / max(int(log.t.size), 1)
-    miss = _miss(flight, log, hooks, distance, broken_names, share)
+    executed = _executed_violations(hooks)
+    miss = _miss(flight, log, hooks, distance, broken_names, share, executed)
     out.update(success=not miss, pass_distance_m=math.nan if distance is None else distance, broken=broken_names,
-               saturated_share=share, miss=miss)
+               saturated_share=share, executed_violates=executed, miss=miss)
     return out
 
 
