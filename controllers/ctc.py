@@ -97,8 +97,8 @@ class ControllerSettings:
             prototype's eps = L sin(band) of the tension near q2 = 0, used when the reference carries
             the planned force; ``robot.kind.outer_loop_forces``).
         observer_bandwidth: K_O [rad/s] of the external-force observer (:mod:`controllers.observer`), whose
-            estimate is fed forward in the outer loop; 0: no observer (the thesis' law with the integral
-            term). Above the chain loop's frequency, below the attitude loop's and a tenth of the outer rate.
+            estimate is fed forward in both loops; 0: no observer (the thesis' law with the integral term).
+            Above the chain loop's frequency, below the attitude loop's, and a tenth of the outer rate.
     """
 
     outer_rate: float = 100.0
@@ -215,7 +215,6 @@ class CascadedController:
         self._ticks = 0
         self._seen = None  # (J_p, J_h) of the last outer update, for estimated_forces
 
-
     def reset(self) -> None:
         """Forget the held outer-loop output, the integrated error and the observer (a new run)."""
         self._force, self._last_outer = None, -np.inf
@@ -276,10 +275,8 @@ class CascadedController:
         u = sd[2] - kp * (s - sd[0]) - kd * (ds - sd[1]) - st.chain_integral * self._integral
         m, c, jac = self._point_dynamics(s, ds)
         b = m.dot(u) + c
-        known = None
         if reference.task_force is not None or reference.drone_forces is not None:
-            known = self.external_force(reference.task_force, reference.drone_forces, jac)
-            b = b - known
+            b = b - self.external_force(reference.task_force, reference.drone_forces, jac)
         if self.observer is None:
             return self.robot.kind.outer_loop_forces(s, b, jac, reference.force, st.singular_band)
         jac_task = pin.getFrameJacobian(self._point_robot.model, self._point_robot.data, self._task_frame,
