@@ -180,3 +180,27 @@ def test_a_travel_cut_by_the_splice_keeps_segments_as_long_as_the_offline_plans(
                 assert np.allclose(segments, segments[0])
             else:  # a whole travel keeps the offline via points
                 assert inside.size == replanner.n_via[j - 1] + 2
+
+
+def test_an_infeasible_replan_is_solved_again_with_more_iterations():
+    """A way point moved 0.49 m 0.85 s before the robot gets there (square, way point 3 to [0.14, 1.46]): two
+    SQP iterations leave the part infeasible; it is solved again when that solve ends, with up to
+    ``persist_iterations`` iterations and its splice as far as they take on this machine (the model), and
+    that part is used. With persist_iterations 0 it is not."""
+    mission = load_mission("square").replace(
+        events=[{"at": 8.150262, "kind": "move", "way_point": 3, "to": [0.1404476745649267, 1.4574497310551306,
+                                                                          S0[2], S0[3]]}])
+    result = plan(mission, "two-step")
+    model = LatencyModel((0.002, 0.001, 2e-4, 0.0, 0.0))
+    for persist in (8, 0):
+        replanner = Replanner(result, ReplanOptions(latency=model, persist_iterations=persist))
+        replanner.move(0)
+        record = replanner.replan(8.150262, "event")
+        first = replanner.replans[0]
+        assert not first.feasible and "infeasible" in first.why
+        if persist:
+            assert len(replanner.replans) == 2 and record.used and record.feasible, record.why
+            assert record.time == pytest.approx(first.time + first.latency_s)
+            assert 2 < record.iterations <= 8 and record.latency_s <= record.splice_time - record.time + 1e-12
+        else:
+            assert replanner.replans == [first] and not record.used

@@ -277,11 +277,11 @@ def _miss(flight: Flight, log, hooks, distance, broken_names, share, executed=""
         if not replans:
             return "not replanned: fly it with --replan"
         if not any(r.used for r in replans):
-            first = replans[0]
-            ahead = max(0.0, float(np.cumsum(flight.mission.times)[first.way_point - 1] - first.splice_time)
-                        if first.way_point else 0.0)
-            return (f"no replan used: {first.why.removeprefix('not used: ')} (from the splice at "
-                    f"{first.splice_time:.3f} s, {ahead:.2f} s before the way point)")
+            last = replans[-1]
+            moved = next(e.way_point for e in hooks.events if e.kind == "move")
+            ahead = float(np.sum(flight.mission.times[:moved])) - last.splice_time
+            return (f"no replan used: {last.why.removeprefix('not used: ')} (the last from the splice at "
+                    f"{last.splice_time:.3f} s, {ahead:.2f} s before the moved way point {moved})")
         return f"replanned, but the robot passed {distance * 100:.1f} cm away (the closed loop's tracking)"
     if broken_names:
         return f"physical limit broken: {broken_names}"

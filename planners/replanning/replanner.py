@@ -40,7 +40,8 @@ rebuilt from there), and the record says so and why. Refinements (SQP iterations
 only when they fit the time to the splice with a margin (``refine_margin``): the best feasible iterate by
 then is used. A solve found late all the same (the wall clock) is solved again at once with the splice
 after its end. A part that breaks a constraint on the dense grid is not used: the plan in force stays,
-and the :class:`Replan` record says which constraints.
+and the :class:`Replan` record says which constraints; it is solved again at once with more SQP iterations
+(``persist_iterations``), its splice as far as they take on this machine.
 """
 
 from __future__ import annotations
@@ -95,6 +96,9 @@ class ReplanOptions:
             (:func:`planners.replanning.check.evaluate_and_check`; same verdict), or (False) is a call of its own.
         wind_headroom: w_h [rad/s], the least rotor speed the NLP asks for while a known gust pushes
             (:data:`planners.problem.disturbance.CONTROL_HEADROOM`; the check that decides use keeps w >= 0).
+        persist_iterations: a replan found infeasible is solved again at once (from when it ended) with up to
+            this many SQP iterations, its splice put as far as they take on this machine; 0 (or no more than
+            ``max_iterations``): not solved again.
         refine_margin: an SQP iteration after the first (a refinement: the first gives a plan) starts only
             if ``refine_margin`` times the modelled latency (:meth:`Replanner.latency`) with its
             evaluations is within the time to the splice: the model is a typical (median) solve, and
@@ -115,6 +119,7 @@ class ReplanOptions:
     radius: float = 0.3
     fuse_check: bool = True
     refine_margin: float = 1.7
+    persist_iterations: int = 8
     wind_headroom: float = CONTROL_HEADROOM
 
     def __post_init__(self):
@@ -125,6 +130,13 @@ class ReplanOptions:
         if not (isinstance(self.horizon, int) and self.horizon >= 1):
             raise PlannerArgumentError(
                 "horizon", self.horizon, f"horizon = {self.horizon!r}: give an integer >= 1"
+            )
+        if not (isinstance(self.persist_iterations, int) and not isinstance(self.persist_iterations, bool)
+                and self.persist_iterations >= 0):
+            raise PlannerArgumentError(
+                "persist_iterations", self.persist_iterations,
+                f"persist_iterations = {self.persist_iterations!r}: give an integer >= 0 (0: an infeasible "
+                "replan is not solved again)",
             )
         if not (isinstance(self.max_iterations, int) and self.max_iterations >= 1):
             raise PlannerArgumentError(
@@ -429,7 +441,9 @@ class Replanner:
 
         t_s is t_0 + deadline, or the first time the solve's first iteration can be ready when that is later
         (module docstring). A solve late all the same (``timing = "wall"``) is solved again at once, with
-        the splice after its end (a second record).
+        the splice after its end (a second record); so is an infeasible one, with up to ``persist_iterations``
+        SQP iterations and the time they take on this machine (``refine_margin`` times their modelled
+        latency) before its splice.
 
         Args:
             t_0: the trigger's time [s].
@@ -446,6 +460,19 @@ class Replanner:
         if record.why.startswith("not used: late") and start is None:
             again = f"{trigger} (again: the first solve was late)"
             record = self._replan(t_0 + record.latency_s, again, None, through)
+        opt = self.options
+        more = opt.persist_iterations
+        if start is None and record.work and not record.feasible and more > opt.max_iterations \
+                and not record.solver.startswith("QP failed"):
+            # more SQP iterations, started when the first solve ends, with the time they take on this machine
+            work = {**record.work, "derivative_evaluations": more, "value_evaluations": more}
+            deadline = max(opt.deadline, opt.refine_margin * self.latency(work))
+            self.options = dataclasses.replace(opt, max_iterations=more, deadline=deadline)
+            try:
+                again = f"{trigger} (again, up to {more} iterations: the first solve was infeasible)"
+                record = self._replan(t_0 + record.latency_s, again, None, through)
+            finally:
+                self.options = opt
         return record
 
     def _first_ready(self, t_0: float, start, through):
