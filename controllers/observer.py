@@ -37,8 +37,8 @@ so that a disturbance is fed forward before the feedback has to hold it; below t
 (15 rad/s), through which the fed-forward force is made (the drones roll to it), and a tenth of the outer
 rate (K_O dt = 0.1 at 100 Hz). The measurement noise of s' reaches r as K_O M_s times the noise.
 
-:class:`MomentumObserver` is the numbers only (testable without a model); :class:`controllers.ctc.CascadedController`
-gives it the momentum and the generalised forces from Pinocchio.
+:class:`MomentumObserver` is the numbers only (testable without a model);
+:class:`controllers.ctc.CascadedController` gives it the momentum and the generalised forces from Pinocchio.
 """
 
 from __future__ import annotations
@@ -90,7 +90,8 @@ class MomentumObserver:
             self._start, self._last = momentum, (mass, velocity, nonlinear)
             return self.estimate
         last_mass, last_velocity, last_nonlinear = self._last
-        drift = (mass - last_mass).dot(0.5 * (velocity + last_velocity)) - 0.5 * dt * (nonlinear + last_nonlinear)
+        drift = ((mass - last_mass).dot(0.5 * (velocity + last_velocity))
+                 - 0.5 * dt * (nonlinear + last_nonlinear))
         self._integral = self._integral + drift + dt * (np.asarray(applied, dtype=float) + self.estimate)
         self._last = (mass, velocity, nonlinear)
         self.estimate = self.bandwidth * (momentum - self._start - self._integral)

@@ -5,11 +5,11 @@ and the replanner's wind estimate from the controller's observer (fpr/sim/replan
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import tomllib
 
 import fpr
 from fpr.model.errors import CampaignError

@@ -12,8 +12,15 @@ import fpr
 from fpr.model.errors import PlannerArgumentError
 from planners.missions.mission import load_mission
 from planners.optimize import plan
-from planners.replanning.latency import (FEATURES, LatencyModel, load_latency, machine, machine_latency,
-                                         read_calibration, write_calibration)
+from planners.replanning.latency import (
+    FEATURES,
+    LatencyModel,
+    load_latency,
+    machine,
+    machine_latency,
+    read_calibration,
+    write_calibration,
+)
 from planners.replanning.replanner import Replanner, ReplanOptions, calibration_mission, measure_latency
 
 

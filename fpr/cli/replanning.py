@@ -33,8 +33,8 @@ from fpr.model.errors import PlannerArgumentError
 from fpr.robustness.holding import hold_check
 from fpr.sim.replanning import InFlight, TriggerSettings
 from fpr.views.figures.replanning import write_replanning_figure
-from planners.problem.disturbance import evaluate_in_gusts
 from planners.missions.events import moved_positions
+from planners.problem.disturbance import evaluate_in_gusts
 from planners.replanning.latency import load_latency, machine_latency
 from planners.replanning.replanner import TIMINGS, Replanner, ReplanOptions, measure_latency
 

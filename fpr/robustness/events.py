@@ -76,7 +76,8 @@ class MoveFamily:
                 is longer than ``warning``.
         """
         ends = np.concatenate([[0.0], np.cumsum(mission.times)])
-        candidates = [j for j in range(1, mission.way_points.shape[0]) if ends[j] - self.warning > ends[j - 1]]
+        candidates = [j for j in range(1, mission.way_points.shape[0])
+                      if ends[j] - self.warning > ends[j - 1]]
         if not candidates:
             raise CampaignError("move events", f"no travel of mission {mission.name!r} is longer than the "
                                                f"warning {self.warning:g} s: give a shorter warning")
@@ -93,8 +94,8 @@ class MoveFamily:
             except FprError:  # out of the workspace or too near a singularity: within reach only
                 continue
             return event
-        raise CampaignError("move events", f"no target within reach found in {self.tries} draws around the way "
-                                           f"points of mission {mission.name!r}: give a smaller distance")
+        raise CampaignError("move events", f"no target within reach found in {self.tries} draws around the "
+                                           f"way points of mission {mission.name!r}: give a smaller distance")
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Can the robot hold a gust at all? The static check of a steady force against the rotor limits, from the model.
+r"""Can the robot hold a gust at all? The static check of a steady force against the rotor limits.
 
 A gust that the rotors cannot balance even when it blows steadily, the robot at rest, cannot be rejected by
 any controller or plan: a campaign counts such gusts apart, and a user can ask before flying one
@@ -9,7 +9,7 @@ gust on its body (the task point, or a drone's centre of mass), the drones' roll
 roll torques tau_i must balance gravity and the gust in the robot's full model (seed 2.11, rigid drones on
 their offset joints):
 
-.. math:: g(q) = J(q)^T w(f, \\tau) + J_b(q)^T F, \\qquad q = (s, \\phi), \\quad \\text{in-plane rows},
+.. math:: g(q) = J(q)^T w(f, \tau) + J_b(q)^T F, \qquad q = (s, \phi), \quad \text{in-plane rows},
 
 n_s + n_d equations in the 3 n_d unknowns (the chain is statically determinate: n_s = 2 n_d for the FPR and
 the prototype). It is solved by Newton's method from the planning model's answer (the point-drone inverse
@@ -78,7 +78,8 @@ def _external(robot, q, body: str, force) -> np.ndarray:
     return np.asarray(force, dtype=float).dot(jac)
 
 
-def static_hold(robot, s, body: str = END_EFFECTOR, force=(0.0, 0.0, 0.0), iterations: int = 20) -> StaticHold:
+def static_hold(robot, s, body: str = END_EFFECTOR, force=(0.0, 0.0, 0.0),
+                iterations: int = 20) -> StaticHold:
     """The rolls, thrusts, roll torques and rotor speeds that hold ``robot`` at rest at ``s`` under ``force``
     on ``body`` (module docstring).
 
@@ -171,9 +172,9 @@ class HoldVerdict:
         where = (f"rotor {self.rotor} of drone {self.drone} at {self.speed:.0f} rad/s at way point "
                  f"{self.way_point}, t = {self.worst_time:.2f} s")
         if self.holdable:
-            return (f"holdable: {size:.2g} N on {self.body} can be held as a steady force at the way points it "
-                    f"blows on (least margin {self.margin:.0f} rad/s to the rotor limits 0 .. {self.limit:.0f}: "
-                    f"{where})")
+            return (f"holdable: {size:.2g} N on {self.body} can be held as a steady force at the way points "
+                    f"it blows on (least margin {self.margin:.0f} rad/s to the rotor limits 0 .. "
+                    f"{self.limit:.0f}: {where})")
         side = "below 0" if self.speed < self.limit / 2 else f"above {self.limit:.0f}"
         return (f"not holdable: {size:.2g} N on {self.body} cannot be held even as a steady force within the "
                 f"rotor limits ({where}, {side})")
@@ -202,8 +203,8 @@ def hold_check(robot, mission, gust) -> HoldVerdict:
         if worst is None or margins[i, k] < worst[0]:
             worst = (float(margins[i, k]), float(times[j]), int(i) + 1, int(k) + 1, float(speeds[i, k]), j)
     margin, when, drone, rotor, speed, way_point = worst
-    return HoldVerdict(margin >= 0.0, gust.body, tuple(float(f) for f in gust.force), when, drone, rotor, speed,
-                       margin, limit, len(chosen), way_point)
+    return HoldVerdict(margin >= 0.0, gust.body, tuple(float(f) for f in gust.force), when, drone, rotor,
+                       speed, margin, limit, len(chosen), way_point)
 
 
 def hold_verdict(robot, mission, gust) -> str:

@@ -72,8 +72,8 @@ import pinocchio as pin
 from fpr.model.errors import ModelArgumentError
 from fpr.sim.plant import Plant
 from fpr.sim.wind_estimate import WindEstimator
-from planners.problem.disturbance import inputs_in_gusts
 from planners.missions.events import END_EFFECTOR, GustEvent, gust_force, moved_positions
+from planners.problem.disturbance import inputs_in_gusts
 from planners.replanning.replanner import Replanner, jet
 
 

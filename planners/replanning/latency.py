@@ -8,9 +8,9 @@ decision compares the time the solve has with a *modelled* latency, linear in th
 with g derivative evaluations and v value evaluations of the NLP (the dense check fused with the last
 one), n grid nodes and h the re-optimised duration [s] (the set-up and the dense check grow with it).
 The costs c are **measured on the machine**: :func:`planners.replanning.replanner.measure_latency` times whole
-replans of a calibration mission of the robot (a square of 0.3 m or rad around the kind's ``reference_chain`` in joint space,
-flown with the stop-at-way-points plan) over a spread of horizons and iteration counts, each replan three
-times (the median), and fits c by non-negative least squares. It takes one to two seconds.
+replans of a calibration mission of the robot (a square of 0.3 m or rad around the kind's ``reference_chain``
+in joint space, flown with the stop-at-way-points plan) over a spread of horizons and iteration counts, each
+replan three times (the median), and fits c by non-negative least squares. It takes one to two seconds.
 
 **Determinism.** A decision that depends on a timing would make two runs differ. So the model a run uses
 is read from a **per-machine calibration file** (:func:`default_path`: ``$FPR_CALIBRATION``, else
@@ -41,6 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
 from fpr.model.errors import PlannerArgumentError
 
 logger = logging.getLogger(__name__)
@@ -139,7 +140,8 @@ def load_latency(path, robot_name: str) -> LatencyModel:
     except (OSError, ValueError) as error:
         raise PlannerArgumentError("calibration", str(path),
                                    f"cannot read the calibration file {path} ({error}): give a file written "
-                                   "by python -m fpr.bench --section replan, or a run's replans.json") from None
+                                   "by python -m fpr.bench --section replan, or a run's replans.json"
+                                   ) from None
     entry = None
     if isinstance(document, dict):
         entry = document.get("latency_model") or document.get("robots", {}).get(robot_name)
@@ -194,8 +196,8 @@ def machine_latency(robot, measure, path=None) -> LatencyModel:
     if entry is None:
         if measure is None:
             raise PlannerArgumentError("calibration", str(path),
-                                       f"{path} holds no replanning latency of the {robot.name!r} robot for this "
-                                       "machine: run python -m fpr.bench --section replan")
+                                       f"{path} holds no replanning latency of the {robot.name!r} robot for "
+                                       "this machine: run python -m fpr.bench --section replan")
         logger.warning("calibrating the replanner's latency on this machine for the %s robot (once; written "
                        "to %s)", robot.name, path)
         started = time.perf_counter()
@@ -203,7 +205,8 @@ def machine_latency(robot, measure, path=None) -> LatencyModel:
         try:
             write_calibration(path, robot.name, model)
         except OSError as error:  # a read-only home: this run's own measurement, said so
-            logger.warning("cannot write %s (%s): the latency measured now is used for this run only", path, error)
+            logger.warning("cannot write %s (%s): the latency measured now is used for this run only",
+                           path, error)
             return dataclasses.replace(model, source=model.source + " (not written)")
         logger.info("calibrated in %.1f s", time.perf_counter() - started)
         entry = read_calibration(path)["robots"][robot.name]
