@@ -1,4 +1,4 @@
-"""Build of the optional C extensions of the closed loop's tick (issue 13): ``controllers._alloc`` (the
+"""Build of the optional C extensions of the closed loop's tick: ``controllers._alloc`` (the
 allocation tick), ``fpr.model._attitude`` (the numpy part of ``Robot.attitude_model``) and ``fpr.sim._watch``
 (the watch's screen); everything else is in pyproject.toml. ``optional=True``: without a C compiler ``pip
 install`` still succeeds and :class:`controllers.allocation.Allocator`,

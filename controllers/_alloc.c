@@ -1,4 +1,4 @@
-/* The allocation tick of controllers/allocation.py's Allocator in C (issue 13): the same computation as its
+/* The allocation tick of controllers/allocation.py's Allocator in C: the same computation as its
  * Python reference (Allocator._solve_python, controllers/box_qp.py's solve_box_qp_state), without the
  * interpreter's and numpy's per-call costs (about a microsecond per small-array call there).
  *

@@ -40,9 +40,6 @@ from controllers.box_qp import AT_LOWER, AT_UPPER, FREE, solve_box_qp_state
 from fpr.model.compiled import choose, load_extension
 from fpr.model.qp import proxsuite_module
 
-# the portable build, whose results do not depend on memory alignment (fpr.model.qp)
-proxsuite = proxsuite_module()
-
 _posv = lapack.dposv
 
 
@@ -218,8 +215,8 @@ class Allocator:
             require it (RuntimeError when it is not built); False: the Python path (the reference).
 
     Attributes:
-        qp: the ProxQP workspace of route 3 (``proxsuite.proxqp.dense.QP``); built in the constructor,
-            initialised at its first use.
+        qp: the ProxQP workspace of route 3 (``proxsuite.proxqp.dense.QP``), built and initialised at its
+            first use (None before: proxsuite is imported only then).
         compiled: whether the compiled tick is used (read only).
         routes: how many calls took each route, {"closed form": n, "active set": n, "proxqp": n}.
     """
@@ -242,11 +239,7 @@ class Allocator:
         self._unsaturated.flags.writeable = False
         self._n_d = n_d
         self._saturation_arrays = {}  # read-only (n_d, 4) masks of the bounded route, by pattern
-        self.qp = proxsuite.proxqp.dense.QP(self.n, 0, 0, True)
-        self.qp.settings.eps_abs = 1e-9
-        self.qp.settings.eps_rel = 0.0
-        self.qp.settings.verbose = False
-        self._initialised = False
+        self.qp = None  # route 3's ProxQP workspace, built at its first use (:meth:`_proxqp`)
         self.routes = {"closed form": 0, "active set": 0, "proxqp": 0}
         self._active = None  # the active bounds of the previous tick (a box_qp state), when it had some
         # the same for the compiled tick (which updates it in place): FREE everywhere when none
@@ -480,12 +473,16 @@ class Allocator:
 
     def _proxqp(self, h, g):
         """Route 3: the scaled QP by the warm-started ProxQP workspace; (zeta, iterations)."""
-        if not self._initialised:
+        if self.qp is None:
+            proxqp = proxsuite_module().proxqp  # the portable build (fpr.model.qp), loaded at the first use
+            self.qp = proxqp.dense.QP(self.n, 0, 0, True)
+            self.qp.settings.eps_abs = 1e-9
+            self.qp.settings.eps_rel = 0.0
+            self.qp.settings.verbose = False
             self.qp.init(h, g, None, None, None, None, None, self.lower / self.scale, self.upper / self.scale)
             self.qp.solve()
             # only once a result exists (ProxQP 0.8 crashes warm-starting from nothing)
-            self.qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-            self._initialised = True
+            self.qp.settings.initial_guess = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
         else:
             self.qp.update(H=h, g=g, update_preconditioner=False)
             self.qp.solve()

@@ -1,14 +1,14 @@
-"""Test configuration: single-threaded BLAS before numpy is imported (see fpr/__init__.py)."""
+"""Test configuration: the test process tuned as the command lines tune theirs (one BLAS thread, freed memory
+kept in glibc's heap: fpr.tune_process), before numpy is imported; the replanner's latency model pinned for the
+whole session (FPR_CALIBRATION)."""
 
-import os
+import json
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+import pytest
 
+import fpr
 
-import json  # noqa: E402
-
-import pytest  # noqa: E402
+fpr.tune_process()
 
 #: The replanner's latency model in the tests (planners/replanning/latency.py): pinned, so that no test measures
 #: this machine or writes its calibration file, and a test's decisions do not depend on the machine's speed.

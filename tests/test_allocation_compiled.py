@@ -1,4 +1,4 @@
-"""The compiled allocation tick (controllers/_alloc.c, issue 13) against its reference, the Python path of
+"""The compiled allocation tick (controllers/_alloc.c) against its reference, the Python path of
 :class:`controllers.allocation.Allocator` (``compiled=False``), and the plumbing around it.
 
 * Along long warm-started sequences of random states (both robots, thrusts from 0.2 to 3.5 times hover, so

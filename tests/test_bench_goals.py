@@ -1,4 +1,4 @@
-"""The benchmark's goal rows (issue 13): the allocation replay's split by route, and the goals' verdicts."""
+"""The benchmark's goal rows: the allocation replay's split by route, and the goals' verdicts."""
 
 from __future__ import annotations
 

@@ -159,6 +159,23 @@ def test_a_campaign_file_with_an_event_family_round_trips():
         campaign_from_dict({**document, "max_saturation": 2.0})
 
 
+def test_the_campaign_options_name_the_families_and_reach_the_campaign(tmp_path):
+    """The light parser's --events choices (written there so that --help imports nothing heavy) are the
+    families; --events, --replan and --without-observer reach the campaign over its file's fields."""
+    from fpr.cli.campaign import _campaign
+    from fpr.cli.campaign_options import EVENT_FAMILIES, parser
+    from fpr.robustness.events import FAMILIES
+
+    assert EVENT_FAMILIES == FAMILIES
+    file = tmp_path / "c.toml"
+    file.write_text('events = "move"\nreplan = false\n[event_options]\ndistance = [0.05, 0.1]\n', encoding="utf-8")
+    campaign = _campaign(parser().parse_args(["--campaign", str(file), "--replan", "--without-observer"]))
+    assert campaign.events == "move" and campaign.replan and campaign.without_observer
+    assert campaign.event_options == {"distance": [0.05, 0.1]}
+    assert _campaign(parser().parse_args(["--events", "gust"])).events == "gust"
+    assert not _campaign(parser().parse_args([])).replan
+
+
 def test_the_observers_estimate_is_assumed_after_its_delay_and_again_when_it_moves():
     """With the controller's observer the replanner plans against its estimate (forces on the task point and
     the drones) once it has held ``observed_delay``, and again when it has moved by more than the threshold

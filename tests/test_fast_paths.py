@@ -1,4 +1,4 @@
-"""The simulator's fast paths against the references they replace (issue 13).
+"""The simulator's fast paths against the references they replace.
 
 Each fast path is held equal to a slower, independent computation of the same quantity:
 

@@ -20,7 +20,7 @@ def moving():
     return mission, plan(mission, "two-step")
 
 
-#: A deadline the replans of this machine meet (the default 50 ms is shorter than they take here: README)
+#: A deadline the replans of this machine meet (the default 50 ms may be shorter than they take: guides/replanning)
 DEADLINE = 0.3
 
 

@@ -9,17 +9,17 @@ import pytest
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.model.jets import Jet
 from fpr.robots import load
-from planners.problem.disturbance import DisturbedProblem, dense_check, generalized_gust, gust_profile
 from planners.missions.events import GustEvent
 from planners.missions.mission import builtin_mission_text, load_mission
 from planners.optimize import plan
-from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.disturbance import DisturbedProblem, dense_check, generalized_gust, gust_profile
+from planners.problem.report import evaluate_motion
 from planners.replanning.latency import LatencyModel
 from planners.replanning.replanner import Replanner, ReplanOptions
 from planners.replanning.solver import qp_step, solve_warm
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 FREE = LatencyModel((0.0,) * 5)  # a solve takes no time: the deadline never decides
-from planners.problem.report import evaluate_motion
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Planning at scale (issue 13): the long missions' generator, the banded step-QP route against the dense
+"""Planning at scale: the long missions' generator, the banded step-QP route against the dense
 one and ProxQP, the scaling bench's fit and goals."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Long FPR missions made to measure: N way points on a closed curve in the square mission's workspace.
 
-The planner's cost as a function of the mission's length (issue 13's scaling table,
+The planner's cost as a function of the mission's length (the scaling table,
 ``python -m fpr.bench --section scaling``) needs missions of any number of way points that are alike
 travel by travel. :func:`loop_mission` makes them deterministically (no random numbers): the
 end-effector goes round the circle of centre (0.5, 0.5) m and radius 0.5 m (inside the square

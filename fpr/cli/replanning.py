@@ -1,9 +1,11 @@
 """``python -m fpr.plan --simulate --replan``: the options, the closed loop's hooks, the files of replanning.
 
-* options: ``--replan``, ``--replan-deadline`` (default 0.05 s of simulated time), ``--replan-bound``
+* options (:mod:`fpr.cli.plan_options`): ``--replan``, ``--replan-deadline`` (default 0.05 s of simulated time), ``--replan-bound``
   (tracking error that triggers a replan from the robot's state, default 0.05 m or rad), ``--replan-rate``
   (an optional fixed rate [Hz]), ``--replan-wind`` (``known``, default: the replanner is told the force of
-  each gust with a ``rise`` as it starts, a step gust stays unknown; ``estimated``: it estimates a steady wind from the tracking error; ``blind``),
+  each gust with a ``rise`` as it starts, a step gust stays unknown; ``estimated``: it plans against the
+  controller's observer's estimate, or under ``--no-observer`` a steady wind estimated from the tracking error;
+  ``blind``),
   ``--replan-timing`` (``work``: the modelled latency of the solver's work on this machine, default;
   ``wall``: the measured solve time, not reproducible bit for bit), ``--replan-calibration`` (the latency
   model: default this machine's calibration file, measured and written on first use; a file to pin a run
@@ -29,6 +31,7 @@ import sys
 import numpy as np
 
 from fpr.cli.checks import CommandLineError
+from fpr.cli.text import length, plural
 from fpr.model.errors import PlannerArgumentError
 from fpr.robustness.holding import hold_check
 from fpr.sim.replanning import InFlight, TriggerSettings
@@ -36,78 +39,21 @@ from fpr.views.figures.replanning import write_replanning_figure
 from planners.missions.events import moved_positions
 from planners.problem.disturbance import evaluate_in_gusts
 from planners.replanning.latency import load_latency, machine_latency
-from planners.replanning.replanner import TIMINGS, Replanner, ReplanOptions, measure_latency
-
-
-def add_arguments(group) -> None:
-    """The replanning options, in the simulation's argument group."""
-    group.add_argument(
-        "--replan",
-        action="store_true",
-        help="replan in flight (with --simulate): on a move event, a tracking error past "
-        "--replan-bound, and optionally at --replan-rate; see README 'Replanning in flight'",
-    )
-    group.add_argument(
-        "--replan-deadline",
-        type=float,
-        default=0.05,
-        help="simulated time between a trigger and the splice; a later solve is not used [s]",
-    )
-    group.add_argument(
-        "--replan-bound",
-        type=float,
-        default=0.05,
-        help="tracking error of a chain coordinate that triggers a replan [m or rad]",
-    )
-    group.add_argument("--replan-rate", type=float, default=None, help="also replan at this fixed rate [Hz]")
-    group.add_argument(
-        "--replan-wind",
-        choices=["known", "estimated", "blind"],
-        default="known",
-        help="known (default): the replanner is told the force of each gust with a rise as it starts (a "
-        "forecast, a wind sensor; a step gust stays unknown); estimated: it estimates a steady force on the end-effector from the tracking error and "
-        "plans against it once it has held 1 s; blind: it sees a gust only through the tracking error. "
-        "The controller is told the same wind (fed forward), also without --replan in known mode",
-    )
-    group.add_argument(
-        "--replan-timing",
-        choices=list(TIMINGS),
-        default="work",
-        help="what is compared with the deadline: the solver's work times this machine's measured costs "
-        "(--replan-calibration; the same bytes on this machine) or the measured wall time (not reproducible)",
-    )
-    group.add_argument(
-        "--no-observer",
-        action="store_true",
-        help="the controller without its external-force observer (the thesis' law with the integral term): "
-        "an unknown wind is held by the feedback alone, and --replan-wind estimated reads it from the "
-        "tracking error",
-    )
-    group.add_argument(
-        "--replan-calibration",
-        default=None,
-        metavar="FILE|measure",
-        help="the replanner's latency model: a calibration file or a run's replans.json (the run is then "
-        "pinned to it: the same bytes on any machine); 'measure': timed at start, this run only; default: "
-        "this machine's calibration file (measured and written once, on first use; python -m fpr.bench "
-        "--section replan rewrites it)",
-    )
+from planners.replanning.replanner import Replanner, ReplanOptions, measure_latency
 
 
 def check_options(args, mission, robot) -> None:
     """Refuse replanning options that cannot work, and moved way points out of reach (exit 2).
 
+    The numbers of the replanning options are checked with the others (:mod:`fpr.cli.checks`).
+
     Raises:
-        CommandLineError: --replan without --simulate or on a singularity-crossing mission, a deadline,
-            bound or rate that is not a finite number > 0.
+        CommandLineError: --replan on a singularity-crossing mission; a --replan-calibration file that cannot
+            be read or holds no model of the robot.
         WorkspaceError, SingularityError: a move event's ``to`` out of the workspace or on a singularity.
     """
     moved_positions(mission, robot)
-    if not getattr(args, "replan", False):
-        return
-    if not args.simulate:
-        raise CommandLineError("--replan", "", "replanning happens in flight: add --simulate")
-    if mission.cross_singularity:
+    if getattr(args, "replan", False) and mission.cross_singularity:
         raise CommandLineError(
             "--replan",
             "",
@@ -120,13 +66,6 @@ def check_options(args, mission, robot) -> None:
             load_latency(calibration, robot.name)
         except PlannerArgumentError as error:
             raise CommandLineError("--replan-calibration", calibration, error.reason) from None
-    for option, value in (
-        ("--replan-deadline", args.replan_deadline),
-        ("--replan-bound", args.replan_bound),
-        ("--replan-rate", args.replan_rate),
-    ):
-        if value is not None and not (np.isfinite(value) and value > 0):
-            raise CommandLineError(option, value, "give a finite number > 0")
 
 
 def with_observer(args, settings):
@@ -245,7 +184,7 @@ def summary(hooks, done, log=None) -> str:
     held = [f"  gust {i}: {v.line()}" for i, v in sorted(getattr(hooks, "verdicts", {}).items())]
     moved = [
         f"  move event {p['event']}: the simulated {hooks.robot.kind.task_point_labels[0]} passes "
-        f"{p['distance_m'] * 100:.2f} cm from the moved way point {p['way_point']} at t = {p['time_s']:.3f} s"
+        f"{length(p['distance_m'])} from the moved way point {p['way_point']} at t = {p['time_s']:.3f} s"
         for p in passes(hooks, log)
     ]
     if hooks.replanner is None:
@@ -258,15 +197,15 @@ def summary(hooks, done, log=None) -> str:
     for r in hooks.replans:
         lines.append(
             f"  t = {r.time:.3f} s, {r.trigger}: {r.why} (latency {r.latency_s * 1e3:.1f} ms, "
-            f"solve {r.solve_wall_s * 1e3:.0f} ms wall, {r.iterations} iterations)"
+            f"solve {r.solve_wall_s * 1e3:.0f} ms wall, {plural(r.iterations, 'iteration')})"
         )
     late = [r for r in hooks.replans if r.why.startswith("not used: late")]
     if late:
         need = max(r.latency_s for r in late)
         lines.append(
-            f"  {len(late)} of {len(hooks.replans)} replans were late: they need up to {need * 1e3:.0f} ms on this "
+            f"  {len(late)} of {plural(len(hooks.replans), 'replan')} {'was' if len(late) == 1 else 'were'} late: they need up to {need * 1e3:.0f} ms on this "
             f"machine ({hooks.replanner.options.timing} timing); --replan-deadline {_rounded_up(1.2 * need):g} "
-            "lets them in"
+            "lets them in (documentation: guides/replanning, latency)"
         )
     if done is not None:
         state = (

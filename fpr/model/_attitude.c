@@ -1,4 +1,4 @@
-/* The numpy part of fpr/model/robot.py's Robot.attitude_model in C (issue 13): the same quantities as its
+/* The numpy part of fpr/model/robot.py's Robot.attitude_model in C: the same quantities as its
  * Python reference (Robot._attitude_python) from the same Pinocchio outputs, without numpy's per-call costs
  * (about a microsecond per small-array call; the Python path makes a dozen).
  *

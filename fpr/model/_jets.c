@@ -1,4 +1,4 @@
-/* Jet products of fpr/model/jets.py in C (issue 13): the Leibniz sums of products of time-derivative jets, and
+/* Jet products of fpr/model/jets.py in C: the Leibniz sums of products of time-derivative jets, and
  * the recurrence of a jet's linear solve, one loop over every sample instead of numpy's per-order, per-term
  * passes over small matrices (numpy spends about 40 ns per 4 x 4 matrix-vector product of a batch; the
  * planner's complex-step batches hold thousands).

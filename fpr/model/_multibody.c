@@ -1,5 +1,5 @@
-/* The plant's step (fpr/sim/plant.py, Plant._python_steps and, with a wind, Plant._python_wind_step) in C
- * (issue 13): the same RKMK4 steps of the closed chain's constraint dynamics, without the interpreter and the
+/* The plant's step (fpr/sim/plant.py, Plant._python_steps and, with a wind, Plant._python_wind_step) in C:
+ * the same RKMK4 steps of the closed chain's constraint dynamics, without the interpreter and the
  * per-call cost of ~20 small Pinocchio and numpy calls per stage.
  *
  * The multibody algorithms are written here for the joints the models are built of (revolute and prismatic

@@ -61,7 +61,7 @@ class StaticHold:
 
     @property
     def speeds(self) -> np.ndarray:
-        """Signed rotor speeds sign(w^2) sqrt(|w^2|) (n_d, 4) [rad/s]."""
+        """Signed rotor speeds ``sign(w^2) sqrt(|w^2|)`` (n_d, 4) [rad/s]."""
         return np.sign(self.speeds_squared) * np.sqrt(np.abs(self.speeds_squared))
 
 

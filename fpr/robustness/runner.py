@@ -19,11 +19,13 @@ import os
 import time
 from dataclasses import dataclass, field
 
+from fpr import extras
 from fpr.model import description
 from fpr.model.errors import CampaignError
 from fpr.robustness.outcomes import EventSetup, Flight, error_row, fly
 from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign
 from fpr.robustness.store import RunStore
+from fpr.tuning import tune_process
 from planners.missions.mission import load_mission
 from planners.optimize import plan
 from planners.replanning.latency import machine_latency
@@ -73,7 +75,12 @@ def make_flight(campaign: Campaign, mission=None, progress=None, latency=None):
     Returns:
         (flight, result): the :class:`fpr.robustness.outcomes.Flight` the workers get and the
         :class:`planners.optimize.PlanResult` (for its feasibility and report).
+
+    Raises:
+        fpr.extras.MissingExtraError: the campaign extra (Dask, pyarrow) is not installed: checked before the
+            plan's work, since the runs need it.
     """
+    extras.require("campaign")
     mission = mission or mission_of(campaign)
     robot = mission.load_robot()
     check_quantities(campaign, robot)
@@ -114,12 +121,35 @@ class CampaignRun:
 def local_client(workers: int | None = None):
     """A Dask client of a new local cluster: ``workers`` processes (default: the number of cores), one thread
     each, its dashboard on a free port; closing the client closes the cluster. (Worker processes are
-    spawned: in a script, call it under ``if __name__ == "__main__":``.)"""
+    spawned: in a script, call it under ``if __name__ == "__main__":``.) Each worker process calls
+    :func:`fpr.tune_process` before its first run; it leaves alone what Dask's nanny already chose for its
+    workers (by default one BLAS thread and ``MALLOC_TRIM_THRESHOLD_``, in ``distributed.nanny.pre-spawn-environ``).
+
+    Raises:
+        fpr.extras.MissingExtraError: the campaign extra is not installed.
+    """
+    extras.require("campaign")
     from distributed import Client
 
     n = int(workers or os.cpu_count() or 1)
-    return Client(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                  silence_logs=logging.ERROR)
+    client = Client(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                    silence_logs=logging.ERROR)
+    client.register_plugin(_tuned_worker())
+    return client
+
+
+def _tuned_worker():
+    """A Dask worker plugin that makes :func:`fpr.tune_process` in each worker process, also in one the nanny
+    restarts (a plugin's ``setup`` runs in every worker, present or future)."""
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class TunedWorker(WorkerPlugin):
+        name = "fpr-tune-process"
+
+        def setup(self, worker) -> None:
+            tune_process()
+
+    return TunedWorker()
 
 
 def open_store(folder, campaign: Campaign, description: dict | None = None) -> RunStore:
@@ -143,6 +173,7 @@ def run_campaign(campaign: Campaign, flight: Flight, store: RunStore, client, pr
 
     A ``KeyboardInterrupt`` cancels the tasks still pending and propagates: what finished is stored.
     """
+    extras.require("campaign")
     from distributed import as_completed
 
     start = time.perf_counter()

@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fpr.model.errors import CampaignError
+from fpr.robots import PARAMETER_RANGES
 from fpr.robustness.events import family
 
 VECTORS = {"wind": ("wind_x", "wind_y", "wind_z"), "noise": ("noise_q", "noise_v")}
@@ -202,6 +203,34 @@ def parse_distribution(text, components: int = 1) -> list[Distribution]:
                                        f"{len(p)} given")
     return [Distribution(kind, tuple(p[c] if isinstance(p, list) else p for p in params))
             for c in range(components)]
+
+
+#: Units of the scalar settings a campaign varies ("1": a ratio).
+SETTING_UNITS = {"model_mass_scale": "1", "rotor_constant_scale": "1", "wind_x": "N", "wind_y": "N", "wind_z": "N",
+                 "noise_q": "m or rad", "noise_v": "m/s or rad/s"}
+#: Units of the outcome columns that are not a coordinate's (``max_error_<coordinate>`` is the coordinate's).
+OUTCOME_UNITS = {"least_clearance_m": "m", "saturated_ticks": "ticks", "peak_rotor_speed_rad_s": "rad/s"}
+
+
+def coordinate_unit(coordinate: str) -> str:
+    """The unit of a planning coordinate: "m" for a position (``x``, ``y``, ``z``), "rad" for an angle (``phi``,
+    ``q21``, ``q1``...)."""
+    return "m" if coordinate in ("x", "y", "z") else "rad"
+
+
+def unit(name: str) -> str:
+    """The unit of a campaign column (a varied quantity or an outcome), for axis labels; "" when unknown."""
+    if name in SETTING_UNITS:
+        return SETTING_UNITS[name]
+    if name in OUTCOME_UNITS:
+        return OUTCOME_UNITS[name]
+    if name.startswith(INITIAL_ERROR):
+        return coordinate_unit(name[len(INITIAL_ERROR):])
+    if name.startswith("max_error_"):
+        return coordinate_unit(name[len("max_error_"):])
+    if name in PARAMETER_RANGES:
+        return PARAMETER_RANGES[name].unit
+    return ""
 
 
 def components(name: str) -> tuple[str, ...]:

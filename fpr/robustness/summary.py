@@ -18,6 +18,8 @@ from collections import Counter
 
 import numpy as np
 
+from fpr import extras
+
 Z95 = 1.959963984540054
 """The standard normal's 97.5 % quantile."""
 
@@ -33,7 +35,12 @@ def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, floa
 
 
 def table(rows: list[dict], columns: list[str]):
-    """The rows as a ``pyarrow.Table``, one column per name, in that order (bool, int64, float64 or string)."""
+    """The rows as a ``pyarrow.Table``, one column per name, in that order (bool, int64, float64 or string).
+
+    Raises:
+        fpr.extras.MissingExtraError: pyarrow (the campaign extra) is not installed.
+    """
+    extras.require("campaign", ("pyarrow",))
     import pyarrow as pa
 
     arrays, fields = [], []

@@ -1,4 +1,4 @@
-/* The watch's screen (fpr/sim/watch.py, Watch._may_be_lost_python) in C (issue 13): the same comparisons on
+/* The watch's screen (fpr/sim/watch.py, Watch._may_be_lost_python) in C: the same comparisons on
  * the same numbers, without the interpreter's cost of a few dozen float operations at every inner-loop tick.
  *
  * may_be_lost(qc, vc, q, v, positions, closure_error, planned, constants) -> bool

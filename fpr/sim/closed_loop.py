@@ -68,7 +68,7 @@ class SimulationSettings:
         max_drone_rate: angular speed of a drone past which the state diverged [rad/s] (default 60).
         max_tilt: angle of a drone's thrust axis from the vertical past which it is lost [rad] (default pi/2:
             the thrust pushes it down).
-        max_tracking_error: |measured - planned| of each planning coordinate past which tracking is lost
+        max_tracking_error: ``|measured - planned|`` of each planning coordinate past which tracking is lost
             [m or rad, the coordinate's unit] (default 1; the reference missions stay below 0.01).
     """
 

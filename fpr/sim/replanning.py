@@ -12,13 +12,13 @@ Triggers (with a :class:`planners.replanning.replanner.Replanner`, ``--replan``)
 
 * **event**: a ``move`` event at its time: the way point moves and the rest of the motion is re-optimised
   from the plan in force's own state at the splice (C4 with it: the planned rotor speeds do not jump);
-* **tracking error**: |measured - planned| of a chain coordinate past ``tracking_bound`` (at most once every
+* **tracking error**: ``|measured - planned|`` of a chain coordinate past ``tracking_bound`` (at most once every
   ``min_interval``), and **the end of a gust**: re-optimised from the plan in force's state at the splice too
   (C4); not while a known gust blows (the error is then the wind's push, which the plan in force already
   flies against: replanning every 0.25 s from the plan's state gave short, violent travels that
   saturated the rotors). A start from the robot's own state was tried (bumpless for the controller:
   measured s, s', the commanded acceleration) and left out: the plan in force would jump at the splice,
-  which a C4 piecewise polynomial cannot hold, and on a step gust it did not remove the saturation (README);
+  which a C4 piecewise polynomial cannot hold, and on a step gust it did not remove the saturation (documentation: guides/replanning);
 * **rate** (optional, ``rate`` Hz): from the plan in force's state, like an event;
 * **wind**: by default (``known_gusts``) the replanner is *told* each gust event's force and profile at
   the gust's start (a forecast, a wind sensor); with ``estimate_wind`` instead it plans against the wind it
@@ -33,10 +33,10 @@ Triggers (with a :class:`planners.replanning.replanner.Replanner`, ``--replan``)
   against the wind together, so the splice lies in the part already planned in the wind. (Replanning
   once the way point was passed spliced into the offline plan's next travel, planned without the wind:
   from that state the next travel in the wind had no feasible C4 continuation the warm SQP could reach,
-  e.g. at 6.3 s on the built-in ``gust`` mission.)
+  e.g. at 6.3 s on the built-in ``gust`` mission; documentation: guides/replanning.)
   Against a sustained wind (a gust with a ``rise``, the built-in ``gust`` mission) every closed-loop margin
   then holds; against a short gust it does not help (the replans come while the gust still changes: the
-  campaigns of random gusts fly them with the controller alone).
+  campaigns of random gusts fly them with the controller alone; documentation: guides/replanning).
 
 **What the controller knows** (``feed_forward``, default on): the wind it is told, fed forward in its outer
 loop (:class:`controllers.ctc.Reference` ``task_force``, ``drone_forces``), and the wind the plan in force was
@@ -148,7 +148,7 @@ class TriggerSettings:
     """When the closed loop asks for a replan.
 
     Attributes:
-        tracking_bound: largest |measured - planned| of a chain coordinate before a replan from the robot's
+        tracking_bound: largest ``|measured - planned|`` of a chain coordinate before a replan from the robot's
             state [m or rad] (None: no such trigger).
         min_interval: least simulated time between two tracking-error replans [s].
         rate: fixed replanning rate [Hz], or None.

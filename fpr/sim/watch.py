@@ -106,8 +106,8 @@ class Watch:
         return self._may_be_lost_python(plant, q, v, positions, closure_error, planned)
 
     def _may_be_lost_python(self, plant, q, v, positions, closure_error: float, planned) -> bool:
-        """:meth:`_may_be_lost` in plain Python on the state as lists (~15 us instead of the full check's
-        ~140 us): the reference of the compiled screen."""
+        """:meth:`_may_be_lost` in plain Python on the state as lists (a small part of the full check's
+        cost): the reference of the compiled screen."""
         if self._screen is None:
             self._build_screen(plant)
         hinge_z, linear, angular, quaternions, chain = self._screen

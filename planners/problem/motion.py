@@ -378,8 +378,8 @@ class MotionProblem:
     #: How :meth:`_node_derivatives` differentiates: "dual" (forward-mode dual numbers, :mod:`fpr.model.dual`:
     #: the value once, the directions as real tangents), "complex" (the complex step, the reference) or
     #: "auto": dual numbers from :data:`DUAL_FROM` (directions, nodes) on, the complex step below. The dual
-    #: pass costs less per node and more per evaluation (measured on the FPR: faster at 68 nodes, not yet at
-    #: 34; on the prototype, 10 directions, at par from about 240 nodes; README, "The inverse dynamics' cost").
+    #: pass costs less per node and more per evaluation (on the FPR faster from about 68 nodes; on the
+    #: prototype, 10 directions, at par from about 240 nodes; documentation: guides/planning-internals).
     derivatives = "auto"
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,

@@ -85,7 +85,8 @@ class ReplanOptions:
         tolerance: the SQP stops when an iteration improves J by less than this.
         samples_per_segment, windows_per_segment: the optimisation grid: 7 nodes per segment (the offline
             planner uses 17); the dense check at ``dense_rate`` decides feasibility.
-        dense_rate: rate of the dense check of the new part [Hz] (plus its knots; README: why 100 Hz).
+        dense_rate: rate of the dense check of the new part [Hz] (plus its knots; why 100 Hz:
+            documentation, guides/replanning).
         radius: the SQP's initial trust region (x's scaled units).
         timing: ``"work"`` (the modelled latency of the solver's work, ``latency``) or ``"wall"`` (the
             measured wall time) for the used / not-used decision and the splice time.

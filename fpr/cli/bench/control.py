@@ -12,8 +12,8 @@ the hover thrusts (bounds active):
 2. ProxQP cold: ``proxsuite.proxqp.dense.solve`` from scratch on the same scaled problem;
 3. the closed-form pseudo-inverse law (:func:`controllers.allocation.pseudo_inverse_law`) and the rotor
    map, which ignores the bounds;
-4. quadprog (Goldfarb-Idnani, cold) on the same scaled problem: the optional extra ``bench``
-   (``pip install -e '.[bench]'``); the row is skipped with a note when it is not installed.
+4. quadprog (Goldfarb-Idnani, cold) on the same scaled problem (a core dependency, the replanner's solver;
+   the row is skipped with a note should it be missing).
 
 The largest difference of each solution's w^2 from ``Allocator.solve``'s is printed (the pseudo-inverse
 law differs when a bound is active, by design). Then the allocation as the control loop calls it
@@ -25,7 +25,7 @@ call and the real-time factor (median of 3 runs, 1 with ``--quick``; the CPU tim
 shared machine), and one more run with timers around the simulator's parts (observe: measure and logged
 kinematics, outer loop, attitude model, allocation, the rest of the inner loop, plant steps, the watch; the
 remainder is the loop itself and the logging) for the per-tick breakdown, with which parts of the tick run
-compiled (``setup.py``'s optional extensions). Goals (issue 13), each a row of ``targets`` with its value, goal
+compiled (``setup.py``'s optional extensions). Goals, each a row of ``targets`` with its value, goal
 and verdict: the allocation's whole call <= 20 us with and without an active bound, RTF >= 20.
 """
 
@@ -137,7 +137,7 @@ def _allocation_rows(bench: Bench, robot, case: str, states, thrust, quadprog) -
                  "pseudo-inverse law": np.array([law(a, u) for a, u in states])}
     note = None
     if quadprog is None:
-        note = "quadprog not installed (pip install -e '.[bench]'): row (4) skipped"
+        note = "quadprog not installed (pip install quadprog): row (4) skipped"
     else:
         box = np.hstack([np.eye(n), -np.eye(n)])  # C^T zeta >= b: zeta >= 0 and -zeta >= -1
         bound = np.concatenate([lower, -upper])

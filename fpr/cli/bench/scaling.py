@@ -8,7 +8,7 @@ dense check included), J, the dense-grid feasibility and the SQP iterations of a
 and via-point count, the growth exponent: the least-squares slope of log(time) over log(way points),
 8 to 32 (4 way points are two interior ones only: too few to show the growth).
 
-Goals (issue 13), at 1 via point: 32 way points planned in at most 2 s (two-step) and 30 s (one-step),
+Goals, at 1 via point: 32 way points planned in at most 2 s (two-step) and 30 s (one-step),
 growth exponents at most 1.5. Timings depend on the machine and its load: no test asserts them.
 """
 
@@ -28,7 +28,7 @@ VIA_POINTS = {True: (1,), False: (0, 1, 2, 3, 4)}  # quick / full
 METHODS = ("two-step", "one-step")
 #: The way-point counts the growth exponent is fitted over.
 FIT_FROM = 8
-#: Goals of issue 13 at 1 via point per travel: time at 32 way points [s] per method, and the exponent.
+#: Goals at 1 via point per travel: time at 32 way points [s] per method, and the exponent.
 TIME_GOALS = {"two-step": 2.0, "one-step": 30.0}
 EXPONENT_GOAL = 1.5
 GOAL_VIA_POINTS = 1
