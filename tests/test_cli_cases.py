@@ -287,7 +287,7 @@ def test_a_negative_number_reaches_the_toolkit_s_message(tmp_path, capsys):
 @pytest.mark.parametrize("option", [opt for opt, _ in {**SIMULATION_DEFAULTS, **REPLAN_DEFAULTS}.values()])
 def test_every_simulation_option_needs_simulate(tmp_path, capsys, option):
     value = {"--initial-error": ["y=0.01"], "--wind": ["0,5,0"], "--noise": ["0,0"], "--replan-wind": ["blind"],
-             "--replan-timing": ["wall"], "--takeoff": [], "--replan": []}.get(option, ["0.5"])
+             "--replan-timing": ["wall"], "--takeoff": [], "--replan": [], "--no-observer": []}.get(option, ["0.5"])
     code, _, err = _run(capsys, option, *value, *FAST, "--out", tmp_path / "out")
     line = _one_line(err)
     assert code == 2 and line.startswith(f"error: {option}") and "add --simulate" in line, line

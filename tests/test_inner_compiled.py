@@ -1,7 +1,8 @@
-"""The inner loop's float part natively (fpr._native's part ``inner``, ``fpr/_native/alloc.c``) against its Python reference
-(``CascadedController._inner_python``): the same operations in the same order, so the same bits -- thrusts,
-u_a, desired rolls, pitch reference -- at random states of both robots (rolls past pi, the pitch clamped on
-both sides), after the gains change; and whole controller ticks alike on either path."""
+"""The inner loop's float part natively (fpr._native's part ``inner``, ``fpr/_native/alloc.c``) against its Python
+reference (``CascadedController._inner_python``): the same operations in the same order, the same results to
+round-off (1e-12 relative: the C library's and numpy's sums may round otherwise on another CPU) -- thrusts, u_a,
+desired rolls, pitch reference -- at random states of both robots (rolls past pi, the pitch clamped on both
+sides), after the gains change; and whole controller ticks alike on either path."""
 
 import dataclasses
 
@@ -25,7 +26,7 @@ def _reference(robot, rng):
 
 @needs_kernel
 @pytest.mark.parametrize("name", fpr.ROBOTS)
-def test_compiled_inner_loop_is_the_python_part_to_the_bit(name):
+def test_compiled_inner_loop_is_the_python_part_to_round_off(name):
     robot = fpr.load(name)
     native_module("inner")
     rng = np.random.default_rng(12)

@@ -109,7 +109,8 @@ assert result.feasible and miss > 0.2 and hit < 0.02  # without replanning it mi
 assert [r.used for r in replanner.replans] == [True] and executed_report.feasible
 assert log_with.failure is None and log_with.speed.max() <= log_with.speed_limit
 assert splice_step <= 1.5 * normal_step  # no rotor-speed jump at the splice
-assert not late_record.used and "late" in late_record.why and late.trajectory is result.trajectory
+assert slow_record.used and slow_record.delayed_s > 0 and "past the 50 ms deadline" in slow_record.why
+assert not late_record.used and "late" in late_record.why and "again" in again.trigger
 """),
     "07_robustness": Expected(images=8, html=0, checks="""
 assert len(results) == 4 and all(len(rows) == RUNS == 4 for *_, rows in results.values())  # quick mode

@@ -11,6 +11,7 @@ from planners.missions.events import GustEvent
 from planners.missions.mission import load_mission
 from planners.optimize import plan
 from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.replanning.latency import LatencyModel
 from planners.replanning.replanner import Replanner, ReplanOptions
 from planners.replanning.check import evaluate_and_check
 from planners.replanning.solver import solve_warm
@@ -87,10 +88,10 @@ def test_solve_warm_hands_back_the_fused_check_only_for_its_result(moving):
 def test_a_refinement_that_would_make_the_plan_late_is_not_started(moving):
     """Iteration 2 only when refine_margin x its modelled latency fits the deadline; late plans unused."""
     per_node = 0.028 / 21  # [s] per node and derivative evaluation: 21 nodes, 28 ms a derivative evaluation
-    cost = (per_node, 0.0, 0.0)
+    cost = LatencyModel((0.0, 0.0, per_node, 0.0, 0.0))
 
     def replanned(**options):
-        replanner = Replanner(moving, ReplanOptions(work_cost=cost, **options))
+        replanner = Replanner(moving, ReplanOptions(latency=cost, least_horizon=0.0, **options))
         replanner.move(0)
         return replanner.replan(4.0, "event")
 

@@ -36,13 +36,14 @@ from fpr.robustness.campaign_file import campaign_from_dict, campaign_to_toml
 from fpr.robustness.runner import make_flight, mission_of, run_campaign
 from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign, components
 from fpr.robustness.store import RunStore, write_atomic
-from fpr.robustness.summary import summarise, write_table
+from fpr.robustness.summary import event_summary, summarise, write_table
 from fpr.sim.closed_loop import SimulationSettings
-from fpr.views.figures.campaign import campaign_figures
 from fpr.tuning import tune_process
+from fpr.views.figures.campaign import campaign_figures
 from planners.missions.files import parse_toml, read_toml_text
 
 __all__ = ["EXIT_CODES", "MAX_RUNS", "Progress", "main", "parser", "work"]
+
 
 def _campaign_file(path) -> Campaign:
     """The campaign file, read as a mission file is (a size cap, UTF-8 with or without a byte-order mark, no
@@ -58,7 +59,8 @@ def _campaign_file(path) -> Campaign:
 def _campaign(args) -> Campaign:
     """The campaign: the file's fields, the options over them, fixed perturbations as constants."""
     campaign = _campaign_file(args.campaign) if args.campaign is not None else Campaign()
-    changes = {k: getattr(args, k) for k in ("mission", "method", "runs", "seed", "hold", "tracking_tolerance")
+    changes = {k: getattr(args, k) for k in ("mission", "method", "runs", "seed", "hold", "tracking_tolerance",
+                                             "events", "replan", "without_observer")
                if getattr(args, k) is not None}
     if args.robot_parameters:
         changes["robot_parameters"] = {**campaign.robot_parameters, **dict(args.robot_parameters)}
@@ -238,6 +240,8 @@ def work(args, argv) -> int:
                     "wall_time_s": round(done.wall_time, 3),
                     "runs_per_second": done.computed / done.wall_time if done.computed else None,
                     "plan_feasible": bool(result.feasible)})
+    if campaign.events is not None:
+        summary["events"] = event_summary(done.rows, campaign.events, campaign.without_observer)
     write_atomic(out / "summary.json", json.dumps(summary, indent=1) + "\n")
     if not args.no_plots:
         try:
@@ -251,6 +255,9 @@ def work(args, argv) -> int:
         f"worker{'s' if done.workers != 1 else ''}")
     for kind, count in summary["lost_by_kind"].items():
         say(f"  lost: {kind}: {count}")
+    if campaign.events is not None:
+        for line in event_lines(summary["events"]):
+            say(line)
     say(f"wrote runs.parquet, summary.json{'' if args.no_plots else ', figures'} into {out}")
     problems = []
     if not result.feasible:
@@ -260,6 +267,32 @@ def work(args, argv) -> int:
     for problem in problems:
         print(f"error: {problem}", file=sys.stderr)
     return contract.LIMIT_BROKEN if problems else contract.OK
+
+
+def event_lines(events: dict) -> list[str]:
+    """The event family's lines (:func:`fpr.robustness.summary.event_summary`)."""
+    def rate(name, r):
+        low, high = r["wilson95"]
+        return (f"  {name}: {r['successes']} of {plural(r['runs'], 'run')} succeeded ({r['success_rate']:.1%}, "
+                f"95 % Wilson interval {low:.1%} .. {high:.1%})")
+
+    lines = [f"{events['family']} events:"]
+    if "not_holdable" in events:
+        lines.append(f"  {plural(len(events['not_holdable']), 'gust')} cannot be held even as a steady force within "
+                     "the rotor limits (counted apart)"
+                     + "".join(f"; run {g['index']}: {g['force_n']:.2g} N on {g['body']}"
+                               for g in events["not_holdable"]))
+    lines.append(rate("with the observer" if "without_observer" in events else "runs", events["with_observer"]))
+    if "without_observer" in events:
+        lines.append(rate("without the observer (same events)", events["without_observer"]))
+    for miss in events["misses"]:
+        lines.append(f"  miss, run {miss['index']}: {miss['why']}")
+    for key, name in (("replan_wall_s", "wall latency"), ("replan_cpu_s", "CPU time")):
+        got = events.get(key, {})
+        if got.get("count"):
+            lines.append(f"  replan {name} over {plural(got['count'], 'replan')}: median "
+                         f"{got['median'] * 1e3:.1f} ms, p95 {got['p95'] * 1e3:.1f} ms, max {got['max'] * 1e3:.1f} ms")
+    return lines
 
 
 def _close(client) -> None:

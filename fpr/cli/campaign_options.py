@@ -30,6 +30,11 @@ EXIT_CODES = """exit codes:
   130  interrupted (Ctrl-C, SIGTERM): the finished runs stay in --out; the same command resumes"""
 
 
+EVENT_FAMILIES = ("move", "gust")
+"""The values of ``--events`` (:data:`fpr.robustness.events.FAMILIES`, written here so that ``--help`` imports
+nothing heavy)."""
+
+
 def vary(text: str) -> tuple[str, str]:
     """``NAME=DISTRIBUTION`` as (name, text) (argparse type)."""
     name, sep, value = text.partition("=")
@@ -66,6 +71,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--hold", type=float, default=None, help="time simulated after the plan's end [s] (default: 1)")
     p.add_argument("--tracking-tolerance", type=float, default=None,
                    help="a run succeeds only if every planning coordinate stays within this of the plan [m, rad]")
+    p.add_argument("--events", choices=list(EVENT_FAMILIES), default=None,
+                   help="one random event per run: a way point that moves, or a gust (fpr.robustness.events; "
+                        "options in a campaign file's [event_options])")
+    p.add_argument("--replan", action="store_true", default=None, help="fly with the replanner (moves need it)")
+    p.add_argument("--without-observer", action="store_true", default=None,
+                   help="also fly each run with the controller without its observer, its outcomes beside")
     fixed = p.add_argument_group("fixed perturbations (as python -m fpr.plan --simulate; --vary wins)")
     fixed.add_argument("--model-mass-scale", type=float, default=None, help="the controller's masses times this")
     fixed.add_argument("--rotor-constant-scale", type=float, default=None, help="the plant's rotor force times this")

@@ -180,6 +180,7 @@ def _simulate(args, robot, final, out, sampled, written):
                                   rotor_constant_scale=args.rotor_constant_scale,
                                   measurement_noise=tuple(args.noise or (0.0, 0.0)),
                                   wind=tuple(args.wind or (0.0, 0.0, 0.0)), takeoff=args.takeoff)
+    settings = replanning.with_observer(args, settings)  # --no-observer (fpr/cli/replanning.py)
     quiet = args.quiet
 
     def progress(t, total):

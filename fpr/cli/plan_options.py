@@ -30,6 +30,7 @@ SIMULATION_DEFAULTS = {
     "takeoff": ("--takeoff", False),
     "replan": ("--replan", False),
     "replan_wind": ("--replan-wind", "known"),
+    "no_observer": ("--no-observer", False),
 }
 #: The options that only mean something with ``--replan``: option dest -> (option, default value).
 REPLAN_DEFAULTS = {
@@ -37,6 +38,7 @@ REPLAN_DEFAULTS = {
     "replan_bound": ("--replan-bound", 0.05),
     "replan_rate": ("--replan-rate", None),
     "replan_timing": ("--replan-timing", "work"),
+    "replan_calibration": ("--replan-calibration", None),
 }
 #: The values of ``--replan-timing`` (:data:`planners.replanning.replanner.TIMINGS`).
 REPLAN_TIMINGS = ("work", "wall")
@@ -142,6 +144,10 @@ def parser() -> argparse.ArgumentParser:
     sim.add_argument("--takeoff", action="store_true",
                      help="start at rest on the take-off pose, drones level (as the thesis' drones did), "
                           "instead of on the plan")
+    sim.add_argument("--no-observer", action="store_true",
+                     help="the controller without its external-force observer (the thesis' law with the integral "
+                          "term): an unknown wind is held by the feedback alone, and --replan-wind estimated reads "
+                          "it from the tracking error")
     add_replanning(sim)
     scene = p.add_argument_group("3D scene (meshcat)")
     scene.add_argument("--meshcat", action="store_true",
@@ -163,7 +169,8 @@ def add_replanning(group) -> None:
              "optionally at --replan-rate; see the documentation, guides/replanning")
     group.add_argument(
         "--replan-deadline", type=float, default=None,
-        help="simulated time between a trigger and the splice; a later solve is not used [s] (default 0.05)")
+        help="simulated time between a trigger and the splice [s]; a solve the latency model says cannot be ready "
+             "by then is spliced when it can be (default 0.05)")
     group.add_argument(
         "--replan-bound", type=float, default=None,
         help="tracking error of a chain coordinate that triggers a replan [m or rad] (default 0.05)")
@@ -172,11 +179,19 @@ def add_replanning(group) -> None:
     group.add_argument(
         "--replan-wind", choices=["known", "estimated", "blind"], default=None,
         help="known (the default): the replanner is told the force of each gust with a rise as it starts (a "
-             "forecast, a wind sensor; a step gust stays unknown); estimated: it estimates a steady force on the "
-             "end-effector from the tracking error and plans against it once it has held 1 s; blind: it sees a "
-             "gust only through the tracking error. The controller is told the same wind (fed forward), also "
-             "without --replan in known mode")
+             "forecast, a wind sensor; a step gust stays unknown); estimated: it plans against the wind the "
+             "controller's observer estimates once it has held 0.3 s (with --no-observer: a steady force on the "
+             "end-effector estimated from the tracking error, once it has held 1 s); blind: it sees a gust only "
+             "through the tracking error. The controller is told the same wind (fed forward), also without "
+             "--replan in known mode")
     group.add_argument(
         "--replan-timing", choices=list(REPLAN_TIMINGS), default=None,
-        help="what is compared with the deadline: the solver's work times a measured cost (work, the default: "
-             "deterministic) or the measured wall time (wall: not reproducible)")
+        help="what is compared with the deadline: the solver's work times this machine's measured costs (work, "
+             "the default: --replan-calibration; the same bytes on this machine) or the measured wall time (wall: "
+             "not reproducible)")
+    group.add_argument(
+        "--replan-calibration", default=None, metavar="FILE|measure",
+        help="the replanner's latency model: a calibration file or a run's replans.json (the run is then pinned "
+             "to it: the same bytes on any machine); 'measure': timed at start, this run only; default: this "
+             "machine's calibration file (measured and written once, on first use; python -m fpr.bench --section "
+             "replan rewrites it)")

@@ -22,12 +22,14 @@ from dataclasses import dataclass, field
 from fpr import extras
 from fpr.model import description
 from fpr.model.errors import CampaignError
-from fpr.robustness.outcomes import Flight, error_row, fly
+from fpr.robustness.outcomes import EventSetup, Flight, error_row, fly
 from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign
 from fpr.robustness.store import RunStore
 from fpr.tuning import tune_process
 from planners.missions.mission import load_mission
 from planners.optimize import plan
+from planners.replanning.latency import machine_latency
+from planners.replanning.replanner import measure_latency
 
 logger = logging.getLogger(__name__)
 
@@ -61,8 +63,14 @@ def check_quantities(campaign: Campaign, robot) -> None:
                                   f"{INITIAL_ERROR}<coordinate> or a robot parameter ({', '.join(sorted(parameters))})")
 
 
-def make_flight(campaign: Campaign, mission=None, progress=None):
+def make_flight(campaign: Campaign, mission=None, progress=None, latency=None):
     """Plan the campaign's mission once.
+
+    With an event family, the flight carries the mission, the plan's constraints (the closed loop's physical
+    limits) and the :class:`fpr.robustness.outcomes.EventSetup`; the replanner's latency model is resolved here,
+    once (``latency``, or this machine's calibration: :func:`planners.replanning.latency.machine_latency`), so
+    that every worker decides alike; the first run's event is drawn here, to refuse a family that cannot give
+    one before any run.
 
     Returns:
         (flight, result): the :class:`fpr.robustness.outcomes.Flight` the workers get and the
@@ -77,8 +85,17 @@ def make_flight(campaign: Campaign, mission=None, progress=None):
     robot = mission.load_robot()
     check_quantities(campaign, robot)
     result = plan(mission, campaign.method, robot=robot, progress=progress)
+    setup = None
+    if campaign.events is not None:
+        if campaign.replan and latency is None:
+            latency = machine_latency(robot, measure_latency)
+        setup = EventSetup(campaign.events, campaign.event_family(), campaign.seed, campaign.replan, latency,
+                           campaign.without_observer, campaign.pass_tolerance, campaign.max_saturation)
+        setup.event(mission, robot, 0)
     flight = Flight(robot.name, tuple(sorted(mission.robot_parameters.items())), tuple(robot.layout.chain),
-                    result.trajectory, float(campaign.hold), campaign.tracking_tolerance)
+                    result.trajectory, float(campaign.hold), campaign.tracking_tolerance,
+                    mission if setup is not None else None,
+                    result.report.constraints if setup is not None else None, setup)
     return flight, result
 
 
