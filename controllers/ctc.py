@@ -381,7 +381,7 @@ class CascadedController:
         """The inner loop's float part in Python: (thrust f_i (n_d,), u_a (n_a,), roll_desired (n_d,), pitch
         reference) from the measured state, the held outer-loop force and the reference's roll feed-forward.
         The reference of the native part (the same operations in the same order; the tests hold the two equal to
-    round-off)."""
+        round-off)."""
         st = self.settings
         # on floats: a few numbers each, where every numpy call costs a microsecond or more
         ql, vl = q.tolist(), v.tolist()

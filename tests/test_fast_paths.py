@@ -3,8 +3,8 @@
 Each fast path is held equal to a slower, independent computation of the same quantity:
 
 * the plant step without wind (:meth:`fpr.sim.plant.Plant._python_steps`: one constant rotor-force map, the
-  step's constants cached; and the native steps) against :func:`fpr.sim.plant.rkmk4_step` driven by Pinocchio's frame Jacobians
-  and the lag solution through ``np.exp``: the same RKMK4 step, so equal to round-off;
+  step's constants cached; and the native steps) against :func:`fpr.sim.plant.rkmk4_step` driven by Pinocchio's
+  frame Jacobians and the lag solution through ``np.exp``: the same RKMK4 step, so equal to round-off;
 * :meth:`fpr.sim.plant.Plant.observe` against :meth:`~fpr.sim.plant.Plant.measure` and
   :meth:`~fpr.sim.plant.Plant.drone_positions_and_closure_error` (their own kinematics pass);
 * the allocation's closed form (the thesis' law 2.24, used when no rotor bound is active) against ProxQP
@@ -23,8 +23,8 @@ from helpers import hover_thrusts, near_hover
 
 import fpr
 from controllers.allocation import Allocator, allocation_qp, selectors
-from fpr import _native as native
 from controllers.box_qp import solve_box_qp
+from fpr import _native as native
 from fpr.model.qp import proxsuite_module
 from fpr.sim.plant import Plant, hover_configuration, rkmk4_step
 

@@ -9,7 +9,6 @@ import dataclasses
 import numpy as np
 import pytest
 from helpers import near_hover
-
 from native_parts import native_module, needs_native
 
 import fpr

@@ -8,7 +8,6 @@ mission, which go through all of them.
 
 import numpy as np
 import pytest
-
 from native_parts import native_module, needs_native
 
 import fpr

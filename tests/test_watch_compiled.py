@@ -1,14 +1,13 @@
-"""The watch's screen natively (fpr._native's part ``watch``, ``fpr/_native/watch.c``) against its Python reference (``Watch._may_be_lost_python``):
-the same answer on states scattered across every bound (and on the bounds' edges), with and without the tilt
-screen, on non-finite states; the switch selects it."""
+"""The watch's screen natively (fpr._native's part ``watch``, ``fpr/_native/watch.c``) against its Python reference
+(``Watch._may_be_lost_python``): the same answer on states scattered across every bound (and on the bounds'
+edges), with and without the tilt screen, on non-finite states; the switch selects it."""
 
 import math
 
 import numpy as np
 import pytest
-from test_watch import state
-
 from native_parts import native_module, needs_native
+from test_watch import state
 
 import fpr
 from fpr import _native as native

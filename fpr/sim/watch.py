@@ -85,15 +85,17 @@ class Watch:
         :meth:`check` finds nothing; True sends the state to the full check, which decides and words the
         failure.
 
-        It runs at every inner-loop tick (500 Hz) on a few dozen numbers: natively when built (:mod:`fpr._native`'s
-        part ``watch``, ``fpr/_native/watch.c``, below a microsecond), else :meth:`_may_be_lost_python`, its reference (the
-        same comparisons; tests/test_watch_compiled.py holds them equal).
+        It runs at every inner-loop tick (500 Hz) on a few dozen numbers: natively when built
+        (:mod:`fpr._native`'s part ``watch``, ``fpr/_native/watch.c``, below a microsecond), else
+        :meth:`_may_be_lost_python`, its reference (the same comparisons; tests/test_watch_compiled.py holds them
+        equal).
         """
         if self._screen is None:
             self._build_screen(plant)
         kernel = native.use("watch")
         if kernel is not None:
-            return kernel.may_be_lost(plant.qc, plant.vc, q, v, positions, closure_error, planned, self._screen_constants)
+            return kernel.may_be_lost(plant.qc, plant.vc, q, v, positions, closure_error, planned,
+                                      self._screen_constants)
         return self._may_be_lost_python(plant, q, v, positions, closure_error, planned)
 
     def _may_be_lost_python(self, plant, q, v, positions, closure_error: float, planned) -> bool:
