@@ -67,9 +67,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from controllers.allocation import AllocationResult, Allocator, _load_kernel
+from controllers.allocation import AllocationResult, Allocator
 from controllers.observer import MomentumObserver
-from fpr.model.compiled import choose
+from fpr import _native as native
 from fpr.model.inverse_dynamics import inverse_dynamics
 
 
@@ -360,7 +360,7 @@ class CascadedController:
 
     def _attitude_gains(self) -> tuple[np.ndarray, np.ndarray]:
         """K_pa, K_da of q_a = [psi, theta, rolls...], rebuilt only when the settings change; with them the
-        compiled inner loop's constants (``controllers/_alloc.c``'s ``inner``: n_d, the lateral loop, the
+        compiled inner loop's constants (``fpr/_native/alloc.c``'s ``inner``: n_d, the lateral loop, the
         indices, m_i d_i, K_pa, K_da), as ``self._gains = (key, kp, kd, kp list, kd list, constants)``."""
         st = self.settings
         key = (st.orientation_frequency, st.orientation_damping, st.attitude_frequency, st.attitude_damping,
@@ -377,15 +377,11 @@ class CascadedController:
             self._gains = (key, kp, kd, kp.tolist(), kd.tolist(), constants)  # lists: _inner_python's loop
         return self._gains[1], self._gains[2]
 
-    #: the inner loop's float part compiled (``controllers/_alloc.c``'s ``inner``): None (default) when the
-    #: extension is built, else :meth:`_inner_python`; False: always the Python part (the reference); True: the
-    #: compiled part, an error when it is not built. Set it on a controller or on the class.
-    compiled_inner = None
-
     def _inner_python(self, q, v, reference: Reference):
         """The inner loop's float part in Python: (thrust f_i (n_d,), u_a (n_a,), roll_desired (n_d,), pitch
         reference) from the measured state, the held outer-loop force and the reference's roll feed-forward.
-        The reference of the compiled part (the same operations in the same order: the same bits)."""
+        The reference of the native part (the same operations in the same order; the tests hold the two equal to
+        round-off)."""
         st = self.settings
         # on floats: a few numbers each, where every numpy call costs a microsecond or more
         ql, vl = q.tolist(), v.tolist()
@@ -416,11 +412,10 @@ class CascadedController:
         return np.array(thrust), np.array(u_a), np.array(roll_desired), pitch
 
     def _inner_kernel(self):
-        """The compiled inner loop's function, or None for :meth:`_inner_python` (``compiled_inner``)."""
-        module = None if self.compiled_inner is False else _load_kernel()
-        return choose(self.compiled_inner, getattr(module, "inner", None), "compiled_inner",
-                      "CascadedController.compiled_inner = True", "inner loop (controllers/_alloc.c)",
-                      module is not None and len(self.attitude) <= module.MAX_ATTITUDE)
+        """The native inner loop's function (:mod:`fpr._native`'s part ``inner``, ``fpr/_native/alloc.c``), or None
+        for :meth:`_inner_python`."""
+        module = native.use("inner")
+        return module.inner if module is not None and len(self.attitude) <= module.MAX_ATTITUDE else None
 
     def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
         """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""
@@ -435,10 +430,10 @@ class CascadedController:
             self._force = self.outer(q, v, reference)
             self._last_outer = t
         kernel = self.__dict__.get("_inner")
-        if kernel is None or kernel[0] != self.compiled_inner:
-            kernel = self._inner = (self.compiled_inner, self._inner_kernel())
+        if kernel is None or kernel[0] is not native.use("inner"):  # the switch read again when it changed
+            kernel = self._inner = (native.use("inner"), self._inner_kernel())
         inner = None
-        if kernel[1] is not None:  # in C: the same bits as _inner_python (None: a result not finite)
+        if kernel[1] is not None:  # in C: _inner_python's operations, in its order (None: a result not finite)
             self._attitude_gains()  # its constants up to date, in self._gains
             inner = kernel[1](q, v, self._force, reference.roll_rate, reference.roll_acceleration, self._gains[5])
         thrust, u_a, roll_desired, pitch = self._inner_python(q, v, reference) if inner is None else inner
