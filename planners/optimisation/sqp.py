@@ -70,8 +70,10 @@ from scipy import sparse
 
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
-from planners.optimisation.active_set import BANDED_MIN_SIZE, shifted, solve_step_qp
+from planners.optimisation.active_set import ActiveSet, shifted, solve_step_qp
 from planners.optimisation.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
+from planners.optimisation.interior_point import solve_interior_point
+from planners.problem.banded import Banded
 from planners.problem.motion import POWER_SMOOTHING
 
 # the portable build: its results do not depend on memory alignment (fpr.model.qp): plans repeat bit for bit
@@ -243,47 +245,65 @@ def _jacobian(ev):
     return ev.jacobian if sparse_copy is None else sparse_copy
 
 
-def _qp_step(ev, radius: float, penalty: float, hessian=None):
-    """Solve the elastic step QP; returns (d, predicted merit decrease, linearised violation, multipliers).
+def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet | None = None):
+    """Solve the elastic step QP; returns (d, predicted merit decrease, linearised violation, multipliers,
+    the active set at the solution or None).
 
     Only the constraints violated at x get a slack (the others hold at d = 0, so the QP is always
-    feasible). Rows are scaled to unit infinity norm and the objective to O(1): near a vanishing
-    thrust the roll rows reach 1e7 and the QP would crawl; the minimiser is unchanged. ProxQP's work
-    is bounded: an inexact step is judged by the merit ratio anyway. ``hessian`` is the model's
-    curvature (default the problem's Gauss-Newton matrix); the multipliers (m,) are >= 0, in the units
-    of the constraints, 0 for the rows left out. With the Jacobian's sparse copy (a long mission: a few
-    per cent of its entries are non-zero) the kept rows stay a CSR matrix from the selection to the
-    solvers (the active set's row products, ProxQP's sparse backend): the same numbers as the dense rows,
-    without a dense copy of thousands of rows.
+    feasible). Rows are scaled to unit infinity norm (and, for ProxQP, the objective to O(1)): near a
+    vanishing thrust the roll rows reach 1e7 and the QP would crawl; the minimiser is unchanged. The QP is
+    solved exactly by :func:`planners.optimisation.active_set.solve_step_qp`, from
+    ``start`` (an :class:`~planners.optimisation.active_set.ActiveSet` whose rows are indices of the
+    constraints, e.g. the last step's); otherwise, or when that does not end, by ProxQP, whose work is
+    bounded: an inexact step is judged by the merit ratio anyway. ``hessian`` is the model's curvature
+    (default the problem's Gauss-Newton matrix; banded or an array); the multipliers (m,) are >= 0, in the
+    units of the constraints, 0 for the rows left out. A violated constraint's slack is solved for in the active
+    set as an elastic row (its multiplier capped at the penalty). The Jacobian's CSR copy (each row touches one
+    segment: a few per cent of its entries are non-zero on a long mission) stays a CSR matrix from the
+    selection to the solvers.
     """
     hess = ev.hessian if hessian is None else hessian
     n = ev.gradient.size
     c, a = ev.constraints, _jacobian(ev)
-    if sparse.issparse(a):  # a long mission's (planners.problem.motion.SPARSE_FROM): the same rows, fewer operations
+    if sparse.issparse(a):
         keep = np.flatnonzero(c - abs(a).sum(axis=1).A1 * radius <= 0.0)
-        a_keep = a[keep]
     else:
         keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
-        a_keep = a[keep]
+    a_keep = a[keep]
     norms = row_norms(a_keep)
     c_k, a_k = c[keep] / norms, _rows_divided(a_keep, norms)
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
-    if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.optimisation.active_set)
-        exact = solve_step_qp(hess, ev.gradient, a_k, -c_k, radius, shift=_shift(hess))
-        if exact is not None:
-            d, lam = exact[0], np.zeros(c.size)
-            lam[keep] = exact[1] / norms
-            return d, -(ev.gradient @ d + 0.5 * d @ hess @ d), _violation(c + a @ d), lam
-    scale = 1.0 / max(1.0, np.abs(hess).max())
-    h = np.zeros((n + p, n + p))
-    h[:n, :n] = _regularised(hess) * scale
+    if start is not None:  # its rows as indices of the kept rows
+        position = {int(k): i for i, k in enumerate(keep)}
+        start = ActiveSet(start.bounds, tuple(position[k] for k in start.rows if k in position))
+    caps = np.full(keep.size, np.inf)
+    caps[soft] = penalty * norms[soft]  # a violated row's penalty, in row-scaled units (elastic rows)
+    caps = caps if p else None
+    solved = solve_step_qp(hess, ev.gradient, a_k, -c_k, radius, start=start, shift=_shift(hess), caps=caps)
+    if solved is None:  # the active set gave up: the interior-point route (planners.optimisation.interior_point)
+        inner = solve_interior_point(hess, ev.gradient, a_k, -c_k, radius, shift=_shift(hess), caps=caps)
+        if inner is not None:
+            solved = inner[0], inner[1], ActiveSet(inner[2], inner[3])
+    if solved is not None:
+        d, lam, active = solved
+        multipliers = np.zeros(c.size)
+        multipliers[keep] = lam / norms
+        linear = _violation(c + a @ d)
+        model = ev.gradient @ d + 0.5 * d @ (hess @ d)
+        return (d, penalty * (_violation(c) - linear) - model, linear, multipliers,
+                ActiveSet(active.bounds, tuple(int(keep[k]) for k in active.rows)))
+    scale = 1.0 / max(1.0, _abs_max(hess))
     g = np.concatenate([ev.gradient * scale, penalty * norms[soft] * scale])  # slack in row-scaled units
-    if sparse.issparse(a_k):  # the rows as they are: the sparse backend takes them (_proxqp), no dense copy
+    if isinstance(hess, Banded) or sparse.issparse(a_k):  # the sparse backend (_proxqp): no dense copies
+        h = sparse.block_diag([_upper(_regularised(hess)) * scale, sparse.csc_matrix((p, p))], format="csc")
         slack = sparse.csr_matrix((np.ones(p), (soft, np.arange(p))), shape=(keep.size, p))
-        rows = sparse.vstack([sparse.hstack([a_k, slack]), sparse.identity(n + p)], format="csc")
+        rows = sparse.vstack([sparse.hstack([sparse.csr_matrix(a_k), slack]), sparse.identity(n + p)],
+                             format="csc")
         rows.eliminate_zeros()
     else:
+        h = np.zeros((n + p, n + p))
+        h[:n, :n] = _regularised(hess) * scale
         slack = np.zeros((keep.size, p))
         slack[soft, np.arange(p)] = 1.0
         rows = np.vstack([np.hstack([a_k, slack]), np.eye(n + p)])
@@ -291,34 +311,43 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     upper = np.concatenate([np.full(keep.size, np.inf), np.full(n, radius), np.full(p, np.inf)])
     res = _proxqp(h, g, rows, lower, upper)
     d = np.clip(np.asarray(res.x)[:n], -radius, radius)
-    model = ev.gradient @ d + 0.5 * d @ hess @ d
+    model = ev.gradient @ d + 0.5 * d @ (hess @ d)
     linear = _violation(c + a @ d)  # the pruned constraints stay satisfied inside the region
     predicted = penalty * (_violation(c) - linear) - model
     # multipliers of the constraint rows, back in the units of c (ProxQP: z < 0 on an active lower bound)
     multipliers = np.zeros(c.size)
     if keep.size:
         multipliers[keep] = np.maximum(-np.asarray(res.z)[:keep.size], 0.0) / (norms * scale)
-    return d, predicted, linear, multipliers
+    return d, predicted, linear, multipliers, None
+
+
+def _abs_max(hess) -> float:
+    """max |H_ij| of an array or a :class:`~planners.problem.banded.Banded` matrix."""
+    return hess.abs_max() if isinstance(hess, Banded) else float(np.abs(hess).max())
+
+
+def _upper(hess) -> sparse.csc_matrix:
+    """The upper triangle of H (banded or an array) as a CSC matrix."""
+    return hess.to_sparse_upper() if isinstance(hess, Banded) else sparse.csc_matrix(np.triu(hess))
 
 
 def _proxqp(h, g, rows, lower, upper):
     """ProxQP on min 1/2 y^T h y + g^T y s.t. lower <= rows y <= upper (capped at 300 iterations).
 
-    Its sparse backend on large QPs (:data:`planners.optimisation.active_set.BANDED_MIN_SIZE` variables or more: a long
-    mission's H is banded and each row touches one or two segments, a few per cent of the entries);
-    the dense one on small ones, where it is as fast (and gives the results the planner's figures were
-    measured with).
+    Its sparse backend when h is a sparse matrix (its upper triangle: a long mission's H is banded and each
+    row touches one or two segments, a few per cent of the entries), the dense one for arrays.
     """
-    if h.shape[0] < BANDED_MIN_SIZE:
+    if not sparse.issparse(h):
         rows = rows.toarray() if sparse.issparse(rows) else rows
         return proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
-    return proxsuite.proxqp.sparse.solve(sparse.csc_matrix(np.triu(h)), g, None, None, sparse.csc_matrix(rows),
+    return proxsuite.proxqp.sparse.solve(sparse.csc_matrix(h), g, None, None, sparse.csc_matrix(rows),
                                          lower, upper, eps_abs=1e-9, max_iter=300)
 
 
 def _shift(hess) -> float:
     """1e-9 mean(diag H) (at least 1e-21): what the step QP adds to H's diagonal to make it positive definite."""
-    return 1e-9 * max(np.trace(hess) / hess.shape[0], 1e-12)
+    trace = hess.trace() if isinstance(hess, Banded) else np.trace(hess)
+    return 1e-9 * max(trace / hess.shape[0], 1e-12)
 
 
 def _regularised(hess):
@@ -490,6 +519,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     kkt = multipliers = xi = None
     composite = False
     known = None  # the evaluation with derivatives at x, when one is at hand (x unchanged, or a trial's)
+    active_set = None  # the active set of the last step QP solved exactly (bounds and rows)
     trial_derivatives = opt.trial_derivatives
     for it in range(1, opt.max_iterations + 1):
         if known is None:
@@ -499,7 +529,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
         composite = opt.curvature == "composite" and getattr(ev, "power", None) is not None
         hessian = None
         if opt.curvature == "composite":
-            base = ev.rate_hessian if composite else ev.hessian
+            base = np.asarray(ev.rate_hessian if composite else ev.hessian)
             model = _floored(base + (correction if correction is not None else 0.0))
             if pending is not None:
                 step, before, lam, xi = pending
@@ -511,11 +541,12 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
 
         def solve_qp(rho, ev=ev, hessian=hessian, composite=composite, radius=radius):
             if composite:
-                return _composite_qp_step(ev, radius, rho, hessian)
-            return (*_qp_step(ev, radius, rho, hessian), None)
+                return (*_composite_qp_step(ev, radius, rho, hessian), None)
+            d, predicted, linear, multipliers, active = _qp_step(ev, radius, rho, hessian, start=active_set)
+            return d, predicted, linear, multipliers, None, active
 
         merit = ev.J + penalty * _violation(ev.constraints)
-        d, predicted, linear, multipliers, xi = solve_qp(penalty)
+        d, predicted, linear, multipliers, xi, active = solve_qp(penalty)
         # the l1 merit is exact only with rho above the multipliers; and while the linearised constraints
         # cannot be met, weigh feasibility more
         top = float(multipliers.max()) if multipliers.size else 0.0
@@ -523,7 +554,8 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
         if wanted > penalty and penalty < 1e6:
             penalty = min(wanted, 1e6)
             merit = ev.J + penalty * _violation(ev.constraints)
-            d, predicted, linear, multipliers, xi = solve_qp(penalty)
+            d, predicted, linear, multipliers, xi, active = solve_qp(penalty)
+        active_set = active if active is not None else active_set  # where the next step QP starts
         objective_gradient = _model_gradient(ev, xi, composite)
         kkt = kkt_residual(objective_gradient, ev.constraints, _jacobian(ev), multipliers)
         if opt.stop == "kkt" and kkt.residual <= opt.kkt_tolerance and ev.violation <= opt.feasibility:

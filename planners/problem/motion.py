@@ -46,6 +46,7 @@ from scipy import sparse
 from fpr.model import jets
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
+from planners.problem.banded import Banded
 from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
 from planners.problem.sensitivities import by_complex_step, by_dual_numbers
 
@@ -58,10 +59,6 @@ POWER_CURVATURE_FLOOR = 1e-2  # [W]
 # between grid nodes (a rotor-speed peak a few milliseconds off a node) stays within the limits:
 # 1e-3 is 1 mm, 1 mrad, or about 0.4 rad/s at the rotor-speed limit.
 CONSTRAINT_BACKOFF = 1e-3
-#: From this many variables on, an evaluation also gives its constraints' Jacobian as a sparse matrix
-#: (``Evaluation.jacobian_sparse``): each row touches one segment's two points, and the SQP's per-row
-#: work on the dense array grows as the square of the mission's length.
-SPARSE_FROM = 200
 
 
 @dataclass(frozen=True)
@@ -233,19 +230,22 @@ class Evaluation:
         gradient: dJ/dx, shape (n_x,), or None.
         jacobian: d constraints / dx, shape (n_windows * R, n_x), or None (a property: the array given
             as ``dense_jacobian``, or made from ``jacobian_sparse`` on first use when only that was given).
-        hessian: Gauss-Newton approximation of d^2 J / dx^2 (positive semi-definite), or None.
+        hessian: Gauss-Newton approximation of d^2 J / dx^2 (positive semi-definite), or None; a
+            :class:`~planners.problem.banded.Banded` matrix from :class:`MotionProblem` (``numpy.asarray`` makes
+            the array), an array from other problems.
         power, power_weight, power_jacobian: the drone powers P_k = F_i . r_i' at every node (K = N n_d,
             [W]), their weights a_e w_k in J (J = sum_k a_e w_k |P_k|_eps + a_phi J_phi) and their
             derivatives (K, n_x): the SQP models the sum of |P_k| piecewise linearly (or None;
             ``power_jacobian`` is a property like ``jacobian``: ``dense_power_jacobian`` or made from
             ``power_jacobian_sparse``).
-        rate_hessian: the Gauss-Newton matrix of the a_phi J_phi part alone (or None).
-        jacobian_sparse: ``jacobian`` as a scipy CSR matrix (same numbers), for problems of
-            :data:`SPARSE_FROM` variables or more (else None). :class:`MotionProblem` gives those problems
-            the CSR matrix alone (the SQP's default route works on it; a dense copy of a long mission's
-            thousands of rows cost more than the rest of the derivatives' assembly), and ``jacobian`` makes
-            the dense array when asked for.
-        power_jacobian_sparse: ``power_jacobian`` likewise (CSR from :data:`SPARSE_FROM` variables, else None).
+        rate_hessian: the Gauss-Newton matrix of the a_phi J_phi part alone (or None; banded like ``hessian``).
+        jacobian_sparse: ``jacobian`` as a scipy CSR matrix (same numbers), or None. :class:`MotionProblem`
+            gives the CSR matrix alone (each row touches one segment's two points: the SQP's route works on it,
+            with work linear in the mission's length), and ``jacobian`` makes the dense array when asked for.
+        power_jacobian_sparse: ``power_jacobian`` likewise (CSR, or None).
+        power_gram: ``power_gram(w)`` = sum_k w_k grad P_k grad P_k^T (w (K,) >= 0), the Gauss-Newton sum of the
+            powers with the weights given, assembled segment by segment as ``hessian`` is (or None: then
+            :mod:`planners.optimisation.curvature` forms it from ``power_jacobian``).
     """
 
     J: float
@@ -260,6 +260,7 @@ class Evaluation:
     rate_hessian: np.ndarray | None = None
     jacobian_sparse: object | None = None
     power_jacobian_sparse: object | None = None
+    power_gram: object | None = None
 
     @property
     def jacobian(self) -> np.ndarray | None:
@@ -561,9 +562,12 @@ class MotionProblem:
                 rate_hess = self._assemble((2 * a_phi * self.weights)[:, None] * np.ones(rate_local.shape[1]),
                                            rate_local)
                 # the powers' derivatives with respect to x: (N n_d, n_x)
-                p_jac, p_sparse = self._scatter(np.repeat(index, n_d, axis=0),
-                                                local[:, :n_d].reshape(n_s * n_d, -1), True)
+                power_local = local[:, :n_d]
+                p_sparse = self._scatter(np.repeat(index, n_d, axis=0), power_local.reshape(n_s * n_d, -1))
                 p_weight = np.repeat(a_e * self.weights, n_d)
+
+                def power_gram(weight, power_local=power_local):
+                    return self._assemble(np.asarray(weight, dtype=float).reshape(n_s, n_d), power_local)
         n_d = raw.shape[1] // 2
         terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
@@ -584,13 +588,13 @@ class MotionProblem:
             local = _chain_basis(sens_rows[sample, column][:, None], self._basis_by_node[sample])[:, 0]
             width = 2 * N_DERIVS * n  # the entries of a segment's two points, in the points' flat order
             entries = self.segment[sample][:, None] * (N_DERIVS * n) + np.arange(width)
-            jac, jac_sparse = self._scatter(entries, local.reshape(sample.size, width), True)
+            jac_sparse = self._scatter(entries, local.reshape(sample.size, width))
         if not derivatives:
             return Evaluation(value, terms, constraints)
         if not self.power_model:
-            return Evaluation(value, terms, constraints, grad, jac, hess, jacobian_sparse=jac_sparse)
-        return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess,
-                          jac_sparse, p_sparse)
+            return Evaluation(value, terms, constraints, grad, None, hess, jacobian_sparse=jac_sparse)
+        return Evaluation(value, terms, constraints, grad, None, hess, power.reshape(-1), p_weight, None, rate_hess,
+                          jac_sparse, p_sparse, power_gram)
 
     def _node_derivatives(self, points, motion):
         """Every node's quantities and their sensitivities to its motion jet (:attr:`derivatives`, module docstring):
@@ -628,46 +632,36 @@ class MotionProblem:
         return self.derivatives == "dual" or (motion.shape[0] * motion.shape[2] >= directions
                                               and motion.shape[1] >= nodes)
 
-    def _scatter(self, entries, values, with_sparse: bool = False):
+    def _scatter(self, entries, values) -> sparse.csr_matrix:
         """The (rows, n_x) derivatives with respect to x of rows whose derivatives with respect to the
-        points' flat entries ``entries`` (rows, w) are ``values`` (rows, w): the free entries, scaled.
-
-        The same numbers as filling a (rows, points.size) array and taking its free columns, without that
-        array (each row touches one segment's two points: a long mission's would be mostly zeros). With
-        ``with_sparse``: (that array, None) below :data:`SPARSE_FROM` variables, else (None, the same numbers
-        as a CSR matrix): a long mission's dense array is not made (:class:`Evaluation` makes it when asked).
+        points' flat entries ``entries`` (rows, w) are ``values`` (rows, w): the free entries, scaled, as a CSR
+        matrix (each row touches one segment's two points: its dense array would be mostly zeros).
         """
         cols = self._column[entries]
         hit = cols >= 0
         row, col = np.nonzero(hit)
         col = cols[row, col]
         value = values[hit] * self.scale[col]
-        shape = (entries.shape[0], self.n_x)
-        if with_sparse and self.n_x >= SPARSE_FROM:
-            # row by row, columns increasing (a row's entries are its segment's, in the points' order): the
-            # CSR arrays directly, without scipy's conversion from coordinates
-            indptr = np.concatenate([[0], np.cumsum(hit.sum(axis=1))])
-            return None, sparse.csr_matrix((value, col, indptr), shape=shape)
-        out = np.zeros(shape)
-        out[row, col] = value
-        return (out, None) if with_sparse else out
+        # row by row, columns increasing (a row's entries are its segment's, in the points' order): the CSR
+        # arrays directly, without scipy's conversion from coordinates
+        indptr = np.concatenate([[0], np.cumsum(hit.sum(axis=1))])
+        return sparse.csr_matrix((value, col, indptr), shape=(entries.shape[0], self.n_x))
 
-    def _assemble(self, curvature, local) -> np.ndarray:
+    def _assemble(self, curvature, local) -> Banded:
         """Sum over nodes i and quantities q of c_iq grad q_i grad q_i^T, for the free entries in x's scaling.
 
         ``curvature`` c (N, Q) >= 0 and ``local`` (N, Q, 10 n): the derivatives of node i's quantities
         with respect to the entries of the two points of its segment. A segment's nodes share those
         entries: each segment's block is one product (its nodes' rows weighted by sqrt(c)), added at
-        its two points.
+        its two points into the band (:class:`~planners.problem.banded.Banded`: x holds the points in order,
+        so the sum couples neighbouring points only).
         """
         m = self.durations.size
         width = local.shape[-1]
         rows = (np.sqrt(curvature)[..., None] * local).reshape(m, -1, width)
         blocks = np.matmul(rows.transpose(0, 2, 1), rows)  # (m, 10 n, 10 n)
-        # each block's entries added at their x indices (fixed entries dropped): one bincount
-        hit, flat, scales = self._assembly_pattern
-        h = np.bincount(flat, blocks[hit], minlength=self.n_x * self.n_x).reshape(self.n_x, self.n_x)
-        return h * scales
+        hit, flat, scales, bandwidth = self._assembly_pattern
+        return Banded.scatter(blocks[hit] * scales, flat, self.n_x, bandwidth)
 
     @functools.cached_property
     def _basis_by_node(self) -> np.ndarray:
@@ -676,14 +670,18 @@ class MotionProblem:
         return np.ascontiguousarray(b.transpose(1, 0, 2, 3).reshape(b.shape[1], b.shape[0], -1))
 
     @functools.cached_property
-    def _assembly_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _assembly_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
         """What :meth:`_assemble` scatters by, the same at every evaluation: the entries of the segments'
-        blocks that are free in both indices (m, 10 n, 10 n), their flat index in the (n_x, n_x) matrix, and
-        the variables' scales' outer product (n_x, n_x)."""
+        blocks (m, 10 n, 10 n) that are free in both indices and on or above the diagonal, their flat index in
+        the band, their scales' products, and the band's width (the largest x-index distance of two entries of
+        one segment)."""
         cols = self._segment_columns  # (m, 10 n), -1 where fixed
-        hit = (cols[:, :, None] >= 0) & (cols[:, None, :] >= 0)
-        flat = (cols[:, :, None] * self.n_x + cols[:, None, :])[hit]
-        return hit, flat, np.outer(self.scale, self.scale)
+        both = (cols[:, :, None] >= 0) & (cols[:, None, :] >= 0)
+        bandwidth = int(np.max(np.abs(cols[:, :, None] - cols[:, None, :])[both], initial=0))
+        hit = both & (cols[:, :, None] <= cols[:, None, :])
+        rows, columns = np.broadcast_to(cols[:, :, None], hit.shape)[hit], np.broadcast_to(cols[:, None, :], hit.shape)[hit]
+        flat = Banded.flat_index(rows, columns, self.n_x, bandwidth)
+        return hit, flat, self.scale[rows] * self.scale[columns], bandwidth
 
     @functools.cached_property
     def _segment_columns(self) -> np.ndarray:
