@@ -62,6 +62,7 @@ timings were set with): an accepted step that decreases the merit by less than `
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass
 
@@ -78,6 +79,7 @@ from planners.problem.motion import POWER_SMOOTHING
 
 # the portable build: its results do not depend on memory alignment (fpr.model.qp): plans repeat bit for bit
 proxsuite = proxsuite_module()
+logger = logging.getLogger(__name__)
 
 
 #: The curvature models of :class:`SqpOptions` (see the module docstring).
@@ -265,10 +267,7 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet |
     hess = ev.hessian if hessian is None else hessian
     n = ev.gradient.size
     c, a = ev.constraints, _jacobian(ev)
-    if sparse.issparse(a):
-        keep = np.flatnonzero(c - abs(a).sum(axis=1).A1 * radius <= 0.0)
-    else:
-        keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
+    keep = np.flatnonzero(c - np.asarray(abs(a).sum(axis=1)).ravel() * radius <= 0.0)
     a_keep = a[keep]
     norms = row_norms(a_keep)
     c_k, a_k = c[keep] / norms, _rows_divided(a_keep, norms)
@@ -584,6 +583,8 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                     ratio = actual / predicted
         accepted = ratio > 0.1
         step_size = float(np.abs(d).max())  # the trust-region step's, before any extrapolation past it
+        logger.debug("%s iteration %d: radius %.3g, step %.3g, predicted %.3g, ratio %.3g, J %.6g, violation %.2g",
+                     name, it, radius, step_size, predicted, ratio, trial.J, trial.violation)
         if accepted and opt.extrapolate and ratio > 1.25:
             # the model was pessimistic along d (J_e is close to linear there): try 2 d, then 4 d
             for _ in range(2):

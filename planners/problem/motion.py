@@ -36,17 +36,16 @@ reported J_e uses the exact absolute value.
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
 
-from fpr.model import jets
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from planners.problem.banded import Banded
+from planners.problem.evaluation import Evaluation, NodeDerivatives, cached_evaluation
 from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
 from planners.problem.sensitivities import by_complex_step, by_dual_numbers
 
@@ -96,6 +95,10 @@ CONSTRAINT_KINDS = {
     "thrust_low": ("N", "thrust f_i >= f_min: the controller steers the thrust's direction, which a small "
                         "thrust makes ill-conditioned (singularity crossings, planners.crossing.solve)"),
 }
+
+
+#: The constraint kinds of the robot's workspace margins (a function of the motion's positions alone).
+WORKSPACE_KINDS = ("ground", "fixed_point", "phi", "q21", "q1", "q2", "crossing")
 
 
 def constraint_kind(name: str) -> str:
@@ -162,6 +165,43 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
     return np.stack(cols, axis=-1), names, details
 
 
+def between_node_minima(rows, per_segment: int, skip: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Each node's row values lowered to where they dip between the grid nodes, and where (in node spacings).
+
+    A row (a constraint margin along the motion) may dip between two nodes below both: the rotor speeds of a
+    fast travel peak a few milliseconds off a node. The parabola through a node's and its two neighbours'
+    values (equally spaced, one segment) has its vertex at tau = -a1 / a2 spacings from the node
+    (a1 = (c+ - c-) / 2, a2 = c- - 2 c + c+); where it curves upwards (a2 > 0) and its vertex is nearer this
+    node than the neighbours (|tau| <= 1/2; up to 1 for the segment's second and second-last node, which
+    cover the intervals at its ends), the node's value becomes the vertex's, c + a1 tau + a2 tau^2 / 2. The
+    estimate is exact for quadratics, derived from the nodes alone; the rows' derivatives follow by the
+    Lagrange weights at tau (:meth:`MotionProblem._row_derivatives`).
+
+    Args:
+        rows: the rows at the nodes, (m * per_segment, R), segment by segment.
+        per_segment: nodes per segment (>= 3).
+        skip: how many of the first columns are left as they are (rows with their own between-node rule).
+
+    Returns:
+        (the rows lowered (m * per_segment, R), tau (m * per_segment, R), 0 where not lowered).
+    """
+    n, r = rows.shape
+    c = rows.reshape(-1, per_segment, r)
+    before, node, after = c[:, :-2], c[:, 1:-1], c[:, 2:]
+    a1, a2 = 0.5 * (after - before), before - 2.0 * node + after
+    reach = np.full((per_segment - 2, 1), 0.5)
+    low, high = -reach.copy(), reach.copy()
+    low[0], high[-1] = -1.0, 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = np.where(a2 > 0.0, -a1 / np.where(a2 > 0.0, a2, 1.0), 0.0)
+    tau = np.where((tau >= low) & (tau <= high), tau, 0.0)
+    tau[..., :skip] = 0.0
+    out, where = c.copy(), np.zeros_like(c)
+    out[:, 1:-1] = node + tau * (a1 + 0.5 * a2 * tau)
+    where[:, 1:-1] = tau
+    return out.reshape(n, r), where.reshape(n, r)
+
+
 def _chain_basis(sensitivities, basis_by_node) -> np.ndarray:
     """d q / d (the entries of a node's segment's two points) from d q / d (the node's motion jet).
 
@@ -217,139 +257,6 @@ def simpson_weights(count: int, duration: float) -> np.ndarray:
     w = np.ones(count)
     w[1:-1:2], w[2:-1:2] = 4.0, 2.0
     return w * duration / (3.0 * (count - 1))
-
-
-@dataclass(frozen=True)
-class Evaluation:
-    """Objective and constraints of one motion on the optimisation grid.
-
-    Attributes:
-        J: weighted, normalised objective (3.26).
-        terms: [J_e, J_phi] on the grid (J_e with the smoothed |.|) [J, rad^2/s].
-        constraints: windowed minima of the scaled constraint rows, shape (n_windows * R,).
-        gradient: dJ/dx, shape (n_x,), or None.
-        jacobian: d constraints / dx, shape (n_windows * R, n_x), or None (a property: the array given
-            as ``dense_jacobian``, or made from ``jacobian_sparse`` on first use when only that was given).
-        hessian: Gauss-Newton approximation of d^2 J / dx^2 (positive semi-definite), or None; a
-            :class:`~planners.problem.banded.Banded` matrix from :class:`MotionProblem` (``numpy.asarray`` makes
-            the array), an array from other problems.
-        power, power_weight, power_jacobian: the drone powers P_k = F_i . r_i' at every node (K = N n_d,
-            [W]), their weights a_e w_k in J (J = sum_k a_e w_k |P_k|_eps + a_phi J_phi) and their
-            derivatives (K, n_x): the SQP models the sum of |P_k| piecewise linearly (or None;
-            ``power_jacobian`` is a property like ``jacobian``: ``dense_power_jacobian`` or made from
-            ``power_jacobian_sparse``).
-        rate_hessian: the Gauss-Newton matrix of the a_phi J_phi part alone (or None; banded like ``hessian``).
-        jacobian_sparse: ``jacobian`` as a scipy CSR matrix (same numbers), or None. :class:`MotionProblem`
-            gives the CSR matrix alone (each row touches one segment's two points: the SQP's route works on it,
-            with work linear in the mission's length), and ``jacobian`` makes the dense array when asked for.
-        power_jacobian_sparse: ``power_jacobian`` likewise (CSR, or None).
-        power_gram: ``power_gram(w)`` = sum_k w_k grad P_k grad P_k^T (w (K,) >= 0), the Gauss-Newton sum of the
-            powers with the weights given, assembled segment by segment as ``hessian`` is (or None: then
-            :mod:`planners.optimisation.curvature` forms it from ``power_jacobian``).
-    """
-
-    J: float
-    terms: np.ndarray
-    constraints: np.ndarray
-    gradient: np.ndarray | None = None
-    dense_jacobian: np.ndarray | None = None
-    hessian: np.ndarray | None = None
-    power: np.ndarray | None = None
-    power_weight: np.ndarray | None = None
-    dense_power_jacobian: np.ndarray | None = None
-    rate_hessian: np.ndarray | None = None
-    jacobian_sparse: object | None = None
-    power_jacobian_sparse: object | None = None
-    power_gram: object | None = None
-
-    @property
-    def jacobian(self) -> np.ndarray | None:
-        """d constraints / dx as an array (from ``jacobian_sparse`` on first use when only that was given)."""
-        return self._dense("dense_jacobian", "jacobian_sparse")
-
-    @property
-    def power_jacobian(self) -> np.ndarray | None:
-        """d P_k / dx as an array (from ``power_jacobian_sparse`` on first use when only that was given)."""
-        return self._dense("dense_power_jacobian", "power_jacobian_sparse")
-
-    def _dense(self, name: str, sparse_name: str):
-        dense = getattr(self, name)
-        if dense is None and getattr(self, sparse_name) is not None:
-            dense = getattr(self, sparse_name).toarray()
-            object.__setattr__(self, name, dense)  # kept: the same array on every access
-        return dense
-
-    @property
-    def violation(self) -> float:
-        """Largest constraint violation (0 when every constraint holds) [scaled units]."""
-        return float(max(0.0, -self.constraints.min()))
-
-
-def cached_evaluation(evaluate):
-    """Keep the last result of an NLP's ``evaluate(self, x, derivatives=False) -> Evaluation``.
-
-    The solvers ask for J, the constraints and their derivatives at one x in separate calls: the
-    decorated method computes once per x (a result with derivatives also serves a call without
-    them). The last result is kept in ``self._cache``; x reaches ``evaluate`` as a float array.
-    """
-    @functools.wraps(evaluate)
-    def cached(self, x, derivatives: bool = False) -> Evaluation:
-        x = np.asarray(x, dtype=float)
-        key = x.tobytes()
-        last = getattr(self, "_cache", None)
-        if last is not None and last[0] == key and (last[1] or not derivatives):
-            return last[2]
-        result = evaluate(self, x, derivatives)
-        self._cache = (key, derivatives, result)
-        return result
-
-    return cached
-
-
-class NodeDerivatives:
-    """The grid nodes' quantities and their complex-step sensitivities, segment by segment, of the last
-    evaluation with derivatives of each :class:`MotionProblem` given this store
-    (:meth:`MotionProblem.share_node_derivatives`), for the problems of one plan to share
-    (:mod:`planners.methods.two_step`: one store per attempt, its travels and its polish).
-
-    A node's quantities and their derivatives with respect to its motion jet depend on its segment's two
-    points, its duration and the grid alone, not on the problem (its free entries, scaling, weights): a
-    problem whose every segment is one that another problem's last evaluation with derivatives had (the
-    2-step polish starts where the travels of step 2 ended, :mod:`planners.methods.two_step`) takes their
-    numbers instead of computing them again. Points match when each entry is within 4 ulp of the stored one
-    (a way through x and back, ``points_of(x_of(p))``, may change the last bit).
-    """
-
-    def __init__(self):
-        self._segments: dict = {}  # (samples per segment, duration's bytes) -> [(owner, points (2, 5, n), data)]
-        self._owned: dict = {}  # owner -> its keys in _segments
-        self._owners = itertools.count()
-
-    def owner(self) -> int:
-        """A new owner's number (a problem's; not its id(), which a later problem may get again)."""
-        return next(self._owners)
-
-    def put(self, owner: int, points, durations, k: int, data: list) -> None:
-        """Keep ``owner``'s evaluation (``data[i]`` for segment i), replacing its earlier one."""
-        for key in self._owned.pop(owner, ()):
-            self._segments[key] = [e for e in self._segments[key] if e[0] != owner]
-        keys = [(k, d.tobytes()) for d in durations]
-        for i, key in enumerate(keys):
-            self._segments.setdefault(key, []).append((owner, points[i:i + 2], data[i]))
-        self._owned[owner] = set(keys)
-
-    def get(self, points, durations, k: int) -> list | None:
-        """The data of every segment of a motion (``points``, ``durations``, ``k`` nodes per segment), or
-        None when one of them is not in the store."""
-        found = []
-        for i, d in enumerate(durations):
-            ends = points[i:i + 2]
-            hit = next((data for _, stored, data in self._segments.get((k, d.tobytes()), ())
-                        if np.all(np.abs(stored - ends) <= 4 * np.finfo(float).eps * np.abs(ends))), None)
-            if hit is None:
-                return None
-            found.append(hit)
-        return found
 
 
 class MotionProblem:
@@ -480,6 +387,16 @@ class MotionProblem:
         overrides (:class:`planners.problem.disturbance.DisturbedProblem`); here the free flight."""
         return inverse_dynamics(self.robot, motion)
 
+    @property
+    def _half_step_columns(self) -> int:
+        """How many of the rows' first columns (the workspace margins) hold their value half a spacing after
+        each node already (:meth:`_between_nodes`; none for a crossing)."""
+        if self.crossing_sign is not None:
+            return 0
+        if self._rows_names is None:
+            self.evaluate(self.x_of(self.points))
+        return sum(1 for name in self._rows_names if constraint_kind(name) in WORKSPACE_KINDS)
+
     def _quantities(self, motion):
         """Raw per-drone integrand pieces (N, 2 n_d): [F_i . r_i' ..., phi_i' ...], and the rows."""
         inputs = self._inputs(motion)
@@ -571,6 +488,7 @@ class MotionProblem:
         n_d = raw.shape[1] // 2
         terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
+        rows, tau = between_node_minima(rows, self.samples_per_segment, self._half_step_columns)
         if self._window_index is not None:  # every window at once: the first node of each window's minimum
             arg = self._window_index[:, 0, None] + np.argmin(rows[self._window_index], axis=1)  # (W, R)
             constraints = np.take_along_axis(rows, arg, axis=0).reshape(-1) - CONSTRAINT_BACKOFF
@@ -585,16 +503,32 @@ class MotionProblem:
         if derivatives:
             sample = np.concatenate(picks)  # (W R,)
             column = np.tile(np.arange(rows.shape[1]), len(self.windows))
-            local = _chain_basis(sens_rows[sample, column][:, None], self._basis_by_node[sample])[:, 0]
+            row_local = self._row_derivatives(sens_rows, sample, column, tau[sample, column])
             width = 2 * N_DERIVS * n  # the entries of a segment's two points, in the points' flat order
             entries = self.segment[sample][:, None] * (N_DERIVS * n) + np.arange(width)
-            jac_sparse = self._scatter(entries, local.reshape(sample.size, width))
+            jac_sparse = self._scatter(entries, row_local.reshape(sample.size, width))
         if not derivatives:
             return Evaluation(value, terms, constraints)
         if not self.power_model:
             return Evaluation(value, terms, constraints, grad, None, hess, jacobian_sparse=jac_sparse)
         return Evaluation(value, terms, constraints, grad, None, hess, power.reshape(-1), p_weight, None, rate_hess,
                           jac_sparse, p_sparse, power_gram)
+
+    def _row_derivatives(self, sens_rows, sample, column, tau) -> np.ndarray:
+        """d (row ``column`` at node ``sample``, its value between nodes :func:`between_node_minima`) / d (the
+        entries of the node's segment's two points), (K, 2 * 5 * n): the Lagrange weights at tau of the node's
+        and its neighbours' derivatives (the value is the interpolating parabola's, the weights its
+        derivatives with respect to the three nodes' values)."""
+        basis = self._basis_by_node
+        local = _chain_basis(sens_rows[sample, column][:, None], basis[sample])[:, 0]
+        bent = np.flatnonzero(tau)
+        if bent.size:
+            t = tau[bent].reshape((-1,) + (1,) * (local.ndim - 1))
+            local[bent] *= 1.0 - t * t
+            for offset, weight in ((-1, 0.5 * t * (t - 1.0)), (1, 0.5 * t * (t + 1.0))):
+                node = sample[bent] + offset  # the same segment: tau is 0 at a segment's first and last node
+                local[bent] += weight * _chain_basis(sens_rows[node, column[bent]][:, None], basis[node])[:, 0]
+        return local
 
     def _node_derivatives(self, points, motion):
         """Every node's quantities and their sensitivities to its motion jet (:attr:`derivatives`, module docstring):
