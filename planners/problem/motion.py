@@ -14,13 +14,11 @@ everything the planner looks at is a function of the motion at that instant only
 The per-sample quantities come from :func:`fpr.model.inverse_dynamics.inverse_dynamics` (planning model:
 point-mass drones for the thrusts and rolls, the exact rigid drones for the torques). Their
 partial derivatives with respect to the 5 n entries of the local motion jet are exact, by forward-mode dual
-numbers (:mod:`fpr.model.dual`, the value once and 5 n real tangents) or by *complex-step differentiation*
-(the reference, :attr:`MotionProblem.derivatives`): every function on that path is analytic and carries a
-complex perturbation, so Im(f(X + i h e)) / h is the derivative to machine precision (h = 1e-30). The chain
-rule through W then gives exact gradients with respect to P. The complex step's 5 n copies of all samples
-go through one batched call; their real parts are equal, so the 4 x 4 inverses and solves and the sines and
-cosines are computed once per node (:func:`fpr.model.jets.complex_step_copies`). Problems of one plan can
-share their nodes' derivatives (:class:`NodeDerivatives`: the 2-step polish starts where its travels ended).
+numbers (:mod:`fpr.model.dual`: the value once and the 5 n directions as real tangents, each quantity carrying
+only the directions it depends on). The chain rule through W then gives exact gradients with respect to P. The
+complex step (Im(f(X + i h e)) / h, h = 1e-30: every function on that path is analytic) is the independent
+reference the tests hold them to (:attr:`MotionProblem.derivatives`). Problems of one plan can share their nodes'
+derivatives (:class:`NodeDerivatives`: the 2-step polish starts where its travels ended).
 
 Integrals use Simpson's rule on K equally spaced nodes per segment (the optimisation grid).
 Constraints are enforced on the same nodes, aggregated as the minimum over short windows
@@ -49,9 +47,10 @@ from planners.problem.evaluation import Evaluation, NodeDerivatives, cached_eval
 from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
 from planners.problem.sensitivities import by_complex_step, by_dual_numbers
 
+#: The step h of the complex step (:attr:`MotionProblem.derivatives` "complex", the reference).
 COMPLEX_STEP = 1e-30
-#: (directions, nodes) from which :attr:`MotionProblem.derivatives` "auto" takes dual numbers.
-DUAL_FROM = (20, 60)
+#: The settings of :attr:`MotionProblem.derivatives`.
+DERIVATIVES = ("dual", "complex")
 POWER_SMOOTHING = 1e-2  # [W]
 POWER_CURVATURE_FLOOR = 1e-2  # [W]
 # The optimiser asks every (scaled) margin to be at least this on its grid, so that what happens
@@ -284,11 +283,12 @@ class MotionProblem:
     """
 
     #: How :meth:`_node_derivatives` differentiates: "dual" (forward-mode dual numbers, :mod:`fpr.model.dual`:
-    #: the value once, the directions as real tangents), "complex" (the complex step, the reference) or
-    #: "auto": dual numbers from :data:`DUAL_FROM` (directions, nodes) on, the complex step below. The dual
-    #: pass costs less per node and more per evaluation (measured on the FPR: faster at 68 nodes, not yet at
-    #: 34; on the prototype, 10 directions, at par from about 240 nodes; README, "The inverse dynamics' cost").
-    derivatives = "auto"
+    #: the value once, the directions as real tangents; every plan) or "complex" (the complex step, the
+    #: independent reference the tests hold the dual numbers to). Measured on seeded families of random missions
+    #: of both robots (32 way points, whole plans), the complex step paid nowhere: dual numbers were as fast on the
+    #: single travels of step 2 (tens of nodes) and faster on the whole missions (0.6x per evaluation of the FPR's,
+    #: 0.85x of the prototype's).
+    derivatives = "dual"
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,
                  samples_per_segment: int = 17, windows_per_segment: int = 4, crossing: int | None = None,
@@ -554,17 +554,12 @@ class MotionProblem:
         return raw, rows, sens_raw, sens_rows
 
     def _dual_derivatives(self, motion) -> bool:
-        """Whether :meth:`_node_derivatives` takes dual numbers (:attr:`derivatives`) at this motion: not for
-        a complex motion (a caller's own complex step through the problem) nor a singularity crossing (the
-        prototype's 5th and 6th derivatives: complex step, the reference)."""
-        if self.derivatives not in ("auto", "dual", "complex"):
+        """Whether :meth:`_node_derivatives` takes dual numbers (:attr:`derivatives`) at this motion: not with
+        "complex", nor for a complex motion (a caller's own complex step through the problem)."""
+        if self.derivatives not in DERIVATIVES:
             raise PlannerArgumentError("derivatives", self.derivatives, f"derivatives = {self.derivatives!r}: "
-                                       "give 'auto', 'dual' or 'complex'")
-        if self.derivatives == "complex" or self.crossing_sign is not None or np.iscomplexobj(motion):
-            return False
-        directions, nodes = DUAL_FROM
-        return self.derivatives == "dual" or (motion.shape[0] * motion.shape[2] >= directions
-                                              and motion.shape[1] >= nodes)
+                                       f"give {' or '.join(map(repr, DERIVATIVES))}")
+        return self.derivatives == "dual" and not np.iscomplexobj(motion)
 
     def _scatter(self, entries, values) -> sparse.csr_matrix:
         """The (rows, n_x) derivatives with respect to x of rows whose derivatives with respect to the
