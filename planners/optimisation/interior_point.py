@@ -47,10 +47,7 @@ class _RowGroups:
         rows = sparse.csr_matrix(rows)
         rows.sort_indices()
         starts, lengths = rows.indptr[:-1], np.diff(rows.indptr)
-        keys: dict[bytes, list[int]] = {}
-        for k in range(rows.shape[0]):
-            keys.setdefault(rows.indices[starts[k]:starts[k] + lengths[k]].tobytes(), []).append(k)
-        groups = [(np.frombuffer(key, dtype=rows.indices.dtype), members) for key, members in keys.items()]
+        groups = self._groups(rows, starts, lengths)
         self.width = max((cols.size for cols, _ in groups), default=0)
         self.height = max((len(members) for _, members in groups), default=0)
         size = len(groups)
@@ -60,13 +57,42 @@ class _RowGroups:
         for i, (cols, members) in enumerate(groups):
             self.row_index[i, :len(members)] = members
             self.columns[i, :cols.size] = cols
-            block = rows[members][:, cols].toarray() if cols.size else np.zeros((len(members), 0))
-            self.values[i, :len(members), :cols.size] = block
+            # the members' stored values, in column order (sorted indices): the block itself
+            members = np.asarray(members)
+            self.values[i, :members.size, :cols.size] = rows.data[starts[members][:, None] + np.arange(cols.size)]
         both = (self.columns[:, :, None] >= 0) & (self.columns[:, None, :] >= 0)
         upper = both & (self.columns[:, :, None] <= self.columns[:, None, :])
         self.span = int(np.max((self.columns[:, None, :] - self.columns[:, :, None])[upper], initial=0))
         self.upper = upper
         self.n = n
+
+    @staticmethod
+    def _groups(rows, starts, lengths) -> list[tuple[np.ndarray, list[int]]]:
+        """(columns, rows) of each set of rows with the same columns. Rows are first sorted by (first column,
+        last column, count), then each candidate group is checked entry by entry (a planning NLP's rows of one
+        segment share its columns); a group that fails the check is split row by row."""
+        m = rows.shape[0]
+        if m == 0:
+            return []
+        ends = starts + np.maximum(lengths, 1) - 1
+        first = np.where(lengths > 0, rows.indices[np.minimum(starts, max(rows.indices.size - 1, 0))], -1)
+        last = np.where(lengths > 0, rows.indices[np.minimum(ends, max(rows.indices.size - 1, 0))], -1)
+        key = np.stack([first, last, lengths], axis=1)
+        _, label = np.unique(key, axis=0, return_inverse=True)
+        groups = []
+        for g in range(label.max() + 1):
+            members = np.flatnonzero(label.reshape(-1) == g)
+            count = int(lengths[members[0]])
+            cols = rows.indices[starts[members[:, None]] + np.arange(count)]  # (members, count)
+            same = np.all(cols == cols[:1], axis=1)
+            if same.all():
+                groups.append((cols[0], members.tolist()))
+                continue
+            by_columns: dict[bytes, list[int]] = {}
+            for k, c in zip(members, cols, strict=True):
+                by_columns.setdefault(c.tobytes(), []).append(int(k))
+            groups += [(np.frombuffer(key_, dtype=rows.indices.dtype), ks) for key_, ks in by_columns.items()]
+        return groups
 
     def gram(self, weight: np.ndarray, bandwidth: int) -> np.ndarray:
         """The upper band (bandwidth + 1, n) of sum_k weight_k a_k a_k^T."""
