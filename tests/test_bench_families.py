@@ -11,6 +11,7 @@ import pytest
 
 from fpr.bench.families import FamilyRow, plan_family, unpolished_comparison
 from fpr.bench.missions import MissionFamily
+from fpr.bench.tables import families_markdown, main, scaling_markdown
 from fpr.cli.bench.cli import parser
 from fpr.cli.bench.families import family_seeds, families_table
 from fpr.cli.bench.scaling import EXPONENT_GOAL, _by_robot, _targets, growth_exponent, scaling_table
@@ -99,3 +100,24 @@ def test_families_table_lists_families_robots_and_the_loop(rows):
 def test_bench_has_the_sections():
     assert parser().parse_args(["--section", "scaling", "--quick"]).section == "scaling"
     assert parser().parse_args(["--section", "planning"]).section == "planning"
+
+
+def test_documentation_tables_come_from_the_json(rows, tmp_path, capsys):
+    """The Markdown tables from a bench JSON: the families' rows, the robots' and the loop's; the scaling rows."""
+    robots = [dict(robot="prototype", method=r.method, missions=2, median_s=r.median_s, p95_s=r.p95_s,
+                   max_s=max(r.times_s), failures=0, worse_than_unpolished=0, J_median=0.5) for r in rows]
+    families = dict(way_points=4, seeds_per_robot=2, yardstick=dict(name="pin.crba (FPR)", median_s=1e-6),
+                    rows=[r.summary() for r in rows], robots=robots,
+                    loop={"two-step": dict(mission="loop-4", times_s=[0.1], median_s=0.1, J=0.5, feasible=True)})
+    text = families_markdown(families)
+    assert "| prototype task up | two-step | 2 |" in text and "**prototype, all**" in text and "loop-4" in text
+    scaling = dict(members=2, yardstick=families["yardstick"], load_average_before=[1.0], load_average_after=[1.0],
+                   robots=[dict(robot="fpr", way_points=8, method=m, median_s=0.5, p95_s=0.7, failures=0)
+                           for m in ("two-step", "one-step")],
+                   loop=[dict(way_points=8, method=m, wall_time_s=0.2, feasible=True) for m in ("two-step", "one-step")],
+                   exponents=[dict(robot="fpr", method="two-step", exponent=1.01)])
+    assert "| fpr | 8 | 500 ms (700 ms) | 500 ms (700 ms) | 0 |" in scaling_markdown(scaling)
+    path = tmp_path / "bench.json"
+    path.write_text(json.dumps(dict(planning=dict(families=families), scaling=scaling)))
+    assert main([str(path)]) == 0 and "Growth exponent" in capsys.readouterr().out
+    assert main([str(tmp_path / "missing.json")]) == 2
