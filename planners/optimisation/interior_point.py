@@ -23,6 +23,9 @@ it found active.
 
 from __future__ import annotations
 
+import functools
+from dataclasses import dataclass
+
 import numpy as np
 from scipy import sparse
 from scipy.linalg import cho_factor, cho_solve
@@ -104,7 +107,83 @@ class _RowGroups:
         return np.bincount(flat, blocks[self.upper], minlength=(bandwidth + 1) * self.n).reshape(bandwidth + 1, -1)
 
 
-def solve_interior_point(hess, gradient, rows, lower, radius: float, shift: float = 0.0, caps=None):
+@dataclass
+class _Iterate:
+    """The interior point's variables: d, the rows' slacks s and multipliers z, the elastic rows' violations e and
+    the multipliers y = c - z of e >= 0, the box's slacks t (d + Delta, Delta - d) and their multipliers u."""
+
+    d: np.ndarray
+    s: np.ndarray
+    z: np.ndarray
+    e: np.ndarray
+    y: np.ndarray
+    t_low: np.ndarray
+    t_high: np.ndarray
+    u_low: np.ndarray
+    u_high: np.ndarray
+
+    def complementarity(self) -> float:
+        """s z + e y + t u, summed."""
+        return float(self.s @ self.z + self.e @ self.y + self.t_low @ self.u_low + self.t_high @ self.u_high)
+
+    def moved(self, step: _Iterate, alpha: float, elastic) -> _Iterate:
+        """This point plus alpha times ``step`` (e and y kept 0 off the elastic rows)."""
+        out = _Iterate(*(a + alpha * b for a, b in zip(self.values(), step.values(), strict=True)))
+        out.e, out.y = np.where(elastic, out.e, 0.0), np.where(elastic, out.y, 0.0)
+        return out
+
+    def values(self) -> tuple:
+        return (self.d, self.s, self.z, self.e, self.y, self.t_low, self.t_high, self.u_low, self.u_high)
+
+    def positive_pairs(self, step: _Iterate, elastic) -> list:
+        """(value, change) of every variable that must stay positive."""
+        return [(self.s, step.s), (self.z, step.z), (self.e[elastic], step.e[elastic]),
+                (self.y[elastic], step.y[elastic]), (self.t_low, step.t_low), (self.t_high, step.t_high),
+                (self.u_low, step.u_low), (self.u_high, step.u_high)]
+
+
+def _longest(pairs) -> float:
+    """The largest step in (0, 1] keeping every variable of ``pairs`` (value, change) positive."""
+    step = 1.0
+    for value, change in pairs:
+        falling = change < 0.0
+        if falling.any():
+            step = min(step, float(np.min(-value[falling] / change[falling])))
+    return step
+
+
+def _direction(point: _Iterate, residuals: tuple, weights, solve, rows, elastic, targets) -> _Iterate:
+    """The Newton step of the KKT conditions with complementarity targets ``targets`` = (s z, e y, t_l u_l,
+    t_h u_h): the reduced system for d (module docstring), then every other variable row by row."""
+    r_dual, r_primal, r_elastic, r_low, r_high = residuals
+    row_weight = weights
+    p = point
+    r_sz, r_ey = p.s * p.z - targets[0], p.e * p.y - targets[1]
+    r_l, r_h = p.t_low * p.u_low - targets[2], p.t_high * p.u_high - targets[3]
+    # rows: delta z = D (-r_p - A dd + (r_ey + e r_y) / y - r_sz / z)
+    y_safe = np.where(elastic, p.y, 1.0)
+    row_rhs = -r_primal + np.where(elastic, (r_ey + p.e * r_elastic) / y_safe, 0.0) - r_sz / p.z
+    box_const = (r_l - p.u_low * r_low) / p.t_low + (-r_h + p.u_high * r_high) / p.t_high
+    dd = solve(-r_dual - box_const + rows.T @ (row_weight * row_rhs))
+    dz = row_weight * (row_rhs - rows @ dd)
+    dy = r_elastic - dz
+    de = np.where(elastic, (-r_ey - p.e * dy) / y_safe, 0.0)
+    ds = (-r_sz - p.s * dz) / p.z
+    dt_low, dt_high = dd - r_low, -dd - r_high
+    return _Iterate(dd, ds, dz, de, dy, dt_low, dt_high, (-r_l - p.u_low * dt_low) / p.t_low,
+                    (-r_h - p.u_high * dt_high) / p.t_high)
+
+
+def _converged(residuals: tuple, mu: float, tolerance: float, dual_scale: float, scale: float, size: float) -> bool:
+    """Every residual and the mean complementarity within ``tolerance`` of their scales."""
+    r_dual, r_primal, r_elastic, r_low, r_high = residuals
+    return (np.abs(r_dual).max(initial=0.0) <= tolerance * dual_scale
+            and max(np.abs(r_primal).max(initial=0.0), np.abs(r_low).max(initial=0.0),
+                    np.abs(r_high).max(initial=0.0)) <= tolerance * max(1.0, size)
+            and np.abs(r_elastic).max(initial=0.0) <= tolerance * scale and mu <= tolerance * scale * size)
+
+
+def solve_interior_point(hess, gradient, rows, lower, radius, shift: float = 0.0, caps=None):
     """The QP of the module docstring by Mehrotra's predictor-corrector method, or None when it does not converge.
 
     Args:
@@ -126,121 +205,68 @@ def solve_interior_point(hess, gradient, rows, lower, radius: float, shift: floa
     n, m = g.size, rows.shape[0]
     caps = np.full(m, np.inf) if caps is None else np.asarray(caps, dtype=float)
     elastic = np.isfinite(caps)
+    cap = np.where(elastic, caps, 0.0)
     banded = isinstance(hess, Banded)
     if banded:
         groups = _RowGroups(rows, n)
         bandwidth = max(hess.bandwidth, groups.span)
-        h_band = hess._with_bandwidth(bandwidth) if bandwidth >= hess.bandwidth else hess.band
+        h_band = hess._with_bandwidth(bandwidth)
     else:
         dense_rows = rows.toarray() if sparse.issparse(rows) else np.asarray(rows, dtype=float)
         h_dense = np.asarray(hess, dtype=float)
     scale = max(1.0, float(np.abs(g).max()) if n else 1.0, float(np.max(caps, initial=0.0, where=elastic)))
     # start: d = 0, every slack and multiplier of the order of the problem's scale
-    d = np.zeros(n)
     e = np.where(elastic, np.maximum(b, 0.0) + 1.0, 0.0)
-    s = np.maximum(rows @ d - b + e, 1.0)
-    z = np.where(elastic, 0.5 * np.where(elastic, caps, 0.0), 1.0)
-    y = np.where(elastic, caps - z, 0.0)
-    t_low, t_high = np.full(n, radius), np.full(n, radius)
-    u_low, u_high = np.ones(n), np.ones(n)
+    z = np.where(elastic, 0.5 * cap, 1.0)
+    point = _Iterate(np.zeros(n), np.maximum(-b + e, 1.0), z, e, np.where(elastic, cap - z, 0.0),
+                     np.full(n, float(radius)), np.full(n, float(radius)), np.ones(n), np.ones(n))
     pairs = m + int(elastic.sum()) + 2 * n
+    residuals = mu = dual_scale = None
     for _ in range(MAX_ITERATIONS):
-        hd = (hess @ d) + shift * d
-        pushed = rows.T @ z
-        r_dual = hd + g - pushed - u_low + u_high
-        r_primal = rows @ d - b + e - s
-        r_elastic = np.where(elastic, np.where(elastic, caps, 0.0) - z - y, 0.0)
-        r_low, r_high = t_low - d - radius, t_high + d - radius
-        mu = (s @ z + e @ y + t_low @ u_low + t_high @ u_high) / max(pairs, 1)
+        p = point
+        hd = (hess @ p.d) + shift * p.d
+        pushed = rows.T @ p.z
+        residuals = (hd + g - pushed - p.u_low + p.u_high, rows @ p.d - b + p.e - p.s,
+                     np.where(elastic, cap - p.z - p.y, 0.0), p.t_low - p.d - radius, p.t_high + p.d - radius)
+        mu = p.complementarity() / max(pairs, 1)
         # the dual residual relative to its terms' size (round-off of H d and A^T z), the rest to the problem's
         dual_scale = max(scale, float(np.abs(hd).max(initial=0.0)), float(np.abs(pushed).max(initial=0.0)),
-                         float(np.abs(u_low - u_high).max(initial=0.0)))
-        def converged(tolerance):
-            return (np.abs(r_dual).max(initial=0.0) <= tolerance * dual_scale
-                    and max(np.abs(r_primal).max(initial=0.0), np.abs(r_low).max(initial=0.0),
-                            np.abs(r_high).max(initial=0.0)) <= tolerance * max(1.0, radius)
-                    and np.abs(r_elastic).max(initial=0.0) <= tolerance * scale
-                    and mu <= tolerance * scale * radius)
-
-        if converged(TOLERANCE):
+                         float(np.abs(p.u_low - p.u_high).max(initial=0.0)))
+        if _converged(residuals, mu, TOLERANCE, dual_scale, scale, radius):
             break
         # the barrier terms: rows D = 1 / (s / z + e / y) (a hard row: z / s), box B = u_l / t_l + u_h / t_h
-        row_weight = 1.0 / (s / z + np.where(elastic, e / np.where(elastic, y, 1.0), 0.0))
-        box_weight = u_low / t_low + u_high / t_high
-        if banded:
-            band = h_band + groups.gram(row_weight, bandwidth)
-            band[-1] += shift + box_weight
-            try:
+        row_weight = 1.0 / (p.s / p.z + np.where(elastic, p.e / np.where(elastic, p.y, 1.0), 0.0))
+        box_weight = p.u_low / p.t_low + p.u_high / p.t_high
+        try:
+            if banded:
+                band = h_band + groups.gram(row_weight, bandwidth)
+                band[-1] += shift + box_weight
                 solve = Banded(band).cholesky_solver()
-            except np.linalg.LinAlgError:  # the barrier terms at round-off: stop here if nearly converged
-                if converged(ROUND_OFF * TOLERANCE):
-                    break
-                return None
-        else:
-            matrix = h_dense + dense_rows.T @ (row_weight[:, None] * dense_rows)
-            matrix[np.diag_indices_from(matrix)] += shift + box_weight
-            try:
+            else:
+                matrix = h_dense + dense_rows.T @ (row_weight[:, None] * dense_rows)
+                matrix[np.diag_indices_from(matrix)] += shift + box_weight
                 factor = cho_factor(matrix, check_finite=False)
-            except np.linalg.LinAlgError:
-                if converged(ROUND_OFF * TOLERANCE):
-                    break
-                return None
-
-            def solve(v, factor=factor):
-                return cho_solve(factor, v, check_finite=False)
-
-        def direction(c_sz, c_ey, c_low, c_high):
-            """The Newton step for complementarity targets s z = c_sz, e y = c_ey, t u = c_low, c_high."""
-            r_sz, r_ey = s * z - c_sz, e * y - c_ey
-            r_l, r_h = t_low * u_low - c_low, t_high * u_high - c_high
-            # rows: delta z = D (-r_p - A dd + (r_ey + e r_y) / y - r_sz / z)
-            elastic_part = np.where(elastic, (r_ey + e * r_elastic) / np.where(elastic, y, 1.0), 0.0)
-            row_rhs = -r_primal + elastic_part - r_sz / z
-            box_const = (r_l - u_low * r_low) / t_low + (-r_h + u_high * r_high) / t_high
-            rhs = -r_dual - box_const + rows.T @ (row_weight * row_rhs)
-            dd = solve(rhs)
-            dz = row_weight * (row_rhs - rows @ dd)
-            dy = r_elastic - dz
-            de = np.where(elastic, (-r_ey - e * dy) / np.where(elastic, y, 1.0), 0.0)
-            ds = (-r_sz - s * dz) / z
-            dt_low, dt_high = dd - r_low, -dd - r_high
-            du_low, du_high = (-r_l - u_low * dt_low) / t_low, (-r_h - u_high * dt_high) / t_high
-            return dd, ds, dz, de, dy, dt_low, dt_high, du_low, du_high
-
-        def longest(*pairs_):
-            """The largest step in (0, 1] keeping every variable of ``pairs_`` (value, step) positive."""
-            step = 1.0
-            for value, change in pairs_:
-                falling = change < 0.0
-                if falling.any():
-                    step = min(step, float(np.min(-value[falling] / change[falling])))
-            return step
-
-        affine = direction(np.zeros(m), np.zeros(m), np.zeros(n), np.zeros(n))
-        dd, ds, dz, de, dy, dtl, dth, dul, duh = affine
-        ey = (e[elastic], de[elastic]), (y[elastic], dy[elastic])
-        alpha = longest((s, ds), (z, dz), *ey, (t_low, dtl), (t_high, dth), (u_low, dul), (u_high, duh))
-        mu_affine = ((s + alpha * ds) @ (z + alpha * dz) + (e + alpha * de) @ (y + alpha * dy)
-                     + (t_low + alpha * dtl) @ (u_low + alpha * dul)
-                     + (t_high + alpha * dth) @ (u_high + alpha * duh)) / max(pairs, 1)
-        target = (mu_affine / mu) ** 3 * mu if mu > 0 else 0.0
-        corrected = direction(target - ds * dz, np.where(elastic, target - de * dy, 0.0),
-                              target - dtl * dul, target - dth * duh)
-        dd, ds, dz, de, dy, dtl, dth, dul, duh = corrected
-        ey = (e[elastic], de[elastic]), (y[elastic], dy[elastic])
-        alpha = TO_BOUNDARY * longest((s, ds), (z, dz), *ey, (t_low, dtl), (t_high, dth), (u_low, dul),
-                                      (u_high, duh))
-        d, s, z = d + alpha * dd, s + alpha * ds, z + alpha * dz
-        e, y = np.where(elastic, e + alpha * de, 0.0), np.where(elastic, y + alpha * dy, 0.0)
-        t_low, t_high = t_low + alpha * dtl, t_high + alpha * dth
-        u_low, u_high = u_low + alpha * dul, u_high + alpha * duh
-    else:
-        if not converged(ROUND_OFF * TOLERANCE):
+                solve = functools.partial(cho_solve, factor, check_finite=False)
+        except np.linalg.LinAlgError:  # the barrier terms at round-off: stop here if nearly converged
+            if _converged(residuals, mu, ROUND_OFF * TOLERANCE, dual_scale, scale, radius):
+                break
             return None
-    d = np.clip(d, -radius, radius)
-    bounds = np.where(u_high > t_high, 1, np.where(u_low > t_low, -1, 0)).astype(np.int8)
-    active = tuple(int(k) for k in np.flatnonzero((z > s) & ~(elastic & (e > y))))
-    return d, np.clip(z, 0.0, caps), bounds, active
+        zeros = (np.zeros(m), np.zeros(m), np.zeros(n), np.zeros(n))
+        affine = _direction(p, residuals, row_weight, solve, rows, elastic, zeros)
+        alpha = _longest(p.positive_pairs(affine, elastic))
+        mu_affine = p.moved(affine, alpha, elastic).complementarity() / max(pairs, 1)
+        target = (mu_affine / mu) ** 3 * mu if mu > 0 else 0.0
+        step = _direction(p, residuals, row_weight, solve, rows, elastic,
+                          (target - affine.s * affine.z, np.where(elastic, target - affine.e * affine.y, 0.0),
+                           target - affine.t_low * affine.u_low, target - affine.t_high * affine.u_high))
+        point = p.moved(step, TO_BOUNDARY * _longest(p.positive_pairs(step, elastic)), elastic)
+    else:
+        if not _converged(residuals, mu, ROUND_OFF * TOLERANCE, dual_scale, scale, radius):
+            return None
+    p = point
+    bounds = np.where(p.u_high > p.t_high, 1, np.where(p.u_low > p.t_low, -1, 0)).astype(np.int8)
+    active = tuple(int(k) for k in np.flatnonzero((p.z > p.s) & ~(elastic & (p.e > p.y))))
+    return np.clip(p.d, -radius, radius), np.clip(p.z, 0.0, caps), bounds, active
 
 
 __all__ = ["solve_interior_point"]
