@@ -210,7 +210,7 @@ def solve_interior_point(hess, gradient, rows, lower, radius, shift: float = 0.0
     if banded:
         groups = _RowGroups(rows, n)
         bandwidth = max(hess.bandwidth, groups.span)
-        h_band = hess._with_bandwidth(bandwidth)
+        h_band = hess.padded(bandwidth)
     else:
         dense_rows = rows.toarray() if sparse.issparse(rows) else np.asarray(rows, dtype=float)
         h_dense = np.asarray(hess, dtype=float)

@@ -117,8 +117,8 @@ class Banded:
         return sparse.diags([self.band[b - k, k:] for k in offsets], offsets, shape=(n, n), format="csc")
 
     # ------------------------------------------------------------------ arithmetic
-    def _with_bandwidth(self, b: int) -> np.ndarray:
-        """The band padded to ``b`` >= its own bandwidth."""
+    def padded(self, b: int) -> np.ndarray:
+        """The upper band padded to bandwidth ``b`` >= its own, (b + 1, n) (the band itself when b is its own)."""
         if b == self.bandwidth:
             return self.band
         out = np.zeros((b + 1, self.n))
@@ -128,7 +128,7 @@ class Banded:
     def __add__(self, other) -> Banded:
         if isinstance(other, Banded):
             b = max(self.bandwidth, other.bandwidth)
-            return Banded(self._with_bandwidth(b) + other._with_bandwidth(b))
+            return Banded(self.padded(b) + other.padded(b))
         if np.isscalar(other) and other == 0:
             return self
         if isinstance(other, np.ndarray):
