@@ -1,4 +1,4 @@
-r"""An exact solver of the SQP's step QP at a feasible point: bounds by block pivoting, rows by a working set.
+r"""An exact solver of the SQP's step QP: bounds by block pivoting, rows by a working set.
 
 The step QP of :mod:`planners.optimisation.sqp` at a feasible point is
 
@@ -7,7 +7,7 @@ The step QP of :mod:`planners.optimisation.sqp` at a feasible point is
 
 with H positive semi-definite and banded (:class:`planners.problem.banded.Banded`: a node's quantities depend
 on its segment's two points), sigma > 0 a small shift, b <= 0 (d = 0 is feasible) and A's rows scaled to unit
-infinity norm. Its trust-region box often binds on hundreds of variables at once (the model is flat along
+infinity norm; at an infeasible point the violated rows are elastic (below). Its trust-region box often binds on hundreds of variables at once (the model is flat along
 many directions: H's eigenvalues span 1e-7 to 1e2), and only a few of the rows.
 
 The solver keeps a guess of the *active set*: each variable is free or fixed at one of its bounds +-Delta,

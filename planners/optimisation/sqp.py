@@ -1,9 +1,10 @@
 """A small trust-region SQP for the planning NLP: elastic QPs, the KKT residual.
 
 Gauss-Newton curvature, the "smoothed" model of J_e's absolute values (:mod:`planners.optimisation.curvature`, the
-planner's default), or a composite model of them with a damped BFGS correction. At a feasible point the
-step QP is solved exactly by a short active-set sequence (:mod:`planners.optimisation.active_set`); ProxQP takes the
-rest (infeasible points, ill-conditioned models).
+planner's default), or a composite model of them with a damped BFGS correction. The step QP is solved exactly by
+an active set that pivots the trust region's bounds in blocks (:mod:`planners.optimisation.active_set`,
+warm-started from the last step's), or where it gives up by a banded interior point
+(:mod:`planners.optimisation.interior_point`); ProxQP is the last resort.
 
 The planning objective is a weighted sum of integrals of squares (J_phi) and of absolute values
 (J_e) of per-sample quantities whose exact Jacobians :class:`planners.problem.motion.MotionProblem`
@@ -252,17 +253,18 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet |
     the active set at the solution or None).
 
     Only the constraints violated at x get a slack (the others hold at d = 0, so the QP is always
-    feasible). Rows are scaled to unit infinity norm (and, for ProxQP, the objective to O(1)): near a
-    vanishing thrust the roll rows reach 1e7 and the QP would crawl; the minimiser is unchanged. The QP is
-    solved exactly by :func:`planners.optimisation.active_set.solve_step_qp`, from
-    ``start`` (an :class:`~planners.optimisation.active_set.ActiveSet` whose rows are indices of the
-    constraints, e.g. the last step's); otherwise, or when that does not end, by ProxQP, whose work is
-    bounded: an inexact step is judged by the merit ratio anyway. ``hessian`` is the model's curvature
+    feasible; in the active set a violated constraint is an elastic row, its multiplier capped at the
+    penalty). Rows are scaled to unit infinity norm (and, for ProxQP, the objective to O(1)): near a vanishing
+    thrust the roll rows reach 1e7 and the QP would crawl; the minimiser is unchanged. The QP is solved
+    exactly by :func:`planners.optimisation.active_set.solve_step_qp`, from ``start`` (an
+    :class:`~planners.optimisation.active_set.ActiveSet` whose rows are indices of the constraints, e.g. the
+    last step's); where it gives up, by the interior point
+    (:func:`planners.optimisation.interior_point.solve_interior_point`); where that fails too, by ProxQP, whose
+    work is bounded: an inexact step is judged by the merit ratio anyway. ``hessian`` is the model's curvature
     (default the problem's Gauss-Newton matrix; banded or an array); the multipliers (m,) are >= 0, in the
-    units of the constraints, 0 for the rows left out. A violated constraint's slack is solved for in the active
-    set as an elastic row (its multiplier capped at the penalty). The Jacobian's CSR copy (each row touches one
-    segment: a few per cent of its entries are non-zero on a long mission) stays a CSR matrix from the
-    selection to the solvers.
+    units of the constraints, 0 for the rows left out. The Jacobian's CSR copy (each row touches one segment:
+    a few per cent of its entries are non-zero on a long mission) stays a CSR matrix from the selection to the
+    solvers.
     """
     hess = ev.hessian if hessian is None else hessian
     n = ev.gradient.size
