@@ -233,7 +233,7 @@ class CrossingProblem:
         return MotionProblem(self.robot, points, segment_durations(times, self.n_via), self.mask, self.alpha,
                              self.normalisation, samples_per_segment=self.samples,
                              windows_per_segment=self.windows, crossing=self.index,
-                             min_thrust=min_thrust(self.robot))
+                             min_thrust=min_thrust(self.robot), dips=True)
 
     def _extra_rows(self, points, times) -> tuple[np.ndarray, list[str]]:
         """Rows beside the motion's (scaled, >= 0): travel-time bounds, the crossing speed, and the

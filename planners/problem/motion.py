@@ -280,6 +280,10 @@ class MotionProblem:
             0..6 (:data:`fpr.model.inverse_dynamics.MOTION_ORDER`) and the assembly-mode bounds become the
             crossing's side constraints.
         min_thrust: a lower bound f_min [N] on every drone's thrust (``thrust_low``), or None.
+        dips: the dynamic rows (rotor speeds, rolls, thrust) take their dips between the nodes
+            (:func:`between_node_minima`): the way-point methods' and the crossing's NLPs, on grids fine enough
+            for a parabola through three nodes to follow a row (the replanner's coarse grids keep the nodes'
+            values). The workspace rows take their values half a spacing after each node either way.
     """
 
     #: How :meth:`_node_derivatives` differentiates: "dual" (forward-mode dual numbers, :mod:`fpr.model.dual`:
@@ -292,7 +296,7 @@ class MotionProblem:
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,
                  samples_per_segment: int = 17, windows_per_segment: int = 4, crossing: int | None = None,
-                 min_thrust: float | None = None):
+                 min_thrust: float | None = None, dips: bool = False):
         self.robot = robot
         self.node_store: NodeDerivatives | None = None  # (share_node_derivatives)
         self._store_owner = None
@@ -323,6 +327,7 @@ class MotionProblem:
         self.basis = w
         self.crossing_sign = None
         self.min_thrust = min_thrust
+        self.dips = bool(dips)
         if crossing is not None:
             if not 0 < int(crossing) < m:
                 raise PlannerArgumentError("crossing", crossing,
@@ -488,7 +493,10 @@ class MotionProblem:
         n_d = raw.shape[1] // 2
         terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
-        rows, tau = between_node_minima(rows, self.samples_per_segment, self._half_step_columns)
+        if self.dips:
+            rows, tau = between_node_minima(rows, self.samples_per_segment, self._half_step_columns)
+        else:
+            tau = np.zeros_like(rows)
         if self._window_index is not None:  # every window at once: the first node of each window's minimum
             arg = self._window_index[:, 0, None] + np.argmin(rows[self._window_index], axis=1)  # (W, R)
             constraints = np.take_along_axis(rows, arg, axis=0).reshape(-1) - CONSTRAINT_BACKOFF
