@@ -267,7 +267,7 @@ def test_sqp_step_on_a_long_mission(long_evaluation, violated, radius):
         c[np.argsort(c)[:violated]] = -0.01
         ev = dataclasses.replace(ev, constraints=c)
     hess = smoothed_hessian(ev)
-    d, predicted, linear, multipliers, active = _qp_step(ev, radius, 10.0, hess)
+    d, predicted, linear, multipliers, active, _ = _qp_step(ev, radius, 10.0, hess)
     assert np.abs(d).max() > 0.05 * radius and predicted > 0.0 and np.abs(d).max() <= radius + 1e-12
     assert np.all(multipliers >= 0.0) and np.all(multipliers[ev.constraints < 0] <= 10.0 + 1e-9)
     after = ev.constraints + ev.jacobian_sparse @ d
@@ -278,4 +278,8 @@ def test_sqp_step_on_a_long_mission(long_evaluation, violated, radius):
     assert np.isfinite(kkt_residual(ev.gradient, ev.constraints, ev.jacobian_sparse, multipliers).residual)
     again = _qp_step(ev, radius, 10.0, hess, start=active)
     np.testing.assert_allclose(again[0], d, rtol=0, atol=1e-9)
+    # the interior point, to its tolerance: the same predicted decrease (the step itself may differ along the
+    # model's flat directions, H's eigenvalues spanning 1e-7 to 1e2)
+    inner = _qp_step(ev, radius, 10.0, hess, interior_first=True)
+    assert inner[5] and inner[1] == pytest.approx(predicted, rel=1e-6)
     assert isinstance(active, ActiveSet)

@@ -248,9 +248,10 @@ def _jacobian(ev):
     return ev.jacobian if sparse_copy is None else sparse_copy
 
 
-def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet | None = None):
+def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet | None = None,
+             interior_first: bool = False):
     """Solve the elastic step QP; returns (d, predicted merit decrease, linearised violation, multipliers,
-    the active set at the solution or None).
+    the active set at the solution or None, whether the active set gave up (or was not tried)).
 
     Only the constraints violated at x get a slack (the others hold at d = 0, so the QP is always
     feasible; in the active set a violated constraint is an elastic row, its multiplier capped at the
@@ -262,7 +263,8 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet |
     (:func:`planners.optimisation.interior_point.solve_interior_point`); where that fails too, by ProxQP, whose
     work is bounded: an inexact step is judged by the merit ratio anyway. ``hessian`` is the model's curvature
     (default the problem's Gauss-Newton matrix; banded or an array); the multipliers (m,) are >= 0, in the
-    units of the constraints, 0 for the rows left out. The Jacobian's CSR copy (each row touches one segment:
+    units of the constraints, 0 for the rows left out. ``interior_first``: go to the interior point directly
+    (the SQP's choice after the active set gave up twice in a row). The Jacobian's CSR copy (each row touches one segment:
     a few per cent of its entries are non-zero on a long mission) stays a CSR matrix from the selection to the
     solvers.
     """
@@ -281,7 +283,9 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet |
     caps = np.full(keep.size, np.inf)
     caps[soft] = penalty * norms[soft]  # a violated row's penalty, in row-scaled units (elastic rows)
     caps = caps if p else None
-    solved = solve_step_qp(hess, ev.gradient, a_k, -c_k, radius, start=start, shift=_shift(hess), caps=caps)
+    solved = None if interior_first else \
+        solve_step_qp(hess, ev.gradient, a_k, -c_k, radius, start=start, shift=_shift(hess), caps=caps)
+    gave_up = solved is None
     if solved is None:  # the active set gave up: the interior-point route (planners.optimisation.interior_point)
         inner = solve_interior_point(hess, ev.gradient, a_k, -c_k, radius, shift=_shift(hess), caps=caps)
         if inner is not None:
@@ -293,7 +297,7 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet |
         linear = _violation(c + a @ d)
         model = ev.gradient @ d + 0.5 * d @ (hess @ d)
         return (d, penalty * (_violation(c) - linear) - model, linear, multipliers,
-                ActiveSet(active.bounds, tuple(int(keep[k]) for k in active.rows)))
+                ActiveSet(active.bounds, tuple(int(keep[k]) for k in active.rows)), gave_up)
     scale = 1.0 / max(1.0, _abs_max(hess))
     g = np.concatenate([ev.gradient * scale, penalty * norms[soft] * scale])  # slack in row-scaled units
     if isinstance(hess, Banded) or sparse.issparse(a_k):  # the sparse backend (_proxqp): no dense copies
@@ -319,7 +323,7 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet |
     multipliers = np.zeros(c.size)
     if keep.size:
         multipliers[keep] = np.maximum(-np.asarray(res.z)[:keep.size], 0.0) / (norms * scale)
-    return d, predicted, linear, multipliers, None
+    return d, predicted, linear, multipliers, None, True
 
 
 def _abs_max(hess) -> float:
@@ -521,6 +525,10 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     composite = False
     known = None  # the evaluation with derivatives at x, when one is at hand (x unchanged, or a trial's)
     active_set = None  # the active set of the last step QP solved exactly (bounds and rows)
+    # how many step QPs in a row the active set gave up on: from two on, the interior point goes first (the
+    # active set's give-ups come in runs of tens where the model's H is far from diagonally dominant, and a
+    # failed attempt costs about half an interior-point solve; an isolated one leaves it tried again)
+    give_ups = 0
     trial_derivatives = opt.trial_derivatives
     for it in range(1, opt.max_iterations + 1):
         if known is None:
@@ -543,8 +551,9 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
         def solve_qp(rho, ev=ev, hessian=hessian, composite=composite, radius=radius):
             if composite:
                 return (*_composite_qp_step(ev, radius, rho, hessian), None)
-            d, predicted, linear, multipliers, active = _qp_step(ev, radius, rho, hessian, start=active_set)
-            return d, predicted, linear, multipliers, None, active
+            d, predicted, linear, multipliers, active, gave_up = _qp_step(
+                ev, radius, rho, hessian, start=active_set, interior_first=give_ups >= 2)
+            return d, predicted, linear, multipliers, None, (active, gave_up)
 
         merit = ev.J + penalty * _violation(ev.constraints)
         d, predicted, linear, multipliers, xi, active = solve_qp(penalty)
@@ -556,7 +565,10 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
             penalty = min(wanted, 1e6)
             merit = ev.J + penalty * _violation(ev.constraints)
             d, predicted, linear, multipliers, xi, active = solve_qp(penalty)
-        active_set = active if active is not None else active_set  # where the next step QP starts
+        if active is not None:  # (the composite QP's is None)
+            active, gave_up = active
+            active_set = active if active is not None else active_set  # where the next step QP starts
+            give_ups = give_ups + 1 if gave_up else 0
         objective_gradient = _model_gradient(ev, xi, composite)
         kkt = kkt_residual(objective_gradient, ev.constraints, _jacobian(ev), multipliers)
         if opt.stop == "kkt" and kkt.residual <= opt.kkt_tolerance and ev.violation <= opt.feasibility:
