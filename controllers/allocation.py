@@ -37,19 +37,10 @@ import numpy as np
 from scipy.linalg import lapack
 
 from controllers.box_qp import AT_LOWER, AT_UPPER, FREE, solve_box_qp_state
-from fpr.model.compiled import choose, load_extension
+from fpr import _native as native
 from fpr.model.qp import proxsuite_module
 
-# the portable build, whose results do not depend on memory alignment (fpr.model.qp)
-proxsuite = proxsuite_module()
-
 _posv = lapack.dposv
-
-
-def _load_kernel():
-    """The compiled allocation tick's module (``controllers/_alloc.c``, built by ``setup.py``), or None when it
-    was not built (no compiler at install time) or cannot be imported."""
-    return load_extension("controllers._alloc")
 
 
 #: the routes of the compiled tick's answer, by its route number
@@ -203,9 +194,9 @@ class Allocator:
        initialised at its first use, then updated (H, g only) and solved warm from its previous result.
 
     Small arrays: each numpy call costs about a microsecond or more, ``a.dot(b)`` about half of ``a @ b``;
-    the code counts its calls. Routes 1 and 2 also exist compiled (``controllers/_alloc.c``, the same
-    computation in C, a few microseconds per call): used when the extension was built (``pip install -e .``
-    builds it when a C compiler is present). When it declines (A_tau A_tau^T singular, the active-set method
+    the code counts its calls. Routes 1 and 2 also exist natively (``fpr/_native/alloc.c``, :mod:`fpr._native`'s
+    part ``allocation``, the same computation in C, a few microseconds per call): used when the part is on
+    when the allocator is made. When it declines (A_tau A_tau^T singular, the active-set method
     cycled, an input not finite) the Python path decides that tick, ProxQP included.
 
     Args:
@@ -214,18 +205,16 @@ class Allocator:
         thrust_weight: W_f, scalar or (n_d,).
         regularisation: epsilon, picks the least-norm torque (the pseudo-inverse's) [1/(N m)^2].
         max_speed: upper rotor speed bound [rad/s] (default: the robot's w_max).
-        compiled: None: the compiled tick when the extension is importable, else the Python path; True:
-            require it (RuntimeError when it is not built); False: the Python path (the reference).
 
     Attributes:
-        qp: the ProxQP workspace of route 3 (``proxsuite.proxqp.dense.QP``); built in the constructor,
-            initialised at its first use.
-        compiled: whether the compiled tick is used (read only).
+        qp: the ProxQP workspace of route 3 (``proxsuite.proxqp.dense.QP``), built and initialised at its
+            first use (None before: proxsuite is imported only then).
+        compiled: whether the native tick is used (read only).
         routes: how many calls took each route, {"closed form": n, "active set": n, "proxqp": n}.
     """
 
     def __init__(self, robot, attitude_weight=1.0, thrust_weight=1.0, regularisation: float = 100.0,
-                 max_speed: float | None = None, compiled: bool | None = None):
+                 max_speed: float | None = None):
         self.robot = robot
         self.s_f, self.s_tau = selectors(robot)
         self.n = self.s_f.shape[1]
@@ -242,30 +231,25 @@ class Allocator:
         self._unsaturated.flags.writeable = False
         self._n_d = n_d
         self._saturation_arrays = {}  # read-only (n_d, 4) masks of the bounded route, by pattern
-        self.qp = proxsuite.proxqp.dense.QP(self.n, 0, 0, True)
-        self.qp.settings.eps_abs = 1e-9
-        self.qp.settings.eps_rel = 0.0
-        self.qp.settings.verbose = False
-        self._initialised = False
+        self.qp = None  # route 3's ProxQP workspace, built at its first use (:meth:`_proxqp`)
         self.routes = {"closed form": 0, "active set": 0, "proxqp": 0}
         self._active = None  # the active bounds of the previous tick (a box_qp state), when it had some
         # the same for the compiled tick (which updates it in place): FREE everywhere when none
         self._state = np.zeros(self.n, dtype=np.int8)
         self._bit_masks = {}  # the compiled tick's saturation masks, by its bit pattern
-        self._compiled = compiled
         self._kernel = self._resolve_kernel()
 
     def _resolve_kernel(self):
-        """The compiled tick for this allocator (``compiled``), or None for the Python path."""
-        module = None if self._compiled is False else _load_kernel()
+        """The native tick for this allocator (:mod:`fpr._native`'s part ``allocation``), or None for the Python
+        path (the part off or not built, or the robot larger than the tick's fixed sizes)."""
+        module = native.use("allocation")
         fits = module is not None and self.n <= module.MAX_ROTORS and self._w_a.size <= module.MAX_ATTITUDE \
             and self.robot.nq <= module.MAX_COORDINATES
-        return choose(self._compiled, getattr(module, "tick", None), "compiled", "Allocator(compiled=True)",
-                      "allocation (controllers/_alloc.c)", fits)
+        return module.tick if fits else None
 
     @property
     def compiled(self) -> bool:
-        """Whether :meth:`solve` uses the compiled tick (``controllers/_alloc.c``)."""
+        """Whether :meth:`solve` uses the native tick (``fpr/_native/alloc.c``)."""
         return self._kernel is not None
 
     def __getstate__(self):
@@ -338,7 +322,7 @@ class Allocator:
         self._unit_attitude_weight = bool(np.all(self._w_a == 1.0))
         # [f; tau] of all drones from zeta in one product (the bounded route's result)
         self._scaled_wrench = np.vstack([self._scaled_s_f, self._scaled_s_tau])
-        # the compiled tick's constants, one vector (the layout of controllers/_alloc.c's header comment)
+        # the compiled tick's constants, one vector (the layout of fpr/_native/alloc.c's header comment)
         n_d = self.s_f.shape[0]
         inverse = np.zeros((self.n, 4 * n_d))
         for i, rotor in enumerate(self.robot.rotors):
@@ -480,12 +464,16 @@ class Allocator:
 
     def _proxqp(self, h, g):
         """Route 3: the scaled QP by the warm-started ProxQP workspace; (zeta, iterations)."""
-        if not self._initialised:
+        if self.qp is None:
+            proxqp = proxsuite_module().proxqp  # the portable build (fpr.model.qp), loaded at the first use
+            self.qp = proxqp.dense.QP(self.n, 0, 0, True)
+            self.qp.settings.eps_abs = 1e-9
+            self.qp.settings.eps_rel = 0.0
+            self.qp.settings.verbose = False
             self.qp.init(h, g, None, None, None, None, None, self.lower / self.scale, self.upper / self.scale)
             self.qp.solve()
             # only once a result exists (ProxQP 0.8 crashes warm-starting from nothing)
-            self.qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-            self._initialised = True
+            self.qp.settings.initial_guess = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
         else:
             self.qp.update(H=h, g=g, update_preconditioner=False)
             self.qp.solve()

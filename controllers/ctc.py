@@ -16,6 +16,17 @@ model that term lies across the thrust axis, where a thrust cannot cancel it; DE
 An integral term K_ip int(s - s_d) dt (not in the thesis) removes the steady error a wrong model
 leaves (mass or rotor-constant mismatch, a small wind).
 
+**An unknown external force** is estimated by a generalized-momentum observer (:mod:`controllers.observer`,
+bandwidth ``observer_bandwidth``, K_O = 10 rad/s by default) on the robot's full model in the thesis'
+coordinates q (seed 2.11: rigid drones on their offset joints, the model of the inner loop's attitude
+dynamics 2.12), from the measured (q, q') and the thrusts and torques the allocation commands. Its estimate
+r (n,) is fed forward in both loops: its chain rows in the outer loop, J_h^T F = M_s u_p + c_s - Q_known -
+r_s (a force at the task point or at a drone's centre of mass acts on the chain rows as on the point-drone
+model's, whose drones sit at their joints), and all of it in the attitude model (c - r, as a known wind).
+``observer_bandwidth = 0`` is the controller without it (the thesis' law with the integral term); then the
+feedback alone holds an unknown wind. :meth:`CascadedController.estimated_forces` reads r_s as forces on
+the task point and the drones (for a replanner that plans against the wind).
+
 **A known external force** (a wind the controller is told of, or estimates: ``Reference.task_force`` on
 the robot kind's task point, ``Reference.drone_forces`` on the drones) is fed forward in the outer loop:
 the chain's equation of motion with it is M_s s'' + c_s = J_h^T F + Q_ext, Q_ext = J_p(s)^T f_p +
@@ -56,8 +67,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from controllers.allocation import AllocationResult, Allocator, _load_kernel
-from fpr.model.compiled import choose
+from controllers.allocation import AllocationResult, Allocator
+from controllers.observer import MomentumObserver
+from fpr import _native as native
 from fpr.model.inverse_dynamics import inverse_dynamics
 
 
@@ -84,6 +96,9 @@ class ControllerSettings:
         singular_band: the angle [rad] that sets the regularisation near a Type-2 singularity (the
             prototype's eps = L sin(band) of the tension near q2 = 0, used when the reference carries
             the planned force; ``robot.kind.outer_loop_forces``).
+        observer_bandwidth: K_O [rad/s] of the external-force observer (:mod:`controllers.observer`), whose
+            estimate is fed forward in both loops; 0: no observer (the thesis' law with the integral term).
+            Above the chain loop's frequency, below the attitude loop's, and a tenth of the outer rate.
     """
 
     outer_rate: float = 100.0
@@ -102,6 +117,7 @@ class ControllerSettings:
     attitude_weight: float = 1.0
     thrust_weight: float = 1.0
     singular_band: float = 0.03
+    observer_bandwidth: float = 10.0
 
     @property
     def chain_gains(self) -> tuple[float, float]:
@@ -194,11 +210,46 @@ class CascadedController:
         self._roll_list, self._attitude_list = self.rolls.tolist(), self.attitude.tolist()
         self._mass_offset = (self.mass * self.offset).tolist()
         self._x = r.index.get("x")
+        self.observer = None  # the external-force observer (controllers/observer.py), made by _observe
+        self._applied = np.zeros(r.nq)  # sum of the inputs' generalised forces since the last observer update
+        self._ticks = 0
+        self._seen = None  # (J_p, J_h) of the last outer update, for estimated_forces
 
     def reset(self) -> None:
-        """Forget the held outer-loop output and the integrated error (a new run)."""
+        """Forget the held outer-loop output, the integrated error and the observer (a new run)."""
         self._force, self._last_outer = None, -np.inf
         self._integral = np.zeros(len(self.chain))
+        self.observer, self._seen = None, None
+        self._applied, self._ticks = np.zeros(self.robot.nq), 0
+
+    @property
+    def disturbance(self) -> np.ndarray:
+        """The observer's estimate r_s of the external generalised force on the chain s [N or N m], shape (n_s,)
+        (zeros without an observer or before its second update)."""
+        return np.zeros(len(self.chain)) if self.observer is None else self.observer.estimate[self.chain]
+
+    def estimated_forces(self) -> tuple[np.ndarray, np.ndarray]:
+        """The observer's estimate as forces, world [x, y, z] [N]: (on the task point (3,), on the drones'
+        joints (n_d, 3)), equal to r_s in generalised force on the chain at the configuration of the last
+        outer update.
+
+        The task point takes what a force on it can explain (least squares of J_p^T f_p = r_s: all of r_s when
+        it comes from a force there), the drones the rest (J_h^T F = r_s - J_p^T f_p, least squares). The
+        estimate's roll rows could tell a force at a drone's centre from one at the task point in a steady
+        state, but in transients they carry the motor lag's torque errors, which turned such a split into
+        opposite forces of 10 N and more: the chain's rows alone are used, so an estimate cannot tell a force
+        on the end-effector from one on a drone when both give the same r_s.
+        """
+        n_d = self.robot.n_drones
+        task, drones = np.zeros(3), np.zeros((n_d, 3))
+        if self.observer is None or self._seen is None:
+            return task, drones
+        jac_task, jac_hinges = self._seen
+        r = self.disturbance
+        task[1:] = np.linalg.lstsq(jac_task.T, r, rcond=None)[0]
+        rest = r - jac_task.T.dot(task[1:])
+        drones[:, 1:] = np.linalg.lstsq(jac_hinges.T, rest, rcond=None)[0].reshape(n_d, 2)
+        return task, drones
 
     def _lateral_sensitivity(self) -> float:
         """d x'' / d theta at the hover pose s0 = ``kind.reference_chain`` with hover thrusts."""
@@ -226,7 +277,26 @@ class CascadedController:
         b = m.dot(u) + c
         if reference.task_force is not None or reference.drone_forces is not None:
             b = b - self.external_force(reference.task_force, reference.drone_forces, jac)
-        return self.robot.kind.outer_loop_forces(s, b, jac, reference.force, st.singular_band)
+        if self.observer is None:
+            return self.robot.kind.outer_loop_forces(s, b, jac, reference.force, st.singular_band)
+        jac_task = pin.getFrameJacobian(self._point_robot.model, self._point_robot.data, self._task_frame,
+                                        pin.LOCAL_WORLD_ALIGNED)[1:3].dot(self._chain_map)
+        self._seen = (jac_task, jac)
+        return self.robot.kind.outer_loop_forces(s, b - self.observer.estimate[self.chain], jac, reference.force,
+                                                 st.singular_band)
+
+    def _observe(self, dt: float, q, v) -> None:
+        """One update of the observer (:mod:`controllers.observer`) at the measured (q, q'), dt [s] after the
+        last: the full model's M(q) and nonlinear effects (Pinocchio's CRBA and RNEA), and the mean over the
+        inner-loop ticks since the last update of the generalised force the drones were commanded to apply
+        (J_f^T f + J_tau^T tau of the attitude model) plus the known wind's."""
+        st = self.settings
+        if self.observer is None or self.observer.bandwidth != st.observer_bandwidth:
+            self.observer = MomentumObserver(st.observer_bandwidth, self.robot.nq)
+        r = self.robot
+        applied = self._applied / self._ticks if self._ticks else np.zeros(r.nq)
+        self._applied, self._ticks = np.zeros(r.nq), 0
+        self.observer.update(dt, r.mass_matrix(q), v, r.nonlinear_effects(q, v), applied)
 
     def external_force(self, task_force=None, drone_forces=None, hinge_jacobian=None) -> np.ndarray:
         """Q_ext = J_p^T f_p + sum_i J_h,i^T f_i on the chain coordinates [N or N m], shape (n_s,).
@@ -290,7 +360,7 @@ class CascadedController:
 
     def _attitude_gains(self) -> tuple[np.ndarray, np.ndarray]:
         """K_pa, K_da of q_a = [psi, theta, rolls...], rebuilt only when the settings change; with them the
-        compiled inner loop's constants (``controllers/_alloc.c``'s ``inner``: n_d, the lateral loop, the
+        compiled inner loop's constants (``fpr/_native/alloc.c``'s ``inner``: n_d, the lateral loop, the
         indices, m_i d_i, K_pa, K_da), as ``self._gains = (key, kp, kd, kp list, kd list, constants)``."""
         st = self.settings
         key = (st.orientation_frequency, st.orientation_damping, st.attitude_frequency, st.attitude_damping,
@@ -307,15 +377,11 @@ class CascadedController:
             self._gains = (key, kp, kd, kp.tolist(), kd.tolist(), constants)  # lists: _inner_python's loop
         return self._gains[1], self._gains[2]
 
-    #: the inner loop's float part compiled (``controllers/_alloc.c``'s ``inner``): None (default) when the
-    #: extension is built, else :meth:`_inner_python`; False: always the Python part (the reference); True: the
-    #: compiled part, an error when it is not built. Set it on a controller or on the class.
-    compiled_inner = None
-
     def _inner_python(self, q, v, reference: Reference):
         """The inner loop's float part in Python: (thrust f_i (n_d,), u_a (n_a,), roll_desired (n_d,), pitch
         reference) from the measured state, the held outer-loop force and the reference's roll feed-forward.
-        The reference of the compiled part (the same operations in the same order: the same bits)."""
+        The reference of the native part (the same operations in the same order; the tests hold the two equal to
+        round-off)."""
         st = self.settings
         # on floats: a few numbers each, where every numpy call costs a microsecond or more
         ql, vl = q.tolist(), v.tolist()
@@ -346,11 +412,10 @@ class CascadedController:
         return np.array(thrust), np.array(u_a), np.array(roll_desired), pitch
 
     def _inner_kernel(self):
-        """The compiled inner loop's function, or None for :meth:`_inner_python` (``compiled_inner``)."""
-        module = None if self.compiled_inner is False else _load_kernel()
-        return choose(self.compiled_inner, getattr(module, "inner", None), "compiled_inner",
-                      "CascadedController.compiled_inner = True", "inner loop (controllers/_alloc.c)",
-                      module is not None and len(self.attitude) <= module.MAX_ATTITUDE)
+        """The native inner loop's function (:mod:`fpr._native`'s part ``inner``, ``fpr/_native/alloc.c``), or None
+        for :meth:`_inner_python`."""
+        module = native.use("inner")
+        return module.inner if module is not None and len(self.attitude) <= module.MAX_ATTITUDE else None
 
     def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
         """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""
@@ -360,21 +425,31 @@ class CascadedController:
                 error = q[self.chain] - reference.motion[0]
                 self._integral = np.minimum(np.maximum(self._integral + error * (t - self._last_outer),
                                                     -st.integral_limit), st.integral_limit)  # np.clip
+            if st.observer_bandwidth > 0:
+                self._observe(t - self._last_outer if np.isfinite(self._last_outer) else 0.0, q, v)
             self._force = self.outer(q, v, reference)
             self._last_outer = t
         kernel = self.__dict__.get("_inner")
-        if kernel is None or kernel[0] != self.compiled_inner:
-            kernel = self._inner = (self.compiled_inner, self._inner_kernel())
+        if kernel is None or kernel[0] is not native.use("inner"):  # the switch read again when it changed
+            kernel = self._inner = (native.use("inner"), self._inner_kernel())
         inner = None
-        if kernel[1] is not None:  # in C: the same bits as _inner_python (None: a result not finite)
+        if kernel[1] is not None:  # in C: _inner_python's operations, in its order (None: a result not finite)
             self._attitude_gains()  # its constants up to date, in self._gains
             inner = kernel[1](q, v, self._force, reference.roll_rate, reference.roll_acceleration, self._gains[5])
         thrust, u_a, roll_desired, pitch = self._inner_python(q, v, reference) if inner is None else inner
         attitude = self.robot.attitude_model(q, v)
+        own = attitude.c
         if reference.task_force is not None or reference.drone_forces is not None:  # the known wind (2.12)
             attitude = self._attitude_in_wind(q, attitude, reference.task_force, reference.drone_forces)
+        if self.observer is not None:  # the estimated one
+            attitude = dataclasses.replace(attitude, c=attitude.c - self.observer.estimate)
         allocation = self.allocator.solve(attitude, thrust, u_a)
         speeds = np.sqrt(np.maximum(allocation.speeds_squared, 0.0))
+        if st.observer_bandwidth > 0:  # the inputs' generalised force until the next tick, and the known wind's
+            known = own - attitude.c if self.observer is None else own - attitude.c - self.observer.estimate
+            self._applied += (attitude.j_f.T.dot(allocation.thrust)
+                              + attitude.j_tau.T.dot(allocation.torque.reshape(-1)) + known)
+            self._ticks += 1
         return ControlOutput(speeds, allocation, self._force, roll_desired, thrust, u_a, pitch)
 
 

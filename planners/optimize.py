@@ -43,9 +43,9 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
             optimisation is asked, and ``"none"`` gives its first guess
             (:func:`planners.methods.method_for`).
         robot: the robot (default ``mission.load_robot()``).
-        progress, samples_per_segment, windows_per_segment, max_iterations, tolerance, dense_rate, solver,
-            max_refinements, stop, kkt_tolerance, curvature, polish, one_step_start: the
-            :class:`~planners.options.PlanOptions`
+        progress: with the other keywords (samples_per_segment, windows_per_segment, max_iterations,
+            tolerance, dense_rate, solver, max_refinements, stop, kkt_tolerance, curvature, polish,
+            one_step_start), the fields of the :class:`~planners.options.PlanOptions`
             given to the method (``curvature="composite", stop="kkt"``: closer to the optimum, slower;
             ``polish=False``: the thesis' two-step method without the final one-step solve;
             ``one_step_start="stop"``: the thesis' one-step method, from the stop motion).

@@ -1,5 +1,5 @@
-"""The compiled allocation tick (controllers/_alloc.c, issue 13) against its reference, the Python path of
-:class:`controllers.allocation.Allocator` (``compiled=False``), and the plumbing around it.
+"""The native allocation tick (fpr/_native/alloc.c, the part ``allocation``) against its reference, the Python path
+of :class:`controllers.allocation.Allocator` (the part switched off), and the plumbing around it.
 
 * Along long warm-started sequences of random states (both robots, thrusts from 0.2 to 3.5 times hover, so
   that rotors sit at their lower and at their upper bound, and the weights not all 1) the two paths give the
@@ -7,31 +7,38 @@
 * The C active-set solver alone gives ``solve_box_qp_state``'s x, final guess and iterations on random QPs.
 * When the C tick declines (A_tau rank deficient) the Python path decides, with the same answer; the active
   bounds are handed between the two representations (a declined tick, pickling).
-* Without the extension (its import made to fail) ``compiled=None`` falls back to Python and
-  ``compiled=True`` says what is missing.
+* With the part off, or not built, the Python path runs; ``FPR_NATIVE=require`` says what is missing; the one
+  switch refuses what is not a setting.
 
-Skipped (with the reason) when the extension was not built.
+The native tests fail when the part is not built, and skip under FPR_NATIVE=0 (tests/native_parts.py).
 """
 
 from __future__ import annotations
 
 import pickle
-import sys
 
 import numpy as np
 import pytest
 from helpers import hover_thrusts
+from native_parts import native_module, needs_native
 
 import fpr
-from controllers import allocation
 from controllers.allocation import Allocator
 from controllers.box_qp import AT_LOWER, AT_UPPER, FREE, solve_box_qp_state
+from fpr import _native as native
 from fpr.model.robot import AttitudeModel
 
+needs_kernel = needs_native
 
-kernel = allocation._load_kernel()
-needs_kernel = pytest.mark.skipif(kernel is None, reason="the C extension controllers._alloc is not built "
-                                                          "(python setup.py build_ext --inplace)")
+
+def _allocators(robot, *args):
+    """(the native allocator, the Python one) of the same settings."""
+    native_module("allocation")
+    with native.switched(allocation=True):
+        fast = Allocator(robot, *args)
+    with native.switched(allocation=False):
+        reference = Allocator(robot, *args)
+    return fast, reference
 
 
 def _walk(name, count, seed, spread=0.5):
@@ -69,8 +76,7 @@ def _assert_same(a, b, scale):
 def test_compiled_tick_is_the_python_path(name, weights):
     robot, calls = _walk(name, 600, 13)
     attitude_weight, thrust_weight, regularisation = weights
-    fast = Allocator(robot, attitude_weight, thrust_weight, regularisation, compiled=True)
-    reference = Allocator(robot, attitude_weight, thrust_weight, regularisation, compiled=False)
+    fast, reference = _allocators(robot, attitude_weight, thrust_weight, regularisation)
     assert fast.compiled and not reference.compiled
     at_lower = at_upper = 0
     for attitude, thrust, u_a in calls:
@@ -90,7 +96,7 @@ def test_compiled_tick_is_the_python_path(name, weights):
 @needs_kernel
 def test_weights_changed_after_construction_reach_the_compiled_tick():
     robot, calls = _walk("fpr", 200, 5)
-    fast, reference = Allocator(robot, compiled=True), Allocator(robot, compiled=False)
+    fast, reference = _allocators(robot)
     for allocator in (fast, reference):
         allocator.regularisation = 7.0
         allocator.attitude_weight = np.array([1.0, 2.0, 0.5, 3.0])
@@ -112,7 +118,7 @@ def test_c_active_set_is_solve_box_qp_state():
         g = (0.5 + 10.0 * rng.random()) * rng.normal(size=n) - 0.5 * h.sum(axis=1) * rng.random()
         state = tuple(int(s) for s in rng.integers(0, 3, size=n))
         expected = solve_box_qp_state(h, g, state, 30)
-        found = kernel.box_qp(h, g, state, 30)
+        found = native_module("allocation").box_qp(h, g, state, 30)
         assert (found is None) == (expected is None)
         if expected is None:
             continue
@@ -129,7 +135,7 @@ def test_declined_tick_is_decided_by_the_python_path():
     builder and its active-set route decide, with the reference's answer; the bounds it leaves active are
     handed to the compiled tick."""
     robot, calls = _walk("fpr", 40, 8)
-    fast, reference = Allocator(robot, compiled=True), Allocator(robot, compiled=False)
+    fast, reference = _allocators(robot)
     declined = []
     tick = fast._kernel
 
@@ -154,9 +160,9 @@ def test_declined_tick_is_decided_by_the_python_path():
 
 @needs_kernel
 @pytest.mark.parametrize("name", fpr.ROBOTS)
-def test_pickled_allocator_continues_warm(name, monkeypatch):
-    """Pickled in the middle of a saturating sequence: the copy continues as the original does, compiled, and
-    on a machine without the extension (compiled=None: the Python path takes the active bounds over)."""
+def test_pickled_allocator_continues_warm(name):
+    """Pickled in the middle of a saturating sequence: the copy continues as the original does, natively, and
+    where the part is off (the Python path takes the active bounds over)."""
     robot, calls = _walk(name, 120, 21)
     allocator = Allocator(robot)
     start = 30
@@ -168,8 +174,8 @@ def test_pickled_allocator_continues_warm(name, monkeypatch):
     data = pickle.dumps(allocator)
     copy = pickle.loads(data)
     assert copy.compiled
-    monkeypatch.setitem(sys.modules, "controllers._alloc", None)  # the import fails from here on
-    python_copy = pickle.loads(data)
+    with native.switched(allocation=False):
+        python_copy = pickle.loads(data)
     assert not python_copy.compiled and python_copy._active is not None and not python_copy._state.any()
     for call in calls[start:]:
         a = allocator.solve(*call)
@@ -177,19 +183,24 @@ def test_pickled_allocator_continues_warm(name, monkeypatch):
         _assert_same(python_copy.solve(*call), a, allocator.scale)
 
 
+@needs_kernel
 @pytest.mark.parametrize("name", fpr.ROBOTS)
-def test_without_the_extension_the_python_path_is_used(name, monkeypatch):
-    monkeypatch.setitem(sys.modules, "controllers._alloc", None)  # "import controllers._alloc" raises
-    assert allocation._load_kernel() is None
-    robot, calls = _walk(name, 60, 2)
-    allocator = Allocator(robot)
-    assert not allocator.compiled
-    reference = Allocator(robot, compiled=False)
-    for call in calls:
-        _assert_same(allocator.solve(*call), reference.solve(*call), allocator.scale)
-    assert allocator.routes["active set"] > 0
-    with pytest.raises(RuntimeError, match="compiled=True"):
-        Allocator(robot, compiled=True)
+def test_without_the_part_the_python_path_is_used(name, monkeypatch):
+    """A part not built runs its Python path (one warning); FPR_NATIVE=require makes it an error."""
+    monkeypatch.setitem(native._modules, "_alloc", None)  # as on a machine where it was not built
+    monkeypatch.setattr(native, "_warned", set())
+    with native.switched():
+        assert native.use("allocation") is None and native.use("inner") is None
+        robot, calls = _walk(name, 60, 2)
+        allocator = Allocator(robot)
+        assert not allocator.compiled
+        with native.switched(allocation=False):
+            reference = Allocator(robot)
+        for call in calls:
+            _assert_same(allocator.solve(*call), reference.solve(*call), allocator.scale)
+        assert allocator.routes["active set"] > 0
+    with pytest.raises(native.NativeError, match="FPR_NATIVE=require: the native part 'allocation' is not built"):
+        native.configure("require")
 
 
 @needs_kernel
@@ -203,7 +214,7 @@ def test_non_finite_input_is_decided_by_the_python_path():
     thrust_inf = thrust.copy()
     thrust_inf[0] = np.inf
     for case in ((attitude, thrust, u_nan), (attitude, thrust_inf, u_a)):
-        fast, reference = Allocator(robot, compiled=True), Allocator(robot, compiled=False)
+        fast, reference = _allocators(robot)
         assert fast._kernel(case[0].m_inv_a, case[0].j_f, case[0].a_tau, case[0].c, case[1], case[2],
                             fast._kernel_constants, fast._state) is None
         with np.errstate(invalid="ignore"):
@@ -212,20 +223,18 @@ def test_non_finite_input_is_decided_by_the_python_path():
         assert a.iterations == b.iterations and fast.routes == reference.routes
 
 
-def test_a_switch_that_is_not_none_false_or_true_is_refused_in_one_line(monkeypatch):
-    """Every compiled part's switch (fpr.model.compiled.choose): a clear ModelArgumentError naming it."""
-    from controllers.ctc import CascadedController
-    from fpr.model.errors import ModelArgumentError
-
-    robot = fpr.load("fpr")
-    with pytest.raises(ModelArgumentError, match=r"^compiled = 'yes': give None") as error:
-        Allocator(robot, compiled="yes")
-    assert error.value.argument == "compiled" and "\n" not in str(error.value)
-    controller = CascadedController(robot)
-    controller.compiled_inner = 1
-    with pytest.raises(ModelArgumentError, match=r"^compiled_inner = 1: "):
-        controller._inner_kernel()
-    monkeypatch.setattr(robot, "compiled_attitude", "no", raising=False)  # the loaded robot may be shared
-    q = np.zeros(robot.nq)
-    with pytest.raises(ModelArgumentError, match=r"^compiled_attitude = 'no': "):
-        robot.attitude_model(q, q)
+def test_the_switch_refuses_what_is_not_a_setting():
+    """One switch (FPR_NATIVE, native.configure, native.switched): an unknown part or value is refused in one line
+    naming the parts; the switch is unchanged."""
+    before = native.parts()
+    for value in ("yes", "plant,wheels", ["plnt"]):
+        with pytest.raises(ValueError, match="FPR_NATIVE = .*: unknown part") as error:
+            native.configure(value)
+        assert "\n" not in str(error.value) and "plant" in str(error.value)
+    with pytest.raises(ValueError, match="unknown part"):
+        with native.switched(alloc=False):
+            pass
+    assert native.parts() == before
+    with native.switched(watch=False):
+        assert native.use("watch") is None
+    assert native.parts() == before

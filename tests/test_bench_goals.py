@@ -1,4 +1,4 @@
-"""The benchmark's goal rows (issue 13): the allocation replay's split by route, and the goals' verdicts."""
+"""The benchmark's goal rows: the allocation replay's split by route, and the goals' verdicts."""
 
 from __future__ import annotations
 
@@ -36,14 +36,14 @@ def test_replay_splits_the_ticks_by_route():
 
 
 def test_replay_says_which_path_it_measured():
-    """The Python path by request; both paths interleaved: one dict each, the same ticks split alike (the compiled
+    """The Python path by request; both paths interleaved: one dict each, the same ticks split alike (the native
     path only where the extension is built)."""
     robot = fpr.load("prototype")
     calls = _calls(robot, np.random.default_rng(1), [1.0] * 3 + [3.0] * 3)
     assert replay(robot, calls, passes=1, compiled=False)["path"] == "Python"
     default, python = replay_paths(robot, calls, 2, (None, False))
     assert python["path"] == "Python"
-    assert default["path"] == ("compiled (C)" if Allocator(robot).compiled else "Python")
+    assert default["path"] == ("native (C)" if Allocator(robot).compiled else "Python")
     assert default["bound_active_ticks"] == python["bound_active_ticks"] == 3
 
 

@@ -1,4 +1,6 @@
-"""fpr runs BLAS on one thread, whether it is imported before or after numpy (fpr/__init__.py)."""
+"""``fpr.tune_process()`` runs BLAS on one thread, whether numpy was imported before or after; importing fpr alone
+leaves BLAS as numpy started it (fpr/tuning.py).
+"""
 
 import os
 import subprocess
@@ -20,12 +22,14 @@ def _blas_threads(code: str, **env_vars) -> str:
 
 
 @pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="BLAS starts one thread anyway on one core")
-def test_numpy_imported_first_still_gets_one_blas_thread():
-    assert _blas_threads("import numpy; ") != "[1]"  # the probe can tell: numpy alone starts more threads
-    assert _blas_threads("import numpy; import fpr; ") == "[1]"
-    assert _blas_threads("import fpr; import numpy; ") == "[1]"
+def test_import_leaves_blas_alone_and_tune_process_sets_one_thread():
+    alone = _blas_threads("import numpy; ")
+    assert alone != "[1]"  # the probe can tell: numpy alone starts more threads
+    assert _blas_threads("import numpy; import fpr, planners.optimize, fpr.sim.closed_loop; ") == alone
+    assert _blas_threads("import numpy; import fpr; fpr.tune_process(); ") == "[1]"
+    assert _blas_threads("import fpr; fpr.tune_process(); import numpy; ") == "[1]"
 
 
 @pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="needs two cores to choose two threads")
 def test_a_user_choice_of_blas_threads_is_left_alone():
-    assert _blas_threads("import numpy; import fpr; ", OPENBLAS_NUM_THREADS="2") == "[2]"
+    assert _blas_threads("import numpy; import fpr; fpr.tune_process(); ", OPENBLAS_NUM_THREADS="2") == "[2]"

@@ -1,4 +1,4 @@
-"""The allocation's per-tick box-QP path (controllers/box_qp.py ``solve_box_qp_state``, issue 13) and the
+"""The allocation's per-tick box-QP path (controllers/box_qp.py ``solve_box_qp_state``) and the
 bounded allocation's result fields, against independent computations.
 
 * Every branch of the solver (no free variable, one, two in plain Python, three or more by LAPACK) meets the

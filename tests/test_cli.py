@@ -65,7 +65,7 @@ def test_csv_columns_and_documented_units(square_run):
     header, data = _read_csv(out / "trajectory.csv")
     expected = csv_columns(robot)
     assert header == [name for name, _ in expected]
-    readme = (ROOT / "README.md").read_text()
+    readme = (ROOT / "docs" / "guides" / "plan-command.md").read_text()
     table = readme[readme.index("| column | unit | meaning |"):]
     for pattern, unit in [("`t`", "s"), ("`y`, `z`, `phi`, `q21`", "m, m, rad, rad"), ("`f{i}`", "N"),
                           ("`w{i}_{m}`", "rad/s"), ("`tau{i}_x`", "N m"), ("`phi{i}`, `phi{i}_d`", "rad, rad/s")]:

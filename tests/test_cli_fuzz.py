@@ -161,3 +161,143 @@ def test_builtin_missions_and_options(capsys, mission, argv):
         code = main(["--mission", mission, "--method", "none", "--no-plots", "--quiet", *argv,
                      "--out", str(Path(folder) / "out")])
         _check_outcome(code, capsys.readouterr().err, time.perf_counter() - start)
+
+
+# ---------------------------------------------------------------------- the mission reader, any TOML at all
+KEYS = st.sampled_from(["robot", "way_points", "times", "via_points", "alpha", "space", "arm", "name", "description",
+                        "cross_singularity", "robot_parameters", "events", "speed", "a.b", '"q uo"', "x" * 300])
+SCALARS = st.one_of(
+    st.integers(min_value=-(2 ** 63), max_value=2 ** 63 - 1),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([1e-300, 1e300, 5e-324, -0.0, 0.0]),
+    st.booleans(),
+    st.text(max_size=20),
+    st.sampled_from(["1979-05-27", "07:32:00", "1979-05-27T07:32:00Z"]),  # TOML dates and times (bare)
+)
+
+
+def _toml_scalar(value) -> str:
+    if isinstance(value, str) and value[:2] in ("19", "07"):
+        return value
+    return _toml(value)
+
+
+TOML_VALUES = st.recursive(SCALARS.map(_toml_scalar),
+                           lambda inner: st.one_of(
+                               st.lists(inner, max_size=5).map(lambda xs: "[" + ", ".join(xs) + "]"),
+                               st.dictionaries(st.sampled_from(["at", "kind", "force", "duration", "body",
+                                                                "link_length", "drone_mass", "to", "way_point"]),
+                                               inner, max_size=4)
+                               .map(lambda d: "{" + ", ".join(f"{k} = {v}" for k, v in d.items()) + "}")),
+                           max_leaves=12)
+ENCODINGS = st.sampled_from(["utf-8", "utf-8", "utf-8", "utf-8-sig", "utf-16", "latin-1"])
+
+
+@st.composite
+def toml_document(draw) -> bytes:
+    """A TOML-ish document: random keys (mission ones and others) with nested values, sometimes a valid
+    mission with one field replaced, sometimes raw bytes; in some encoding."""
+    choice = draw(st.integers(0, 9))
+    if choice == 0:
+        return draw(st.binary(max_size=200))
+    lines = []
+    if choice <= 4:  # a mission with one field made odd
+        base = {"robot": '"fpr"', "way_points": "[" + ", ".join([_toml(SPACE_FPR)] * 2) + "]", "times": "[3.0]"}
+        base[draw(st.sampled_from(sorted(base)))] = draw(TOML_VALUES)
+        lines += [f"{k} = {v}" for k, v in base.items()]
+    for _ in range(draw(st.integers(0, 4))):
+        lines.append(f"{draw(KEYS)} = {draw(TOML_VALUES)}")
+    if draw(st.integers(0, 4)) == 0:
+        lines.append(draw(st.sampled_from(["[robot_parameters]", "[[events]]", "[a.b.c]", "[[way_points]]"])))
+        lines.append(f"{draw(KEYS)} = {draw(TOML_VALUES)}")
+    text = "\n".join(lines) + "\n"
+    return text.encode(draw(ENCODINGS), errors="replace")
+
+
+@settings(max_examples=60, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(document=toml_document())
+def test_the_mission_reader_on_any_toml(capsys, document):
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "mission.toml"
+        path.write_bytes(document)
+        start = time.perf_counter()
+        code = main(["--mission", str(path), "--method", "none", "--no-plots", "--quiet", "--rate", "20",
+                     "--out", str(Path(folder) / "out")])
+        _check_outcome(code, capsys.readouterr().err, time.perf_counter() - start)
+
+
+# ----------------------------------------------------------------------------- every numeric option, extremes
+EXTREMES = st.sampled_from([1e-300, -1e-300, 1e300, -1e300, 5e-324, -5e-324, -0.0, 0.0, math.nan, math.inf,
+                            -math.inf, 1e-9, 0.5, 1.0, 3.0])
+NUMERIC_OPTIONS = ["--rate", "--alpha", "--times", "--set drone_mass", "--set link_length", "--set hinge_offset",
+                   "--set end_effector_mass", "--model-mass-scale", "--rotor-constant-scale", "--wind", "--noise",
+                   "--hold", "--initial-error", "--replan-deadline", "--replan-bound", "--replan-rate"]
+SIMULATION = {"--model-mass-scale", "--rotor-constant-scale", "--wind", "--noise", "--hold", "--initial-error"}
+REPLANNING = {"--replan-deadline", "--replan-bound", "--replan-rate"}
+
+
+def _argument(option: str, value: float, other: float) -> list[str]:
+    if option.startswith("--set "):
+        return ["--set", f"{option[6:]}={value!r}"]
+    if option == "--wind":
+        return [f"--wind={value!r},{other!r},0"]
+    if option == "--noise":
+        return [f"--noise={value!r},{other!r}"]
+    if option == "--initial-error":
+        return ["--initial-error", f"y={value!r}"]
+    return [f"{option}={value!r}"]
+
+
+@settings(max_examples=80, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(option=st.sampled_from(NUMERIC_OPTIONS), value=EXTREMES, other=EXTREMES, simulate=st.booleans())
+def test_every_numeric_option_at_its_extremes(capsys, option, value, other, simulate):
+    argv = _argument(option, value, other)
+    if option in SIMULATION | REPLANNING and simulate:
+        argv += ["--simulate", "--hold", "0.2"] if option != "--hold" else ["--simulate"]
+    if option in REPLANNING and simulate:
+        argv += ["--replan"]
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        code = main(["--mission", "study", "--method", "none", "--no-plots", "--quiet", *argv,
+                     *(["--rate", "20"] if option != "--rate" else []), "--out", str(Path(folder) / "out")])
+        _check_outcome(code, capsys.readouterr().err, time.perf_counter() - start)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(option=st.sampled_from(["--runs", "--seed", "--workers", "--hold", "--tracking-tolerance", "--min-success",
+                               "--model-mass-scale", "--wind", "--vary model_mass_scale", "--vary wind",
+                               "--vary drone_mass", "--vary initial_error.y"]),
+       value=st.one_of(EXTREMES, st.sampled_from([0, -1, 2 ** 64, 10 ** 30, 1000, 1]).map(float)),
+       other=EXTREMES)
+def test_every_campaign_option_at_its_extremes(capsys, monkeypatch, option, value, other):
+    """The campaign's checks (the runs themselves stubbed: a valid input reaches the cluster, which is then
+    interrupted, exit 130)."""
+    from fpr.cli import campaign
+
+    def no_cluster(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(campaign, "_client", no_cluster)
+    monkeypatch.setattr(campaign.workers, "end_children", lambda: None)
+    if option in ("--runs", "--seed", "--workers"):
+        argv = [f"{option}={int(value) if math.isfinite(value) else value!r}"]
+    elif option.startswith("--vary "):
+        distribution = st.sampled_from  # (the distributions' own grammar is tested in test_campaign.py)
+        del distribution
+        argv = ["--vary", f"{option[7:]}=uniform({min(value, other)!r},{max(value, other)!r})"
+                if not (math.isnan(value) or math.isnan(other)) else f"{option[7:]}={value!r}"]
+    elif option == "--wind":
+        argv = [f"--wind={value!r},{other!r},0"]
+    else:
+        argv = [f"{option}={value!r}"]
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        code = campaign.main(["--mission", "study", "--method", "none", "--runs", "2", "--hold", "0.2",
+                              "--no-plots", "--quiet", *argv, "--out", str(Path(folder) / "c")])
+        err = capsys.readouterr().err
+        assert code in (2, 130), (code, err)
+        assert "Traceback" not in err and len([x for x in err.splitlines() if x.strip()]) == 1, err
+        assert time.perf_counter() - start < TIME_BOUND

@@ -15,7 +15,8 @@ from fpr.model import description
 from fpr.model.errors import RobotDefinitionError, UnknownRobotError
 
 PARAMS = yaml.safe_load((description.URDF_DIR / "parameters.yaml").read_text(encoding="utf-8"))
-DRONES = {"fpr": ("drone_1", "drone_2"), "prototype": ("drone_1",)}
+DRONES = {"fpr": ("drone_1", "drone_2"), "prototype": ("drone_1",), "fpr3": ("drone_1", "drone_2", "drone_3")}
+PLANAR = ("fpr", "prototype")  # their links and masses; the spatial FPR's: tests/test_fpr3_model.py
 ROTOR_DIRECTIONS = {1: (1, 0), 2: (0, 1), 3: (-1, 0), 4: (0, -1)}  # +x, +y, -x, -y
 
 X, Y, Z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
@@ -34,6 +35,16 @@ JOINTS = {
         "q2": ("continuous", X, "link_1", "link_2"),
         "end_effector_joint": ("fixed", None, "link_2", "end_effector"),
         "drone_1_hinge": ("continuous", X, "link_2", "drone_1"),
+    },
+    "fpr3": {
+        **{f"q{i}": ("continuous", Z, "platform", f"leg_{i}") for i in (1, 2, 3)},
+        **{f"leg_{i}_tip_joint": ("fixed", None, f"leg_{i}", f"leg_{i}_tip") for i in (1, 2, 3)},
+        **{f"drone_{i}_ball_pitch": ("continuous", Y, f"leg_{i}_tip", f"drone_{i}_ball_pitch_link")
+           for i in (1, 2, 3)},
+        **{f"drone_{i}_ball_yaw": ("continuous", Z, f"drone_{i}_ball_pitch_link", f"drone_{i}_ball_yaw_link")
+           for i in (1, 2, 3)},
+        **{f"drone_{i}_hinge": ("continuous", X, f"drone_{i}_ball_yaw_link", f"drone_{i}")
+           for i in (1, 2, 3)},
     },
 }
 for _robot, _joints in JOINTS.items():
@@ -67,7 +78,7 @@ def _load_pinocchio(robot: str, path: str | Path | None = None) -> pin.Model:
 def _load_pinocchio_from_text(robot: str, text: str) -> pin.Model:
     # the continuous hinges read with one angle each, as fpr.model.robot.Robot does
     text = description.single_angle_urdf(text)
-    if robot == "fpr":
+    if robot in ("fpr", "fpr3"):  # floating: the root joint is added at load
         return pin.buildModelFromXML(text, pin.JointModelFreeFlyer())
     return pin.buildModelFromXML(text)
 
@@ -94,11 +105,11 @@ def test_check_command_passes():
 
 
 def test_paths_and_unknown_robot():
-    assert description.DESCRIPTIONS == ("fpr", "prototype")
+    assert description.DESCRIPTIONS == ("fpr", "fpr3", "prototype")
     assert description.xacro_path("fpr").name == "fpr.urdf.xacro"
     assert description.urdf_path("prototype") == description.URDF_DIR / "prototype.urdf"
     for function in (description.xacro_path, description.urdf_path, description.generate_urdf):
-        with pytest.raises(UnknownRobotError, match="'fpr', 'prototype'"):
+        with pytest.raises(UnknownRobotError, match="'fpr', 'fpr3', 'prototype'"):
             function("tripod")
     with pytest.raises(RobotDefinitionError, match="no such xacro file"):
         description.xacro_path("/nowhere/tripod.urdf.xacro")
@@ -144,7 +155,7 @@ def test_mesh_package_dirs():
         assert (Path(folder) / "example-robot-data" / "robots" / "hector_description").is_dir()
 
 
-@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
+@pytest.mark.parametrize("robot", PLANAR)
 def test_xacro_arg_overrides_link_length(robot):
     text = description.generate_urdf(robot, link_length=1.0)
     sign = -1.0 if robot == "fpr" else 1.0
@@ -175,8 +186,8 @@ def test_write_urdf(tmp_path):
 def test_yourdfpy_loads(robot):
     urdf = _load_yourdfpy(robot, load_meshes=False, build_scene_graph=True)
     assert urdf.validate()
-    assert urdf.base_link == ("end_effector" if robot == "fpr" else "base")
-    assert urdf.robot.name == ("fpr" if robot == "fpr" else "fpr_prototype")
+    assert urdf.base_link == {"fpr": "end_effector", "prototype": "base", "fpr3": "platform"}[robot]
+    assert urdf.robot.name == {"fpr": "fpr", "prototype": "fpr_prototype", "fpr3": "fpr3"}[robot]
 
 
 @pytest.mark.skipif(not description.mesh_package_dirs(), reason="example-robot-data is not installed")
@@ -208,7 +219,7 @@ def test_inertials_are_physical(robot):
         assert not any(f"{drone}_rotor_{m}" in names for m in range(1, 5))
 
 
-@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
+@pytest.mark.parametrize("robot", PLANAR)
 def test_inertial_values_follow_parameters(robot):
     urdf = _load_yourdfpy(robot, load_meshes=False)
     links = urdf.link_map
@@ -250,7 +261,7 @@ def test_joint_types_and_axes(robot):
 # --- the URDF as read by Pinocchio --------------------------------------------------------------
 
 
-@pytest.mark.parametrize("robot", description.DESCRIPTIONS)
+@pytest.mark.parametrize("robot", PLANAR)
 def test_pinocchio_loads_with_total_mass(robot):
     model = _load_pinocchio(robot)
     drones = len(DRONES[robot])
@@ -299,12 +310,13 @@ def test_rotor_frames(robot):
     q = _random_configuration(model)
     pin.framesForwardKinematics(model, data, q)
     arm = PARAMS["rotor_arm"]
+    offset = PARAMS["ball_offset" if robot == "fpr3" else "hinge_offset"]  # the spatial FPR's: on balls
     for drone in DRONES[robot]:
         center = data.oMf[model.getFrameId(f"{drone}_center")]
         hinge = data.oMf[model.getFrameId(drone)]
         # the centre is hinge_offset above the hinge along body z, with the body's orientation
         np.testing.assert_allclose(
-            center.actInv(hinge.translation), [0, 0, -PARAMS["hinge_offset"]], atol=1e-12
+            center.actInv(hinge.translation), [0, 0, -offset], atol=1e-12
         )
         np.testing.assert_allclose(center.rotation, hinge.rotation, atol=1e-12)
         for m, (dx, dy) in ROTOR_DIRECTIONS.items():

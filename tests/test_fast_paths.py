@@ -1,10 +1,10 @@
-"""The simulator's fast paths against the references they replace (issue 13).
+"""The simulator's fast paths against the references they replace.
 
 Each fast path is held equal to a slower, independent computation of the same quantity:
 
 * the plant step without wind (:meth:`fpr.sim.plant.Plant._python_steps`: one constant rotor-force map, the
-  step's constants cached; and the compiled steps) against :func:`fpr.sim.plant.rkmk4_step` driven by Pinocchio's frame Jacobians
-  and the lag solution through ``np.exp``: the same RKMK4 step, so equal to round-off;
+  step's constants cached; and the native steps) against :func:`fpr.sim.plant.rkmk4_step` driven by Pinocchio's
+  frame Jacobians and the lag solution through ``np.exp``: the same RKMK4 step, so equal to round-off;
 * :meth:`fpr.sim.plant.Plant.observe` against :meth:`~fpr.sim.plant.Plant.measure` and
   :meth:`~fpr.sim.plant.Plant.drone_positions_and_closure_error` (their own kinematics pass);
 * the allocation's closed form (the thesis' law 2.24, used when no rotor bound is active) against ProxQP
@@ -24,6 +24,7 @@ from helpers import hover_thrusts, near_hover
 import fpr
 from controllers.allocation import Allocator, allocation_qp, selectors
 from controllers.box_qp import solve_box_qp
+from fpr import _native as native
 from fpr.model.qp import proxsuite_module
 from fpr.sim.plant import Plant, hover_configuration, rkmk4_step
 
@@ -38,13 +39,13 @@ def _moving_plant(name, seed):
     return robot, Plant.from_minimal(robot, q, v, w=w), command, rng
 
 
-@pytest.mark.parametrize("compiled", [False, None])
+@pytest.mark.parametrize("native_step", [False, None])
 @pytest.mark.parametrize("name", fpr.ROBOTS)
-def test_lean_step_is_the_reference_rkmk4_step(name, compiled):
-    """20 steps of 1 ms: the lean step (the Python steps, and the compiled ones when built) and rkmk4_step on
+def test_lean_step_is_the_reference_rkmk4_step(name, native_step):
+    """20 steps of 1 ms: the lean step (the Python steps, and the native ones when on) and rkmk4_step on
     Pinocchio's Jacobians agree to 1e-12 (relative)."""
     robot, plant, command, _ = _moving_plant(name, 1)
-    plant.compiled_step = compiled
+    on = {} if native_step is None else {"plant": native_step}
     lag = robot.rotor_constants.time_constant
     closed = plant.closed
     qc, vc, w0 = plant.qc.copy(), plant.vc.copy(), plant.rotor_speeds
@@ -57,7 +58,8 @@ def test_lean_step_is_the_reference_rkmk4_step(name, compiled):
 
         qc, vc = rkmk4_step(closed.model, qc, vc, DT, acceleration)
         w0 = speeds(DT)
-        plant.step(command, DT)
+        with native.switched(**on):
+            plant.step(command, DT)
     assert np.abs(plant.qc - qc).max() <= 1e-12 * max(1.0, np.abs(qc).max())
     assert np.abs(plant.vc - vc).max() <= 1e-12 * max(1.0, np.abs(vc).max())
     np.testing.assert_allclose(plant.rotor_speeds, w0, rtol=1e-14)
@@ -155,7 +157,8 @@ def test_proxqp_fallback_gives_the_active_set_answer(name, monkeypatch):
     robot, cases = _allocation_cases(name, 3.0, 5, 6)
     exact = [Allocator(robot).solve(*case).speeds_squared for case in cases]
     monkeypatch.setattr(allocation, "solve_box_qp_state", lambda *args, **kwargs: None)
-    allocator = Allocator(robot, compiled=False)  # the Python path (the compiled tick has its own fallback)
+    with native.switched(allocation=False):  # the Python path (the native tick has its own fallback)
+        allocator = Allocator(robot)
     for case, z in zip(cases, exact, strict=True):
         again = allocator.solve(*case).speeds_squared
         np.testing.assert_allclose(again, z, rtol=0, atol=1e-6 * allocator.scale)
@@ -208,7 +211,7 @@ def test_attitude_model_rows_of_the_inverse_mass_matrix(name):
         tol = 1e-13 * np.abs(inverse).max()
         np.testing.assert_allclose(model.m_inv_a, inverse[attitude_rows], rtol=0, atol=tol)
         jac = robot.drone_jacobians(q)
-        # the Jacobians and c from fpr/model/_multibody.c when built: Pinocchio's to round-off
+        # the Jacobians and c natively when on: Pinocchio's to round-off
         np.testing.assert_allclose(model.j_f, jac[:, 2], rtol=0, atol=1e-15)
         np.testing.assert_allclose(model.j_tau, jac[:, 3:].reshape(-1, robot.nq), rtol=0, atol=1e-15)
         np.testing.assert_allclose(model.c, robot.nonlinear_effects(q, v), rtol=0, atol=1e-14)

@@ -1,4 +1,4 @@
-"""The figure fixes of issue 16: thesis figure numbers in the titles, the limits that apply to the motion shown,
+"""The figures' conventions: thesis figure numbers in the titles, the limits that apply to the motion shown,
 lines that stay visible, legends beside the data, value labels with enough digits, direction and time marks on
 paths, no numerical noise presented as a result; and the new views (closed-loop margins, stroboscopic view, GIF).
 """

@@ -1,5 +1,5 @@
-"""The compiled jet products, solves and inverses (fpr/model/_jets.c) against numpy's, their reference
-(``fpr.model.jets.compiled = False``).
+"""The native jet products, solves and inverses (fpr._native's part ``jets``, fpr/_native/jets.c) against numpy's,
+their reference (the part switched off).
 
 Each kernel is compared on random real and complex batches, with the broadcasting the planner uses (a batch of
 matrices against copies of it) and with the orders of constants; then the planner's node derivatives of a whole
@@ -8,23 +8,26 @@ mission, which go through all of them.
 
 import numpy as np
 import pytest
+from native_parts import native_module, needs_native
 
 import fpr
+from fpr import _native as native
 from fpr.model import jets
 from fpr.model.jets import Jet
 
-pytestmark = pytest.mark.skipif(jets._KERNEL is None, reason="fpr.model._jets is not built (no C compiler)")
+pytestmark = needs_native
 
 
 @pytest.fixture
-def reference(monkeypatch):
-    """A function running ``f()`` under numpy's products (the reference), then under the compiled ones."""
+def reference():
+    """A function running ``f()`` under numpy's products (the reference), then under the native ones."""
+    native_module("jets")
+
     def both(f):
-        monkeypatch.setattr(jets, "compiled", False)
-        want = f()
-        monkeypatch.setattr(jets, "compiled", True)
-        got = f()
-        monkeypatch.setattr(jets, "compiled", None)
+        with native.switched(jets=False):
+            want = f()
+        with native.switched(jets=True):
+            got = f()
         return want, got
     return both
 
@@ -105,12 +108,8 @@ def test_inverse_is_numpy_s_and_singular_matrices_raise_as_numpy_does(reference)
     singular = rng.normal(size=(3, 4, 4))
     singular[1, 2] = 0.0
     for switch in (False, True):
-        jets.compiled = switch
-        try:
-            with pytest.raises(np.linalg.LinAlgError):
-                jets.inverse(singular)
-        finally:
-            jets.compiled = None
+        with native.switched(jets=switch), pytest.raises(np.linalg.LinAlgError):
+            jets.inverse(singular)
     with_nan = rng.normal(size=(2, 3, 3))
     with_nan[0, 1, 1] = np.nan
     want, got = reference(lambda: jets.inverse(with_nan))
@@ -126,14 +125,6 @@ def test_solve_matrices_is_numpy_s(reference):
     want, got = reference(lambda: jets.solve_matrices(a, b))
     _close(want, got, 1e-12)
     assert np.abs(a @ got - b).max() < 1e-12
-
-
-def test_compiled_switch_true_requires_the_kernel(monkeypatch):
-    """compiled = True without the kernel says how to build it."""
-    monkeypatch.setattr(jets, "_KERNEL", None)
-    monkeypatch.setattr(jets, "compiled", True)
-    with pytest.raises(RuntimeError, match="build"):
-        jets.small_matmul(np.eye(2), np.eye(2))
 
 
 def test_node_derivatives_of_a_mission_are_numpy_s(reference):

@@ -1,4 +1,4 @@
-"""The planner's optimality reporting and the polished two-step method (issue 17), on the square mission.
+"""The planner's optimality reporting and the polished two-step method, on the square mission.
 
 The two-step method's polish is a 1-step solve from the 2-step motion, kept only when its grid J is
 lower: the polished plan can be no worse on the grid than the thesis' two-step plan, and like every

@@ -7,6 +7,7 @@ from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from planners.missions.mission import load_mission
 from planners.optimize import plan
 from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.replanning.latency import LatencyModel
 from planners.replanning.replanner import Replanner, ReplanOptions, jet, splice
 
 S0 = [0.0, 0.0, 3.9269908169872414, 1.5707963267948966]
@@ -19,7 +20,7 @@ def moving():
     return mission, plan(mission, "two-step")
 
 
-#: A deadline the replans of this machine meet (the default 50 ms is shorter than they take here: README)
+#: A deadline the replans of this machine meet (the default 50 ms may be shorter than they take: guides/replanning)
 DEADLINE = 0.3
 
 
@@ -88,16 +89,39 @@ def test_splice_reproduces_the_cut_segment_exactly():
     np.testing.assert_allclose(joined.knots, [0.0, 1.0, 1.7, 2.2])
 
 
-def test_a_late_plan_is_not_used_and_the_plan_in_force_stays(moving):
+def test_a_solve_that_cannot_be_ready_by_the_deadline_is_spliced_when_it_can(moving):
+    """The modelled first iteration does not fit the deadline: the splice moves to when it is ready (rounded up
+    to the ms), the change is used, C4 there, and the record says why; nothing is late in the model."""
     mission, result = moving
-    # the deterministic latency: a work cost 1000 times too high makes the same solve late
-    replanner, record = _replanned(result, work_cost=(1e-1, 1e-2, 1.0))
-    assert record.feasible and not record.used
-    assert record.latency_s > record.deadline_s and "late" in record.why
-    assert replanner.trajectory is result.trajectory
-    # the same with the measured wall time against an impossible deadline
-    replanner, record = _replanned(result, timing="wall", deadline=1e-6)
-    assert not record.used and "late" in record.why and record.latency_s == record.solve_wall_s
+    slow = LatencyModel((0.0, 0.0, 3e-3, 0.0, 0.0))  # 3 ms per node and derivative evaluation
+    replanner, record = _replanned(result, latency=slow, deadline=0.05)
+    assert record.used and record.feasible, record.why
+    first = replanner.latency({**record.work, "derivative_evaluations": 1, "value_evaluations": 1})
+    assert record.splice_time == pytest.approx(4.0 + np.ceil(first * 1e3 - 1e-9) / 1e3, abs=1e-12)
+    assert record.delayed_s == pytest.approx(record.splice_time - 4.05) and record.delayed_s > 0
+    assert record.latency_s <= record.splice_time - record.time + 1e-12
+    assert "past the 50 ms deadline" in record.why
+    before = np.linspace(0.0, record.splice_time, 300)
+    np.testing.assert_allclose(replanner.trajectory.evaluate(before, 4), result.trajectory.evaluate(before, 4),
+                               atol=1e-9)
+    np.testing.assert_allclose(replanner.trajectory.evaluate(np.array([6.0]), 0)[0, 0], [1.2, 0.8, S0[2], S0[3]],
+                               atol=1e-9)
+    # a model that fits the deadline: spliced at t_0 + deadline, no delay
+    replanner, record = _replanned(result, latency=LatencyModel((0.0, 0.0, 1e-4, 0.0, 0.0)), deadline=0.05)
+    assert record.used and record.splice_time == pytest.approx(4.05) and record.delayed_s == 0.0
+
+
+def test_a_late_wall_clock_solve_is_solved_again_after_its_end(moving):
+    """Against an impossible wall-clock deadline (and a model that calls every solve instant, so the splice is
+    not delayed) the first solve is late (not used: the plan in force stays then), and is solved again at
+    once, triggered when it ended."""
+    mission, result = moving
+    instant = LatencyModel((0.0,) * 5)
+    replanner, record = _replanned(result, timing="wall", deadline=1e-6, latency=instant)
+    late, again = replanner.replans
+    assert not late.used and "late" in late.why and late.latency_s == late.solve_wall_s
+    assert again is record and "again" in again.trigger
+    assert again.time == pytest.approx(late.time + late.latency_s)
 
 
 def test_an_infeasible_plan_is_not_used(moving):
@@ -106,7 +130,7 @@ def test_an_infeasible_plan_is_not_used(moving):
         events=[{"at": 5.5, "kind": "move", "way_point": 2, "to": [-0.5, 1.0, S0[2], S0[3]]}]
     )
     replanner = Replanner(
-        type(result)(**{**vars(result), "mission": far}), ReplanOptions(samples_per_segment=9)
+        type(result)(**{**vars(result), "mission": far}), ReplanOptions(samples_per_segment=9, least_horizon=0.0)
     )
     replanner.move(0)
     record = replanner.replan(5.5, "event")  # 1.7 m in 0.45 s: beyond the rotors
@@ -156,3 +180,27 @@ def test_a_travel_cut_by_the_splice_keeps_segments_as_long_as_the_offline_plans(
                 assert np.allclose(segments, segments[0])
             else:  # a whole travel keeps the offline via points
                 assert inside.size == replanner.n_via[j - 1] + 2
+
+
+def test_an_infeasible_replan_is_solved_again_with_more_iterations():
+    """A way point moved 0.49 m 0.85 s before the robot gets there (square, way point 3 to [0.14, 1.46]): two
+    SQP iterations leave the part infeasible; it is solved again when that solve ends, with up to
+    ``persist_iterations`` iterations and its splice as far as they take on this machine (the model), and
+    that part is used. With persist_iterations 0 it is not."""
+    mission = load_mission("square").replace(
+        events=[{"at": 8.150262, "kind": "move", "way_point": 3, "to": [0.1404476745649267, 1.4574497310551306,
+                                                                          S0[2], S0[3]]}])
+    result = plan(mission, "two-step")
+    model = LatencyModel((0.002, 0.001, 2e-4, 0.0, 0.0))
+    for persist in (8, 0):
+        replanner = Replanner(result, ReplanOptions(latency=model, persist_iterations=persist))
+        replanner.move(0)
+        record = replanner.replan(8.150262, "event")
+        first = replanner.replans[0]
+        assert not first.feasible and "infeasible" in first.why
+        if persist:
+            assert len(replanner.replans) == 2 and record.used and record.feasible, record.why
+            assert record.time == pytest.approx(first.time + first.latency_s)
+            assert 2 < record.iterations <= 8 and record.latency_s <= record.splice_time - record.time + 1e-12
+        else:
+            assert replanner.replans == [first] and not record.used

@@ -57,7 +57,7 @@ def _run(tmp_path, name, *extra):
 def runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("replan")
     return {
-        "replan": _run(tmp, "a", "--replan", "--replan-deadline", "0.25"),  # what this machine meets (README)
+        "replan": _run(tmp, "a", "--replan", "--replan-deadline", "0.25"),  # what a slow machine meets (guides/replanning)
         "again": _run(tmp, "b", "--replan", "--replan-deadline", "0.25"),
         "plain": _run(tmp, "c"),
     }
@@ -140,16 +140,45 @@ def test_a_moved_way_point_out_of_reach_exits_2_before_any_work(tmp_path, capsys
     assert not (tmp_path / "x").exists()
 
 
-def test_late_replans_say_which_deadline_would_let_them_in(tmp_path, capsys):
-    """A deadline no solve meets: the replan is not used, and the summary names a deadline above its latency."""
+def test_a_deadline_no_solve_meets_moves_the_splice_to_when_the_solve_is_ready(tmp_path, capsys):
+    """A 1 ms deadline: the change is not dropped; it is spliced when its first iteration is ready on this
+    machine (the tests' pinned latency model), and the record and the summary say so."""
     mission = tmp_path / "short.toml"
     mission.write_text(MISSION, encoding="utf-8")
     code = main(["--mission", str(mission), "--method", "none", "--simulate", "--hold", "0", "--no-plots",
                  "--rate", "100", "--out", str(tmp_path / "late"), "--replan", "--replan-deadline", "0.001"])
     out = capsys.readouterr().out
-    replans = json.loads((tmp_path / "late" / "replans.json").read_text())["replans"]
-    assert replans and not any(r["used"] for r in replans)
-    line = next(x for x in out.splitlines() if "were late" in x)
-    suggested = float(line.split("--replan-deadline ")[1].split()[0])
-    assert suggested >= max(r["latency_s"] for r in replans)
-    assert code in (0, 1)
+    document = json.loads((tmp_path / "late" / "replans.json").read_text())
+    [record] = document["replans"]
+    assert code == 0 and record["used"] and record["delayed_s"] > 0
+    assert record["splice_time"] == pytest.approx(2.5 + 0.001 + record["delayed_s"])
+    assert record["latency_s"] <= record["splice_time"] - record["time"] + 1e-12
+    assert "past the 1 ms deadline" in record["why"] and "past the 1 ms deadline" in out
+    assert document["latency_model"]["source"] == "the tests' pinned model"
+
+
+def test_a_run_pinned_to_a_calibration_gives_the_same_bytes(tmp_path):
+    """--replan-calibration FILE: the decisions depend on that file only. Two runs pinned to the same model
+    (a calibration file, and the replans.json of the first run) write the same bytes, whatever this
+    machine's own calibration holds; a slower model delays the splice."""
+    slow = tmp_path / "slow.json"
+    slow.write_text(json.dumps({"latency_model": {"costs": [0.0, 0.0, 0.004, 0.0, 0.0], "source": "slow"}}),
+                    encoding="utf-8")
+    first = _run(tmp_path, "a", "--replan", "--replan-calibration", str(slow))
+    again = _run(tmp_path, "b", "--replan", "--replan-calibration", str(first[1] / "replans.json"))
+    assert first[0] == again[0] == 0
+    for name in ("replans.json", "trajectory.csv", "simulation.json"):
+        assert (first[1] / name).read_bytes() == (again[1] / name).read_bytes(), name
+    [record] = json.loads((first[1] / "replans.json").read_text())["replans"]
+    assert record["used"] and record["delayed_s"] > 0  # 21 nodes x 4 ms > the 50 ms deadline
+
+
+@pytest.mark.parametrize("content, words", [("not json", "cannot read"), ('{"robots": {}}', "no replanning latency"),
+                                            ('{"latency_model": {"costs": [-1, 0, 0, 0, 0]}}', "no replanning")])
+def test_a_bad_calibration_file_exits_2_with_one_line(tmp_path, capsys, content, words):
+    bad = tmp_path / "bad.json"
+    bad.write_text(content, encoding="utf-8")
+    code = main(["--simulate", "--replan", "--replan-calibration", str(bad), "--out", str(tmp_path / "x"),
+                 "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and words in err and "--replan-calibration" in err and len(err.strip().splitlines()) == 1

@@ -1,20 +1,25 @@
 """A known external force in the planning model (planners/problem/disturbance.py), and the replanner's own SQP
 (planners/replanning/solver.py)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.model.jets import Jet
 from fpr.robots import load
-from planners.problem.disturbance import DisturbedProblem, dense_check, generalized_gust, gust_profile
 from planners.missions.events import GustEvent
 from planners.missions.mission import builtin_mission_text, load_mission
 from planners.optimize import plan
-from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.disturbance import DisturbedProblem, dense_check, generalized_gust, gust_profile
+from planners.problem.report import evaluate_motion
+from planners.replanning.latency import LatencyModel
 from planners.replanning.replanner import Replanner, ReplanOptions
 from planners.replanning.solver import qp_step, solve_warm
-from planners.problem.report import evaluate_motion
+from planners.trajectory.polynomial import PiecewisePolynomial
+
+FREE = LatencyModel((0.0,) * 5)  # a solve takes no time: the deadline never decides
 
 
 @pytest.fixture(scope="module")
@@ -172,7 +177,7 @@ def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_
     chain = [robot.index[c] for c in robot.layout.chain]
 
     def fly(triggers):
-        replanner = Replanner(result, ReplanOptions(deadline=0.3, work_cost=(0.0, 0.0, 0.0)))
+        replanner = Replanner(result, ReplanOptions(deadline=0.3, latency=FREE))
         hooks = InFlight(mission, replanner, triggers, SimulationSettings().controller, chain, robot)
         for t in (1.99, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 11.0):
             reference = replanner.trajectory.evaluate(np.array([t]), 4)[:, 0]
@@ -237,9 +242,10 @@ def test_an_estimated_wind_is_planned_against_once_it_has_held_and_silences_the_
     result = plan(mission, "two-step")
     robot = result.robot
     chain = [robot.index[c] for c in robot.layout.chain]
-    replanner = Replanner(result, ReplanOptions(deadline=0.3, work_cost=(0.0, 0.0, 0.0)))
+    replanner = Replanner(result, ReplanOptions(deadline=0.3, latency=FREE))
     triggers = TriggerSettings(known_gusts=False, estimate_wind=True, tracking_bound=0.25)
-    hooks = InFlight(mission, replanner, triggers, SimulationSettings().controller, chain, robot)
+    blind = dataclasses.replace(SimulationSettings().controller, observer_bandwidth=0.0)  # no observer: the
+    hooks = InFlight(mission, replanner, triggers, blind, chain, robot)  # estimate from the tracking error
     offset = np.array([-0.3, 0.0, 0.0, 0.0])
     for t in np.arange(1.5, 4.0, 0.002):
         reference = replanner.trajectory.evaluate(np.array([t]), 4)[:, 0]
@@ -251,7 +257,7 @@ def test_an_estimated_wind_is_planned_against_once_it_has_held_and_silences_the_
     records = [(r.time, r.trigger) for r in replanner.replans]
     estimated = [t for t, why in records if why.startswith("wind estimated")]
     assert len(estimated) == 1 and 3.0 <= estimated[0] <= 3.5, records  # 1 N reached within 0.5 s, held 1 s
-    assert replanner.assumed is not None and replanner.assumed.force[1] < -1.0  # pushed towards -y
+    assert replanner.assumed is not None and replanner.assumed[0].force[1] < -1.0  # pushed towards -y
     # the first tracking replan comes before the estimate rises (30 cm > 0.25 from 2 s); none after it
     tracking = [t for t, why in records if why.startswith("tracking")]
     assert tracking and max(tracking) < estimated[0] - triggers.estimate_delay + 0.01
@@ -273,9 +279,10 @@ def test_an_estimated_wind_that_drops_is_forgotten_and_kept_as_the_record_of_wha
     result = plan(mission, "two-step")
     robot = result.robot
     chain = [robot.index[c] for c in robot.layout.chain]
-    replanner = Replanner(result, ReplanOptions(deadline=0.3, work_cost=(0.0, 0.0, 0.0)))
+    replanner = Replanner(result, ReplanOptions(deadline=0.3, latency=FREE))
     triggers = TriggerSettings(known_gusts=False, estimate_wind=True, tracking_bound=None)
-    hooks = InFlight(mission, replanner, triggers, SimulationSettings().controller, chain, robot)
+    blind = dataclasses.replace(SimulationSettings().controller, observer_bandwidth=0.0)
+    hooks = InFlight(mission, replanner, triggers, blind, chain, robot)
     hooks.estimator = Scripted()
     assumed = []
     for t in np.arange(1.5, 6.5, 0.002):
@@ -295,7 +302,7 @@ def test_an_estimated_wind_that_drops_is_forgotten_and_kept_as_the_record_of_wha
     assert replanner.assumed is None
     # every estimate planned against is kept: each ends where the next is fully on (a way point passed in
     # the wind re-estimates it), the last one ramp after it was dropped
-    kept = sorted((g for g in replanner.gusts if g.force == assumed[0].force), key=lambda g: g.at)
+    kept = sorted((g for g in replanner.gusts if g.force == assumed[0][0].force), key=lambda g: g.at)
     assert kept[0].at + kept[0].rise == pytest.approx(estimated[0], abs=1e-9), kept  # fully on when estimated
     for g, after in zip(kept, kept[1:]):
         assert g.at + g.duration == pytest.approx(after.at + after.rise, abs=1e-9)
@@ -328,7 +335,7 @@ def test_a_step_qp_that_quadprog_cannot_solve_stops_the_replan_without_using_it(
         raise ValueError("constraints are inconsistent, no solution")
 
     monkeypatch.setattr(rs.quadprog, "solve_qp", fail)
-    replanner = Replanner(moving[1], ReplanOptions(deadline=0.3, work_cost=(0.0, 0.0, 0.0)))
+    replanner = Replanner(moving[1], ReplanOptions(deadline=0.3, latency=FREE))
     before = replanner.trajectory
     record = replanner.replan(2.0, "rate")
     assert record.solver.startswith("QP failed") and not record.used

@@ -7,6 +7,8 @@ the controller takes Pinocchio's frame Jacobian), and the static force balance o
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -278,10 +280,12 @@ def test_an_estimate_is_fed_to_the_controller_as_a_ramp_from_its_take_up():
 
     robot = fpr.load("fpr")
     fake = SimpleNamespace(robot=robot, moves={}, gusts=[], assumed=None)
-    hooks = InFlight(load_mission("gust"), fake, TriggerSettings(known_gusts=False, estimate_wind=True),
-                     SimulationSettings().controller, [robot.index[c] for c in robot.layout.chain], robot)
+    blind = dataclasses.replace(SimulationSettings().controller, observer_bandwidth=0.0)  # the tracking-error
+    hooks = InFlight(load_mission("gust"), fake, TriggerSettings(known_gusts=False, estimate_wind=True),  # estimate
+                     blind, [robot.index[c] for c in robot.layout.chain], robot)
     t_up = 3.5
-    first = hooks._estimated_gust(t_up, (0.0, -5.0, 0.0))
+    nothing = np.zeros((robot.n_drones, 3))
+    (first,) = hooks._estimated_gust(t_up, (np.array([0.0, -5.0, 0.0]), nothing))
     hooks._taken_up[(first.at, first.force)] = t_up
     fake.gusts.append(first)
     (fed,) = hooks.known_gusts()
@@ -291,6 +295,6 @@ def test_an_estimate_is_fed_to_the_controller_as_a_ramp_from_its_take_up():
     assert task[0] is None  # nothing fed before the take-up
     assert task[1] is None or not np.any(task[1])  # and no step at it
     assert 0.0 < -task[2][1] < 5.0 and task[3][1] == pytest.approx(-5.0)  # ramping, then all of it
-    later = hooks._estimated_gust(6.0, (0.0, -6.0, 0.0), ramp_from=6.0)
+    (later,) = hooks._estimated_gust(6.0, (np.array([0.0, -6.0, 0.0]), nothing), ramp_from=6.0)
     fake.gusts.append(later)
     assert hooks.known_gusts()[-1] == later

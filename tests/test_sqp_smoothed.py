@@ -1,4 +1,4 @@
-"""The pieces behind the planner's default at the optimum (issue 17, second round).
+"""The pieces behind the planner's default at the optimum.
 
 The active-set step QP (planners.optimisation.active_set), the "smoothed" curvature (planners.optimisation.curvature), the
 workspace rows between grid nodes (planners.problem.motion), the one-step method's start, and the default plans
@@ -23,7 +23,7 @@ from planners.trajectory.polynomial import PiecewisePolynomial
 from planners.problem.motion import POWER_CURVATURE_FLOOR, POWER_SMOOTHING
 from planners.optimisation.solving import Grid
 
-SQUARE_BEST_J = 0.5037  # issue 17: peer solvers, feasible on the 500 Hz grid
+SQUARE_BEST_J = 0.5037  # peer solvers, feasible on the 500 Hz grid
 
 
 def _reference_qp(h, g, a, b, radius):

@@ -1,4 +1,4 @@
-"""The simulator tick's fast paths (issue 13): each bit for bit equal to the path it replaces.
+"""The simulator tick's fast paths: each bit for bit equal to the path it replaces.
 
 * :meth:`fpr.sim.plant.Plant.advance` (a tick's plant steps in one call, the command saturated once) against
   the same number of :meth:`~fpr.sim.plant.Plant.step` calls, on a fresh twin plant: the same state bits,

@@ -1,19 +1,20 @@
-"""The watch's screen in C (``fpr/sim/_watch.c``) against its Python reference (``Watch._may_be_lost_python``):
-the same answer on states scattered across every bound (and on the bounds' edges), with and without the tilt
-screen, on non-finite states; the switch ``compiled_screen`` selects, forbids or demands it."""
+"""The watch's screen natively (fpr._native's part ``watch``, ``fpr/_native/watch.c``) against its Python reference
+(``Watch._may_be_lost_python``): the same answer on states scattered across every bound (and on the bounds'
+edges), with and without the tilt screen, on non-finite states; the switch selects it."""
 
 import math
 
 import numpy as np
 import pytest
+from native_parts import native_module, needs_native
 from test_watch import state
 
 import fpr
-from fpr.sim import watch as watch_module
+from fpr import _native as native
 from fpr.sim.closed_loop import SimulationSettings
 from fpr.sim.watch import Watch
 
-needs_kernel = pytest.mark.skipif(watch_module._screen_kernel is None, reason="fpr.sim._watch not built")
+needs_kernel = needs_native
 BOUNDS = dict(max_drone_speed=0.5, max_drone_rate=0.5, max_tilt=0.3, max_tracking_error=0.2, ground_tolerance=0.0,
               max_closure_error=1e-3)
 
@@ -45,9 +46,8 @@ def test_compiled_screen_is_the_python_screen(name, max_tilt):
         if k % 50 == 7:  # a non-finite entry somewhere
             (plant.qc, plant.vc, qm, v)[k % 4][k % 3] = (np.nan, np.inf, -np.inf)[k % 3]
         args = (plant, qm, v, low, error, target)
-        watch.compiled_screen = False
-        expected = watch._may_be_lost(*args)
-        watch.compiled_screen = True
+        with native.switched(watch=False):
+            expected = watch._may_be_lost(*args)
         answers.append(expected)
         assert watch._may_be_lost(*args) is expected, k
     assert 100 < sum(answers) < 550  # both answers reached
@@ -61,24 +61,22 @@ def test_switch_selects_the_screen(monkeypatch):
     real = Watch._may_be_lost_python
     monkeypatch.setattr(Watch, "_may_be_lost_python", lambda self, *a: calls.append(1) or real(self, *a))
     args = (0.0, plant, q, np.zeros(robot.nq), positions, closure, planned)
-    assert watch.check(*args) is None and calls == []  # compiled by default when built
-    watch.compiled_screen = False
-    assert watch.check(*args) is None and calls == [1]
+    native_module("watch")
+    assert watch.check(*args) is None and calls == []  # native when on
+    with native.switched(watch=False):
+        assert watch.check(*args) is None and calls == [1]
     with pytest.raises(ValueError):  # constants that do not fit the state
-        watch_module._screen_kernel.may_be_lost(plant.qc, plant.vc, q, q, positions, closure, planned[:-1],
+        native_module("watch").may_be_lost(plant.qc, plant.vc, q, q, positions, closure, planned[:-1],
                                                 watch._screen_constants)
 
 
-def test_missing_extension_falls_back_or_raises(monkeypatch):
-    monkeypatch.setattr(watch_module, "_screen_kernel", None)
+def test_switched_off_the_python_screen_runs():
     robot, plant, q, positions, closure, planned = state("prototype")
     watch = Watch(robot, SimulationSettings())
     args = (0.0, plant, q, np.zeros(robot.nq), positions, closure, planned)
-    assert watch.check(*args) is None  # the Python screen
-    assert watch.check(*args[:-1], planned + 2.0).startswith("tracking lost")
-    watch.compiled_screen = True
-    with pytest.raises(RuntimeError, match="not built"):
-        watch.check(*args)
+    with native.switched(watch=False):
+        assert watch.check(*args) is None  # the Python screen
+        assert watch.check(*args[:-1], planned + 2.0).startswith("tracking lost")
 
 
 @needs_kernel
@@ -94,8 +92,7 @@ def test_a_zero_quaternion_goes_to_the_full_check():
     plant.qc = plant.qc.copy()
     plant.qc[iq + 3 : iq + 7] = 0.0
     assert watch._may_be_lost(*args) is True
-    watch.compiled_screen = False
-    with pytest.raises(ZeroDivisionError):
+    with native.switched(watch=False), pytest.raises(ZeroDivisionError):
         watch._may_be_lost(*args)
 
 
@@ -106,5 +103,5 @@ def test_constants_must_be_native_aligned_float64():
     watch._build_screen(plant)
     swapped = watch._screen_constants.astype(">f8")
     with pytest.raises(TypeError):
-        watch_module._screen_kernel.may_be_lost(plant.qc, plant.vc, q, np.zeros(robot.nq), positions, closure,
-                                                planned, swapped)
+        native_module("watch").may_be_lost(plant.qc, plant.vc, q, np.zeros(robot.nq), positions, closure,
+                                           planned, swapped)

@@ -3,7 +3,8 @@ perturbations, run on Dask.
 
 The mission is planned once; each run flies that plan through :func:`fpr.sim.closed_loop.simulate` with its own
 draw of the varied quantities (``--vary NAME=DISTRIBUTION``, :mod:`fpr.robustness.spec`), on a local Dask
-cluster (``--workers K`` processes, one thread each; default: one per core) or an existing one
+cluster (``--workers K`` processes, one thread each; default: one per usable core, at most as many as the cores
+and the memory hold, :mod:`fpr.cli.workers`) or an existing one
 (``--scheduler ADDRESS``). Into ``--out`` (default ``fpr-out/campaign-<mission>``) it writes, as runs finish,
 one file per run (``runs/``), and at the end ``runs.parquet``, ``summary.json`` and the figures
 (:mod:`fpr.robustness.store`). The same command again reuses every stored run and simulates only the missing
@@ -13,95 +14,53 @@ Exit codes (:mod:`fpr.cli.contract`): 0 the campaign is complete; 1 complete, bu
 itself violates a constraint, or, with ``--min-success P``, the lower end of the success rate's 95 % Wilson
 interval is below P (lost robots alone are results, not a broken limit); 2 bad input (a distribution, a
 quantity, a campaign or mission file, an ``--out`` that holds something else); 3 internal error; 130
-interrupted: the runs finished so far stay stored, the same command resumes.
+interrupted: the runs finished so far stay stored, the same command resumes; the worker processes end at
+once, and with the campaign's process even when it is killed (:mod:`fpr.cli.workers`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 import time
 from pathlib import Path
 
 from fpr import robots
-from fpr.cli import checks, contract
-from fpr.cli.plan import _assignment, _floats
-from fpr.model.errors import CampaignError
-from fpr.robustness.campaign_file import campaign_to_toml, load_campaign
-from fpr.robustness.runner import local_client, make_flight, mission_of, run_campaign
+from fpr.cli import checks, contract, interrupts, workers
+from fpr.cli.campaign_options import EXIT_CODES, MAX_RUNS, parser
+from fpr.cli.text import plural
+from fpr.model.errors import CampaignError, MissionError
+from fpr.robustness.campaign_file import campaign_from_dict, campaign_to_toml
+from fpr.robustness.runner import make_flight, mission_of, run_campaign
 from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign, components
 from fpr.robustness.store import RunStore, write_atomic
-from fpr.robustness.summary import summarise, write_table
+from fpr.robustness.summary import event_summary, summarise, write_table
+from fpr.sim.closed_loop import SimulationSettings
+from fpr.tuning import tune_process
 from fpr.views.figures.campaign import campaign_figures
-from planners.methods import METHODS
+from planners.missions.files import parse_toml, read_toml_text
 
-MAX_RUNS = 1_000_000
-EXIT_CODES = """exit codes:
-  0    the campaign is complete (lost robots are results)
-  1    complete, but a limit is broken: the plan violates a constraint, or the success rate's 95 % Wilson
-       lower bound is below --min-success
-  2    bad input: an option, a distribution, a quantity, a campaign or mission file, an --out that holds
-       something else than this campaign
-  3    internal error: a bug in fpr (one line says so; --debug shows the traceback)
-  130  interrupted (Ctrl-C, SIGTERM): the finished runs stay in --out; the same command resumes"""
+__all__ = ["EXIT_CODES", "MAX_RUNS", "Progress", "main", "parser", "work"]
 
 
-def _vary(text: str) -> tuple[str, str]:
-    name, sep, value = text.partition("=")
-    if not sep or not name.strip() or not value.strip():
-        raise argparse.ArgumentTypeError(f"--vary {text!r}: write NAME=DISTRIBUTION, e.g. "
-                                         "model_mass_scale=uniform(0.9,1.1)")
-    return name.strip(), value.strip()
-
-
-def parser() -> argparse.ArgumentParser:
-    """The command-line parser."""
-    p = contract.Parser(prog="python -m fpr.campaign", description=__doc__.split("\n\n")[0],
-                        formatter_class=contract.HelpFormatter, epilog=EXIT_CODES)
-    p.add_argument("--campaign", type=Path, default=None,
-                   help="a campaign TOML file (see README); the options below override its fields")
-    p.add_argument("--mission", default=None, help="built-in mission or mission TOML file (default square)")
-    p.add_argument("--method", default=None, choices=list(METHODS), help="planning method (default two-step)")
-    p.add_argument("--runs", type=int, default=None, help="number of closed-loop runs (default 100)")
-    p.add_argument("--seed", type=int, default=None, help="campaign seed, an integer >= 0 (default 0)")
-    p.add_argument("--vary", type=_vary, action="append", default=[], metavar="NAME=DIST",
-                   help="a quantity and its distribution: uniform(lo,hi), normal(mean,sd), truncnormal(mean,sd,"
-                        "lo,hi), lognormal(median,sigma), loguniform(lo,hi), choice(a,b,...), linspace(lo,hi) "
-                        "or a number; NAME: model_mass_scale, rotor_constant_scale, wind (each axis; or "
-                        "wind_x/_y/_z), noise (or noise_q/_v), initial_error.<coordinate>, a robot parameter")
-    p.add_argument("--set", dest="robot_parameters", type=_assignment, action="append", default=[],
-                   metavar="NAME=VALUE", help="fixed robot parameter for the plan and every run, e.g. link_length=1.0")
-    p.add_argument("--hold", type=float, default=None, help="time simulated after the plan's end [s] (default 1)")
-    p.add_argument("--tracking-tolerance", type=float, default=None,
-                   help="a run succeeds only if every planning coordinate stays within this of the plan [m, rad]")
-    fixed = p.add_argument_group("fixed perturbations (as python -m fpr.plan --simulate; --vary wins)")
-    fixed.add_argument("--model-mass-scale", type=float, default=None, help="the controller's masses times this")
-    fixed.add_argument("--rotor-constant-scale", type=float, default=None, help="the plant's rotor force times this")
-    fixed.add_argument("--wind", type=lambda t: _floats(t, "--wind"), default=None, metavar="FX,FY,FZ",
-                       help="constant wind force on each drone [N]")
-    fixed.add_argument("--noise", type=lambda t: _floats(t, "--noise"), default=None, metavar="SQ,SV",
-                       help="measurement-noise standard deviations on q and v")
-    fixed.add_argument("--initial-error", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
-                       help="offset of a coordinate at the start [m or rad]")
-    engine = p.add_argument_group("engine (Dask)")
-    engine.add_argument("--workers", type=int, default=None,
-                        help="worker processes of the local cluster (default: the number of cores)")
-    engine.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help="an existing Dask scheduler (tcp://host:8786) instead of a local cluster")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default fpr-out/campaign-<mission>)")
-    p.add_argument("--min-success", type=float, default=None,
-                   help="exit 1 when the success rate's 95 %% Wilson lower bound is below this, in [0, 1]")
-    p.add_argument("--no-plots", action="store_true", help="do not write the figures")
-    p.add_argument("--quiet", action="store_true", help="print nothing but errors (no progress bar)")
-    contract.add_debug(p)
-    return p
+def _campaign_file(path) -> Campaign:
+    """The campaign file, read as a mission file is (a size cap, UTF-8 with or without a byte-order mark, no
+    pathological TOML: :mod:`planners.missions.files`), its fields as
+    :func:`fpr.robustness.campaign_file.load_campaign` reads them."""
+    try:
+        document = parse_toml(read_toml_text(path, "campaign", "give the path of a .toml campaign file"), str(path))
+    except MissionError as error:
+        raise CampaignError(f"--campaign {path}", error.reason) from None
+    return campaign_from_dict(document, Path(path))
 
 
 def _campaign(args) -> Campaign:
     """The campaign: the file's fields, the options over them, fixed perturbations as constants."""
-    campaign = load_campaign(args.campaign) if args.campaign is not None else Campaign()
-    changes = {k: getattr(args, k) for k in ("mission", "method", "runs", "seed", "hold", "tracking_tolerance")
+    campaign = _campaign_file(args.campaign) if args.campaign is not None else Campaign()
+    changes = {k: getattr(args, k) for k in ("mission", "method", "runs", "seed", "hold", "tracking_tolerance",
+                                             "events", "replan", "without_observer")
                if getattr(args, k) is not None}
     if args.robot_parameters:
         changes["robot_parameters"] = {**campaign.robot_parameters, **dict(args.robot_parameters)}
@@ -184,7 +143,32 @@ class Progress:
         self.stream.flush()
 
 
-def _client(args):
+MAX_SEED = 2 ** 63 - 1
+"""Largest campaign seed (a TOML integer: the campaign file must read it back)."""
+
+
+def _check_campaign(args, campaign: Campaign) -> None:
+    """The campaign's numbers (from its file or the options) within their ranges (exit 2 if not)."""
+    where = "--campaign " + str(args.campaign) + ": " if args.campaign is not None else ""
+    if campaign.runs > MAX_RUNS:
+        option = "--runs" if args.runs is not None else f"{where}field 'runs' ="
+        raise checks.CommandLineError(option, campaign.runs, f"give a number of runs in [1, {MAX_RUNS:,}]")
+    if campaign.seed > MAX_SEED:
+        option = "--seed" if args.seed is not None else f"{where}field 'seed' ="
+        raise checks.CommandLineError(option, campaign.seed, f"give an integer in [0, {MAX_SEED}]")
+    tolerance = campaign.tracking_tolerance
+    lost = SimulationSettings().max_tracking_error
+    if tolerance is not None and tolerance > lost:
+        option = "--tracking-tolerance" if args.tracking_tolerance is not None else f"{where}field 'tracking_tolerance' ="
+        raise checks.CommandLineError(option, tolerance, f"give a tolerance in (0, {lost:g}] [m or rad]: past "
+                                                         f"{lost:g} the simulation counts the robot lost anyway")
+    if campaign.hold > checks.MAX_SIMULATED:
+        option = "--hold" if args.hold is not None else f"{where}field 'hold' ="
+        raise checks.CommandLineError(option, campaign.hold, f"give a time in [0, {checks.MAX_SIMULATED:g}] [s]")
+
+
+def _client(args, say):
+    """The Dask client: of the scheduler given, or of a local cluster of a bounded number of workers."""
     if args.scheduler:
         from distributed import Client
 
@@ -193,23 +177,39 @@ def _client(args):
         except (OSError, TimeoutError) as error:
             raise CampaignError(f"--scheduler {args.scheduler}", f"cannot reach the scheduler ({error}): start "
                                 "one (dask scheduler) or drop --scheduler for a local cluster") from None
-    if args.workers is not None and not 1 <= args.workers <= 1024:
-        raise checks.CommandLineError("--workers", args.workers, "give a number of worker processes in [1, 1024]")
-    return local_client(args.workers)
+    count, warning = workers.bounded_workers(args.workers)
+    if warning is not None:
+        print(warning, file=sys.stderr, flush=True)
+    return workers.local_client(count)
 
 
-def _run(args, argv) -> int:
+def work(args, argv) -> int:
+    """Run the campaign as the options say (resuming from ``--out``); returns 0 or 1 (a limit is broken).
+
+    Bad input raises before the runs (:func:`fpr.cli.contract.run` maps it to exit 2); Ctrl-C or SIGTERM ends
+    the worker processes at once and returns 130 (the runs finished so far stay stored).
+    """
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, flush=True))
     if args.min_success is not None:
         checks._number("--min-success", args.min_success, low=0.0, high=1.0, meaning="a success rate")
+    if args.workers is not None and args.workers < 1:
+        raise checks.CommandLineError("--workers", args.workers, "give a number of worker processes >= 1")
+    if args.runs is not None and not 1 <= args.runs <= MAX_RUNS:
+        raise checks.CommandLineError("--runs", args.runs, f"give a number of runs in [1, {MAX_RUNS:,}]")
+    if args.seed is not None and not 0 <= args.seed <= MAX_SEED:
+        raise checks.CommandLineError("--seed", args.seed, f"give an integer in [0, {MAX_SEED}]")
+    for option, value in (("--hold", args.hold), ("--tracking-tolerance", args.tracking_tolerance)):
+        if value is not None:
+            checks._number(option, value, low=0.0, low_open=option != "--hold", meaning="[s] or [m or rad]")
     campaign = _campaign(args)
+    _check_campaign(args, campaign)
     mission = mission_of(campaign)
     robot = mission.load_robot()
     _check_ranges(campaign, mission, robot)
     safe_name = "".join(c if c.isalnum() or c in "-_." else "_" for c in mission.name).lstrip(".") or "mission"
     out = args.out or Path("fpr-out") / f"campaign-{safe_name[:100]}"
     key = campaign.key(mission.to_toml())
-    say(f"campaign: mission {mission.name!r} ({mission.robot}), {campaign.runs} runs, seed {campaign.seed}, "
+    say(f"campaign: mission {mission.name!r} ({mission.robot}), {plural(campaign.runs, 'run')}, seed {campaign.seed}, "
         f"varied: {', '.join(f'{k}={d.text()}' for k, d in sorted(campaign.vary.items())) or 'nothing'}")
     flight, result = make_flight(campaign, mission)
     store = RunStore(out, key, {"campaign": campaign_to_toml(campaign, "mission.toml"),
@@ -220,16 +220,18 @@ def _run(args, argv) -> int:
     progress = Progress(campaign.runs, quiet=args.quiet)
     client = None
     try:
-        client = _client(args)
+        client = _client(args, say)
         done = run_campaign(campaign, flight, store, client, progress)
     except KeyboardInterrupt:
+        interrupts.ending()  # a second Ctrl-C ends the process at once
+        logging.disable(logging.CRITICAL)  # the cluster's complaints about its killed workers are not news
+        workers.end_children()  # the worker processes end now, not after a graceful close
         stored = len(store.load(campaign.runs))
         print(f"interrupted: {stored} of {campaign.runs} runs stored in {out}; the same command resumes",
-              file=sys.stderr)
+              file=sys.stderr, flush=True)
         return contract.INTERRUPTED
-    finally:
-        if client is not None:
-            _close(client)
+    if client is not None:
+        _close(client)
     varied = list(campaign.columns)
     columns = ["index", *varied, *flight.columns]
     write_table(out / "runs.parquet", done.rows, columns)
@@ -238,6 +240,8 @@ def _run(args, argv) -> int:
                     "wall_time_s": round(done.wall_time, 3),
                     "runs_per_second": done.computed / done.wall_time if done.computed else None,
                     "plan_feasible": bool(result.feasible)})
+    if campaign.events is not None:
+        summary["events"] = event_summary(done.rows, campaign.events, campaign.without_observer)
     write_atomic(out / "summary.json", json.dumps(summary, indent=1) + "\n")
     if not args.no_plots:
         try:
@@ -245,12 +249,15 @@ def _run(args, argv) -> int:
         except Exception as error:  # noqa: BLE001 - a plotting failure must not lose the table
             print(f"warning: figures not written: {contract.one_line(error)}", file=sys.stderr)
     low, high = summary["success_rate_wilson95"]
-    say(f"{summary['successes']} of {summary['runs']} runs succeeded ({summary['success_rate']:.1%}, 95 % "
+    say(f"{summary['successes']} of {plural(summary['runs'], 'run')} succeeded ({summary['success_rate']:.1%}, 95 % "
         f"Wilson interval {low:.1%} .. {high:.1%}); lost {summary['lost']}, errors {summary['errors']}; "
         f"{done.reused} reused, {done.computed} simulated in {done.wall_time:.1f} s on {done.workers} "
         f"worker{'s' if done.workers != 1 else ''}")
     for kind, count in summary["lost_by_kind"].items():
         say(f"  lost: {kind}: {count}")
+    if campaign.events is not None:
+        for line in event_lines(summary["events"]):
+            say(line)
     say(f"wrote runs.parquet, summary.json{'' if args.no_plots else ', figures'} into {out}")
     problems = []
     if not result.feasible:
@@ -260,6 +267,32 @@ def _run(args, argv) -> int:
     for problem in problems:
         print(f"error: {problem}", file=sys.stderr)
     return contract.LIMIT_BROKEN if problems else contract.OK
+
+
+def event_lines(events: dict) -> list[str]:
+    """The event family's lines (:func:`fpr.robustness.summary.event_summary`)."""
+    def rate(name, r):
+        low, high = r["wilson95"]
+        return (f"  {name}: {r['successes']} of {plural(r['runs'], 'run')} succeeded ({r['success_rate']:.1%}, "
+                f"95 % Wilson interval {low:.1%} .. {high:.1%})")
+
+    lines = [f"{events['family']} events:"]
+    if "not_holdable" in events:
+        lines.append(f"  {plural(len(events['not_holdable']), 'gust')} cannot be held even as a steady force within "
+                     "the rotor limits (counted apart)"
+                     + "".join(f"; run {g['index']}: {g['force_n']:.2g} N on {g['body']}"
+                               for g in events["not_holdable"]))
+    lines.append(rate("with the observer" if "without_observer" in events else "runs", events["with_observer"]))
+    if "without_observer" in events:
+        lines.append(rate("without the observer (same events)", events["without_observer"]))
+    for miss in events["misses"]:
+        lines.append(f"  miss, run {miss['index']}: {miss['why']}")
+    for key, name in (("replan_wall_s", "wall latency"), ("replan_cpu_s", "CPU time")):
+        got = events.get(key, {})
+        if got.get("count"):
+            lines.append(f"  replan {name} over {plural(got['count'], 'replan')}: median "
+                         f"{got['median'] * 1e3:.1f} ms, p95 {got['p95'] * 1e3:.1f} ms, max {got['max'] * 1e3:.1f} ms")
+    return lines
 
 
 def _close(client) -> None:
@@ -275,7 +308,8 @@ def _close(client) -> None:
 
 def main(argv=None) -> int:
     """Command line entry point; returns the exit code (0, 1, 2, 3 or 130: see ``--help``)."""
-    return contract.command(parser(), argv, _run)
+    tune_process()  # one BLAS thread, freed memory kept in glibc's heap (fpr.tuning)
+    return contract.command(parser(), argv, work)
 
 
 if __name__ == "__main__":

@@ -10,6 +10,13 @@ stays exactly as it was. A folder therefore always holds one run, described by i
 An existing ``--out`` is replaced only if it is empty or holds a previous run (a ``manifest.json``, or the
 ``mission.toml`` and ``plan.json`` of a run written before manifests existed): ``--out .`` or ``--out ~``
 cannot delete a folder of yours.
+
+Before the work, :meth:`OutputFolder.check_space` compares the disk's free space with the size the run will
+write (estimated by the command); a disk that fills up during the run ends it with an :class:`OutputError`
+naming ``--out`` and the space needed (:meth:`OutputFolder.no_space`).
+
+The same command gives the same bytes: wall-clock times go to ``manifest.json`` only, and NumPy ``.npz`` files
+are written by :func:`write_deterministic_npz` (fixed zip timestamps, no wall time).
 """
 
 from __future__ import annotations
@@ -17,13 +24,17 @@ from __future__ import annotations
 import contextlib
 import datetime
 import hashlib
+import io
 import json
 import os
 import shutil
 import signal
 import tempfile
 import threading
+import zipfile
 from pathlib import Path
+
+import numpy as np
 
 import fpr
 from fpr.model.errors import FprError
@@ -146,11 +157,38 @@ class OutputFolder:
                 shutil.rmtree(old, ignore_errors=True)
 
     def discard(self) -> None:
-        """Remove the temporary folder (and the parent folders :meth:`open` created); ``path`` is untouched."""
-        if self.tmp is not None:
-            shutil.rmtree(self.tmp, ignore_errors=True)
-            self.tmp = None
-        self._remove_created()
+        """Remove the temporary folder (and the parent folders :meth:`open` created); ``path`` is untouched.
+
+        Ctrl-C and SIGTERM are held back until it is done (then raised), so that no partial folder is left.
+        """
+        with _interrupts_held():
+            if self.tmp is not None:
+                shutil.rmtree(self.tmp, ignore_errors=True)
+                self.tmp = None
+            self._remove_created()
+
+    def check_space(self, needed: float) -> None:
+        """Refuse a run that would not fit on the disk of ``path``.
+
+        Args:
+            needed: the size the run will write, estimated [bytes].
+
+        Raises:
+            OutputError: less free space than ``needed`` (the message gives both).
+        """
+        folder = next((p for p in (self.path, *self.path.parents) if p.exists()), None)
+        try:
+            free = shutil.disk_usage(folder).free if folder is not None else None
+        except OSError:
+            free = None
+        if free is not None and free < needed:
+            raise OutputError(self.path, f"the disk has {size_text(free)} free; this run writes about "
+                                         f"{size_text(needed)}: free some space or give an --out on another disk")
+
+    def no_space(self, error: OSError, needed: float) -> OutputError:
+        """The error to raise when the disk filled up during the run (``error``: the ``OSError``)."""
+        return OutputError(self.path, f"the disk is full ({_why(error)}); this run writes about "
+                                      f"{size_text(needed)}: free some space or give an --out on another disk")
 
     def _remove_created(self) -> None:
         for folder in reversed(self._created):
@@ -161,18 +199,60 @@ class OutputFolder:
 
 @contextlib.contextmanager
 def _interrupts_held():
-    """Defer SIGINT (Ctrl-C) until the block is over, then raise KeyboardInterrupt (main thread only)."""
+    """Defer SIGINT (Ctrl-C) and SIGTERM until the block is over, then raise KeyboardInterrupt (main thread
+    only)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     received = []
-    previous = signal.signal(signal.SIGINT, lambda *a: received.append(a))
+    previous = {sig: signal.signal(sig, lambda *a: received.append(a)) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     if received:
         raise KeyboardInterrupt
+
+
+def size_text(n: float) -> str:
+    """A size in bytes as a person reads it (``"3.2 MB"``)."""
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1000:
+            return f"{n:.3g} {unit}"
+        n /= 1000
+    return f"{n:.3g} TB"
+
+
+_ZIP_TIME = (1980, 1, 1, 0, 0, 0)  # the earliest a zip entry can hold: the same for every run
+
+
+def write_deterministic_npz(path, source, replace: dict | None = None) -> None:
+    """Write a NumPy ``.npz`` file that is the same bytes for the same arrays, whenever it is written.
+
+    NumPy's ``savez`` stamps every entry of the zip with the time of writing; this writes the entries with a
+    fixed time and mode, compressed.
+
+    Args:
+        path: the file to write.
+        source: a function that writes an ``.npz`` into the file object it is given (e.g. a log's ``save``).
+        replace: arrays to store instead of the source's entries of the same name (e.g. a wall time as NaN).
+    """
+    buffer = io.BytesIO()
+    source(buffer)
+    buffer.seek(0)
+    replace = {f"{name}.npy": value for name, value in (replace or {}).items()}
+    with zipfile.ZipFile(buffer) as read, zipfile.ZipFile(path, "w") as written:
+        for entry in read.infolist():
+            data = read.read(entry.filename)
+            if entry.filename in replace:
+                array = io.BytesIO()
+                np.lib.format.write_array(array, np.asanyarray(replace[entry.filename]), allow_pickle=False)
+                data = array.getvalue()
+            info = zipfile.ZipInfo(entry.filename, date_time=_ZIP_TIME)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = 0o644 << 16
+            written.writestr(info, data)
 
 
 def inputs_hash(mission_text: str, options: dict) -> str:

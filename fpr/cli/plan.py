@@ -9,7 +9,7 @@ solve time, then the worst value of every constraint. Into ``--out`` (default
 * ``mission.toml``: the mission as planned (command-line overrides included), re-usable with --mission;
 * ``plan.json``: mission, robot parameters, summaries of both motions, solver stages, the
   points, durations and monomial coefficients of every segment;
-* ``trajectory.csv``: one row per sample at ``--rate`` (columns and units in README.md);
+* ``trajectory.csv``: one row per sample at ``--rate`` (columns and units in the documentation, guides/plan-command);
 * ``reference.csv``: the same for the stop-at-every-way-point motion;
 * ``manifest.json``: the command line, fpr's version, a hash of the inputs (the mission as planned and
   the options), the start time, the duration, the exit code and the wall-clock timings;
@@ -38,7 +38,6 @@ cannot be written); 3 internal error (a bug; ``--debug`` shows the traceback); 1
 
 from __future__ import annotations
 
-import argparse
 import json
 import signal
 import sys
@@ -47,114 +46,33 @@ from pathlib import Path
 
 import numpy as np
 
-from fpr import robots
 from fpr.cli import checks, contract, replanning
-from fpr.cli.output import OutputFolder, inputs_hash, manifest, write_manifest
+from fpr.cli.output import (OutputError, OutputFolder, inputs_hash, manifest, write_deterministic_npz,
+                            write_manifest)
 from fpr.cli.plan_files import csv_columns, plan_document, split_timings, write_csv
+from fpr.cli.plan_options import parser
+from fpr.cli.text import plural
 from fpr.model.errors import FprError, MissionError
 from fpr.sim.closed_loop import SimulationSettings, simulate
-from fpr.sim.margins import (broken_message, closed_loop_margins, margin_lines, margin_series,
-                             eaten, simulation_document, thrust_floor)
+from fpr.sim.margins import (broken_message, closed_loop_margins, eaten, margin_lines, margin_series,
+                             simulation_document, thrust_floor)
 from fpr.sim.plant import PlantDivergedError
 from fpr.views.figures import margins_figure, plan_figures, simulation_figures
 from fpr.views.figures.all_figures import CROSSING_FIGURES
 from fpr.views.scene import view
-from planners.methods import METHODS, method_for
-from planners.missions.mission import BUILTIN_MISSIONS, load_mission
+from fpr.tuning import tune_process
+from planners.methods import CROSSING_METHODS, method_for
+from planners.missions.mission import load_mission
 from planners.optimize import PlanResult, plan
 
-__all__ = ["comparison_table", "csv_columns", "main", "parser", "plan_document", "write_csv"]
+__all__ = ["comparison_table", "csv_columns", "main", "parser", "plan_document", "work", "write_csv"]
 
 
-def _floats(text: str, option: str) -> list[float]:
-    try:
-        values = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{option} {text!r}: give numbers separated by commas") from None
-    if not values:
-        raise argparse.ArgumentTypeError(f"{option} {text!r}: give at least one number")
-    return values
-
-
-def _ints(text: str) -> list[int]:
-    try:
-        return [int(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--via-points {text!r}: give integers >= 0 separated by commas") from None
-
-
-def _assignment(text: str) -> tuple[str, float]:
-    key, sep, value = text.partition("=")
-    try:
-        if not sep:
-            raise ValueError
-        return key.strip(), float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--set {text!r}: write NAME=VALUE, e.g. --set link_length=1.0") from None
-
-
-def parser() -> argparse.ArgumentParser:
-    """The command-line parser."""
-    p = contract.Parser(prog="python -m fpr.plan", description=__doc__.split("\n\n")[0],
-                        formatter_class=contract.HelpFormatter, epilog=contract.EXIT_CODES)
-    p.add_argument("--mission", default="square",
-                   help=f"built-in mission ({', '.join(BUILTIN_MISSIONS)}) or a mission TOML file")
-    p.add_argument("--robot", choices=robots.names(), default=None,
-                   help="robot the mission must be for (checked; the mission file names its robot)")
-    p.add_argument("--set", dest="robot_parameters", type=_assignment, action="append", default=[],
-                   metavar="NAME=VALUE", help="override a robot parameter (xacro argument), e.g. link_length=1.0")
-    p.add_argument("--alpha", type=float, default=None, help="energy weight in [0, 1] (default: the mission's)")
-    p.add_argument("--via-points", type=_ints, default=None, metavar="N[,N...]",
-                   help="via points per travel, one number for all or one per travel (default: the mission's)")
-    p.add_argument("--times", type=lambda t: _floats(t, "--times"), default=None, metavar="T[,T...]",
-                   help="travel times [s], one for all or one per travel (default: the mission's)")
-    p.add_argument("--method", default="two-step", choices=list(METHODS),
-                   help="planning method (registry planners.methods.METHODS): two-step / one-step optimisation "
-                        "(seed 3.2.4), none (stop at every way point), crossing (seed ch. 4; a singularity-"
-                        "crossing mission gets it whatever is asked, and its first guess with none)")
-    p.add_argument("--solver", default="sqp", choices=["sqp", "slsqp"],
-                   help="NLP solver: our trust-region SQP (smoothed curvature, active-set QP steps, ProxQP fallback) "
-                        "or scipy SLSQP, both with exact gradients")
-    p.add_argument("--optimal", action="store_true",
-                   help="the SQP with the composite curvature and the KKT stopping rule: a KKT point to 1e-5, "
-                        "2-20x slower (the default ends within 0.3 %% of the best J known on the built-in "
-                        "missions too; see README, Optimality)")
-    p.add_argument("--no-polish", action="store_true",
-                   help="two-step: the thesis' method as it is, without the final one-step solve from its result")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default fpr-out/<mission>)")
-    p.add_argument("--rate", type=float, default=200.0, help="sample rate of the CSV files [Hz]")
-    p.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
-    sim = p.add_argument_group("closed-loop simulation (--simulate)")
-    sim.add_argument("--simulate", action="store_true",
-                     help="track the plan with the cascaded CTC on the closed-chain plant")
-    sim.add_argument("--initial-error", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
-                     help="offset of a coordinate at the start, e.g. y=0.05 [m or rad]")
-    sim.add_argument("--model-mass-scale", type=float, default=1.0,
-                     help="the controller's model has every mass times this (1.1: believes 10 %% heavier)")
-    sim.add_argument("--rotor-constant-scale", type=float, default=1.0,
-                     help="the plant's rotors give this times the nominal force and drag")
-    sim.add_argument("--wind", type=lambda t: _floats(t, "--wind"), default=None, metavar="FX,FY,FZ",
-                     help="constant wind force on each drone, world frame [N]")
-    sim.add_argument("--noise", type=lambda t: _floats(t, "--noise"), default=None, metavar="SQ,SV",
-                     help="standard deviations of the measurement noise on q and v")
-    sim.add_argument("--hold", type=float, default=1.0, help="time simulated after the plan's end [s]")
-    sim.add_argument("--takeoff", action="store_true",
-                     help="start at rest on the take-off pose, drones level (as the thesis' drones did), "
-                          "instead of on the plan")
-    replanning.add_arguments(sim)
-    scene = p.add_argument_group("3D scene (meshcat)")
-    scene.add_argument("--meshcat", action="store_true",
-                       help="write scene.html: the robot following the plan (with --simulate: the simulated "
-                            "robot and the plan as a ghost), thrust arrows, paths, way and via points")
-    scene.add_argument("--serve", action="store_true",
-                       help="also show the scene on a live meshcat server, print its URL and wait for Ctrl-C "
-                            "(implies --meshcat)")
-    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    contract.add_debug(p)
-    return p
+_OPTION_OF_FIELD = {"times": "--times", "via_points": "--via-points", "alpha": "--alpha"}
 
 
 def _mission(args):
+    """The mission as planned: the file (or built-in mission) with the options over its fields."""
     mission = load_mission(args.mission)
     changes = {}
     n_travel = len(mission.times)
@@ -166,8 +84,15 @@ def _mission(args):
         changes["alpha"] = args.alpha
     if args.robot_parameters:
         changes["robot_parameters"] = {**mission.robot_parameters, **dict(args.robot_parameters)}
-    if changes:
-        mission = mission.replace(**changes)
+    try:
+        if changes:
+            mission = mission.replace(**changes)
+    except MissionError as error:  # an option's value: name the option, not the mission file's field
+        option = _OPTION_OF_FIELD.get(error.field.split("[")[0])
+        if option is None or getattr(args, option[2:].replace("-", "_")) is None:
+            raise
+        given = getattr(args, option[2:].replace("-", "_"))
+        raise checks.CommandLineError(option, given, f"{error.field}: {error.reason}") from error
     if args.robot is not None and args.robot != mission.robot:
         raise FprError(f"--robot {args.robot}: mission {mission.name!r} is for the {mission.robot!r} robot; "
                        f"drop --robot or pick a mission for {args.robot!r}")
@@ -255,6 +180,7 @@ def _simulate(args, robot, final, out, sampled, written):
                                   rotor_constant_scale=args.rotor_constant_scale,
                                   measurement_noise=tuple(args.noise or (0.0, 0.0)),
                                   wind=tuple(args.wind or (0.0, 0.0, 0.0)), takeoff=args.takeoff)
+    settings = replanning.with_observer(args, settings)  # --no-observer (fpr/cli/replanning.py)
     quiet = args.quiet
 
     def progress(t, total):
@@ -271,7 +197,8 @@ def _simulate(args, robot, final, out, sampled, written):
     sampled = sampled if done is None else done.sampled(args.rate)  # planned columns: the plan in force
     shown_log = None if args.no_plots else log  # replans.json, and replanning.png unless --no-plots
     log.replanning = (hooks, done, replanning.write(out, hooks, done, written, shown_log, final))
-    log.save(out / "simulation.npz")
+    # the same bytes from run to run: no wall time (it is in manifest.json), fixed zip timestamps
+    write_deterministic_npz(out / "simulation.npz", log.save, replace={"wall_time": np.nan})
     flown = final if done is None else done  # margins against the executed plan when --replan changed it
     margins = closed_loop_margins(flown, log)
     (out / "simulation.json").write_text(json.dumps(simulation_document(log, margins), indent=1), encoding="utf-8")
@@ -290,8 +217,9 @@ def _simulate(args, robot, final, out, sampled, written):
     return log, lost, margins
 
 
-def _simulation_table(log) -> str:
+def _simulation_table(log, robot) -> str:
     s = log.summary()
+    ground = robot.kind.ground_height
     lines = ["closed-loop simulation (cascaded CTC, closed-chain plant):"]
     for name in log.chain:
         lines.append(f"  tracking error {name:5s}  rms {s['tracking_rms'][name]:.3e}  max {s['tracking_max'][name]:.3e}"
@@ -302,8 +230,8 @@ def _simulation_table(log) -> str:
                  f"rad/s (limits 0 .. {s['rotor_speed_limit_rad_s']:.0f}; planning limit "
                  f"{s['planning_speed_limit_rad_s']:.0f})")
     lines.append(f"  allocation saturated on {s['saturated_ticks']} of {s['ticks']} control ticks")
-    lines.append(f"  largest closure error {s['max_closure_error_m']:.2e} m; least drone height "
-                 f"{s['least_drone_height_m']:.3f} m")
+    lines.append(f"  largest closure error {s['max_closure_error_m']:.2e} m; least height of a drone's centre "
+                 f"of mass above the ground {s['least_drone_height_m'] - ground:.3f} m (ground at z = {ground:g} m)")
     lines.append(f"  {s['simulated_s']:.1f} s simulated in {s['wall_time_s']:.1f} s "
                  f"(real-time factor {s['real_time_factor']:.2f})")
     return "\n".join(lines)
@@ -340,6 +268,7 @@ def _inputs(args):
     """The mission and its robot, every number checked and the size of the work estimated (exit 2 if not)."""
     try:
         checks.check_options(args)
+        checks.apply_defaults(args)
         mission = _mission(args)
         robot = mission.load_robot()
         mission.positions(robot)  # every way point reachable and away from singularities
@@ -409,10 +338,11 @@ def _work(args, mission, robot, tmp, say):
     for report in final.report.constraints.values():
         say("  " + report.describe())
     for stage in final.stages:
-        say(f"  solver {stage.name}: {stage.message} ({stage.iterations} iterations, {stage.wall_time:.3f} s, "
-            f"KKT residual {stage.kkt:.2g})")
+        kkt = "" if "KKT residual" in stage.message else f", KKT residual {stage.kkt:.2g}"
+        say(f"  solver {stage.name}: {stage.message} ({plural(stage.iterations, 'iteration')}, "
+            f"{stage.wall_time:.3f} s{kkt})")
     if log is not None:
-        say(_simulation_table(log))
+        say(_simulation_table(log, robot))
     if margins is not None:
         say("\n".join(margin_lines(margins)))
     if hooks is not None and replanning.summary(hooks, done, log):
@@ -434,23 +364,44 @@ def _work(args, mission, robot, tmp, say):
     return (contract.LIMIT_BROKEN if problems else contract.OK), outcome, timings, visualizer
 
 
-def _run(args, argv) -> int:
+def _method_line(mission, method: str) -> str:
+    """The method that plans ``mission`` when ``method`` is asked, as the summary line says it."""
+    if mission.cross_singularity and method not in CROSSING_METHODS:
+        crossing = CROSSING_METHODS[0]
+        return f"{method} (the crossing's first guess)" if method == "none" else \
+            f"{crossing} (a singularity-crossing mission is planned by the {crossing} method)"
+    return method
+
+
+def work(args, argv) -> int:
+    """Plan (and simulate) as the options say and write the output folder; returns 0 or 1 (the result breaks
+    a limit). Bad input raises :class:`fpr.model.errors.FprError` before any work (:func:`fpr.cli.contract.run`
+    maps what it raises to the exit codes)."""
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, flush=True))
     started, start = time.time(), time.perf_counter()
     mission, robot = _inputs(args)
     safe_name = "".join(c if c.isalnum() or c in "-_." else "_" for c in mission.name).lstrip(".") or "mission"
     folder = OutputFolder(args.out or Path("fpr-out") / safe_name[:100])
-    say(f"mission {mission.name!r} ({mission.robot}): {len(mission.times)} travels, "
-        f"{float(np.sum(mission.times)):g} s, via points {list(map(int, mission.via_points))}, "
-        f"alpha {mission.alpha:g}, method {args.method}")
+    needed = checks.output_size(args, mission, robot)
+    vias = sorted({int(n) for n in mission.via_points})
+    say(f"mission {mission.name!r} ({mission.robot}): {plural(len(mission.times), 'travel')}, "
+        f"{float(np.sum(mission.times)):g} s, via points per travel "
+        f"{vias[0] if len(vias) == 1 else list(map(int, mission.via_points))}, alpha {mission.alpha:g}, "
+        f"method {_method_line(mission, args.method)}")
     try:
         tmp = folder.open()
+        folder.check_space(needed)
         code, outcome, timings, visualizer = _work(args, mission, robot, tmp, say)
         files = sorted(p.name for p in tmp.iterdir())
         command = parser().prog.split() + list(argv)
         write_manifest(tmp, manifest(command, inputs_hash(mission.to_toml(), _hashed_options(args)), started,
                                      time.perf_counter() - start, code, outcome, files, timings))
         folder.commit()
+    except OSError as error:
+        folder.discard()
+        if error.errno in contract.NO_SPACE and not isinstance(error, OutputError):
+            raise folder.no_space(error, needed) from error
+        raise
     except BaseException:
         folder.discard()
         raise
@@ -463,7 +414,8 @@ def _run(args, argv) -> int:
 
 def main(argv=None) -> int:
     """Command line entry point; returns the exit code (0, 1, 2, 3 or 130: see ``--help``)."""
-    return contract.command(parser(), argv, _run)
+    tune_process()  # one BLAS thread, freed memory kept in glibc's heap (fpr.tuning)
+    return contract.command(parser(), argv, work)
 
 
 if __name__ == "__main__":

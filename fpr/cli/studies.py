@@ -43,6 +43,7 @@ from fpr.studies.thesis import (
     method_comparison,
     via_point_study,
 )
+from fpr.tuning import tune_process
 
 QUICK = {"counts": (0, 1), "alphas": (0.0, 0.5, 1.0), "methods": COMPARED_METHODS}
 """Settings of ``--quick``."""
@@ -222,6 +223,7 @@ def main(argv=None) -> int:
         see ``--help``. The planning times are in ``manifest.json``, so ``studies.json`` is the same bytes
         from one run to the next.
     """
+    tune_process()  # one BLAS thread, freed memory kept in glibc's heap (fpr.tuning)
     return contract.command(parser(), argv, _run)
 
 

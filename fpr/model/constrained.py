@@ -27,9 +27,8 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from fpr.model.compiled import choose
+from fpr import _native as native
 from fpr.model.errors import check_shape
-from fpr.model.multibody import kernel as _multibody
 
 _posv = lapack.dposv
 
@@ -104,12 +103,6 @@ class ClosedChainModel:
     reversed_ids: dict
     settings: pin.ProximalSettings
 
-    #: the measured velocity's least squares compiled (``fpr/model/_multibody.c``, :meth:`to_minimal`): None
-    #: (default) when the extension is built and knows the minimal model's joints, else the Python path; False:
-    #: always the Python path (the reference); True: the compiled one, an error when it is not built or does not
-    #: fit.
-    compiled_velocity = None
-
     # ------------------------------------------------------------------ state conversion
     def from_minimal(self, q, v=None, a=None):
         """Closed-chain state from thesis coordinates of the minimal model.
@@ -171,6 +164,11 @@ class ClosedChainModel:
         qc = check_shape("qc", qc, (self.model.nq,))
         if reference is not None:
             reference = check_shape("reference", reference, (r.nq,))
+            measure = None if vc is None else cache.native_measure(self)  # fpr._native's part "measure"
+            if measure is not None:  # the same steps natively, the placements left in self.data as below
+                out = measure.measure(qc, check_shape("vc", vc, (self.model.nv,)), reference)
+                if out is not None:  # else (K^T K not positive definite: not these robots) the Python path
+                    return out
         pin.forwardKinematics(self.model, self.data, qc)  # Plant.observe reads these placements after this call
         omi = self.data.oMi
         qp = np.zeros(r.nq)
@@ -187,11 +185,9 @@ class ClosedChainModel:
         if vc is None:
             return q
         vc = check_shape("vc", vc, (self.model.nv,))
-        velocity = choose(self.compiled_velocity, getattr(_multibody, "velocity", None), "compiled_velocity",
-                          "ClosedChainModel.compiled_velocity = True", "measured velocity (fpr/model/_multibody.c)",
-                          cache.velocity_spec is not None)
-        if velocity is not None:  # the same normal equations in C, K built there from the minimal model
-            v = velocity(cache.velocity_spec[0], cache.velocity_spec[1], q, vc)
+        minimal = cache.native_minimal()  # fpr._native's part "measure", or None
+        if minimal is not None:  # the same normal equations natively, K from Pinocchio's Jacobians there
+            v = minimal.velocity(q, vc)
             if v is not None:  # else (K^T K not positive definite: not these robots) the Python path decides
                 return q, v
         # Speed: least squares by the normal equations K^T K v = K^T vc (Cholesky, LAPACK's posv called
@@ -293,19 +289,42 @@ class _MinimalCache:
         self.angular = closed._angular
         self.angular_list = self.angular.tolist()
         self.reader = r.kind.closure_reader(closed)
-        self.velocity_spec = self._velocity_spec(closed, r)
+        self._robot = r
+        self._native = None
+        self._native_measure = None
 
-    def _velocity_spec(self, closed, r) -> tuple[np.ndarray, np.ndarray] | None:
-        """The compiled velocity's inputs (``fpr/model/_multibody.c``, ``velocity``): the minimal model's constants
-        and the spec of K (its hinge Jacobian blocks and the constant rows, T), or None when not built or the
-        minimal model does not fit (``Robot.multibody``)."""
-        if r.multibody is None:
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_native"] = state["_native_measure"] = None  # native objects: made again where they are used
+        return state
+
+    def native_measure(self, closed):
+        """The native measurement (:mod:`fpr._native`'s part ``measure``: forward kinematics on ``closed.data``,
+        the kind's reads, the unwrapping and the velocity), made at its first use; None when the part is off or
+        not built, or the kind's reader gives no native reads."""
+        if self.native_minimal() is None or not hasattr(self.reader, "native_reads"):
             return None
-        constants, ids = r.multibody
-        blocks = [x for iv, hinge in self.freeflyer_rows for x in (iv, ids[hinge])]
-        spec = [r.nq, closed.model.nv, r.model.nq, *r.T.reshape(-1), len(self.freeflyer_rows), *blocks,
-                *self.velocity_rows.reshape(-1)]
-        return constants, np.ascontiguousarray(spec, dtype=float)
+        if self._native_measure is None:
+            r = self._robot
+            eulers, angles = self.reader.native_reads()
+            self._native_measure = native.use("measure").Measure(
+                closed.model, closed.data, self._native, r.model.nq, self.reversed_q.tolist(),
+                self.reversed_q_source.tolist(), self.reversed_sign, eulers, angles, r.T_inv, self.angular_list)
+        return self._native_measure
+
+    def native_minimal(self):
+        """The native measured velocity (:mod:`fpr._native`'s part ``measure``: the minimal model, its own data,
+        T, the constant rows of K and the hinges whose LOCAL Jacobians fill the free flyers' rows), made at its
+        first use; None when the part is off or not built."""
+        module = native.use("measure")
+        if module is None:
+            return None
+        if self._native is None:
+            r = self._robot
+            self._native = module.Minimal(r.model, r.model.createData(), r.T, [], self.velocity_rows,
+                                          [iv for iv, _ in self.freeflyer_rows],
+                                          [hinge for _, hinge in self.freeflyer_rows])
+        return self._native
 
 
 def _minimal_cache(closed: "ClosedChainModel") -> _MinimalCache:

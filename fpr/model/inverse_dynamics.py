@@ -10,7 +10,7 @@ derivatives up to the 4th, for every sample at once:
 
    M_s, c_s being the chain plus the drones' point masses and J_h the Jacobian of the drone
    joints. This is what makes s a flat output: the drone roll is then the direction of F_i
-   (eq. 2.20), phi_i = atan2(-F_iy, F_iz), and the thrust its norm f_i = |F_i|. F, F', F'' come
+   (eq. 2.20), phi_i = atan2(-F_iy, F_iz), and the thrust its norm f_i = ``|F_i|``. F, F', F'' come
    exactly from the motion's derivatives by jet arithmetic, hence phi_i, phi_i', phi_i''.
 2. **Torques** (eq. 2.24 with perfect tracking): the roll torque that gives the drone the roll
    acceleration phi_i'' in the *exact* multibody model (rigid drones whose joint is d_i below their
@@ -44,13 +44,13 @@ class MotionInputs:
         motion: s and its derivatives 0..4, shape (5, N, n_s).
         thrust_vector: F_i in world (y, z), shape (N, n_d, 2) [N].
         thrust_vector_rate: dF_i/dt, shape (N, n_d, 2) [N/s].
-        thrust: f_i = |F_i|, shape (N, n_d) [N].
+        thrust: f_i = ``|F_i|``, shape (N, n_d) [N].
         roll: phi_i, shape (N, n_d) [rad].
         roll_rate: phi_i', shape (N, n_d) [rad/s].
         roll_acceleration: phi_i'', shape (N, n_d) [rad/s^2].
         torque: [tau_x, tau_y, tau_z] of each drone, shape (N, n_d, 3) [N m].
         rotor_speed_squared: w^2 of each rotor, shape (N, n_d, 4) [(rad/s)^2]; negative = impossible.
-        rotor_speed: sign(w^2) sqrt(|w^2|), shape (N, n_d, 4) [rad/s].
+        rotor_speed: sign(w^2) sqrt(``|w^2|``), shape (N, n_d, 4) [rad/s].
         joint_position: drone joints r_i, shape (N, n_d, 2) [m].
         joint_velocity: r_i', shape (N, n_d, 2) [m/s].
         joint_acceleration: r_i'', shape (N, n_d, 2) [m/s^2].
@@ -74,7 +74,7 @@ class MotionInputs:
 
     @property
     def power(self) -> np.ndarray:
-        """|F_i . r_i'|, the power estimate of the energy index J_e (seed 3.24), shape (N, n_d) [W]."""
+        """``|F_i . r_i'|``, the power estimate of the energy index J_e (seed 3.24), shape (N, n_d) [W]."""
         return np.abs(np.sum(self.thrust_vector * self.joint_velocity, axis=-1))
 
     def full_state(self, robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

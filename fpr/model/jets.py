@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from fpr.model.compiled import choose, load_extension
+from fpr import _native as native
 from fpr.model.dual import Dual, empty, gather, jet_batch, jet_chain, jet_leibniz
 from fpr.model.errors import ModelArgumentError
 
@@ -26,22 +26,15 @@ _MAXK = 16
 _B = np.array([[math.comb(n, k) for k in range(_MAXK + 1)] for n in range(_MAXK + 1)], float)
 
 
-_KERNEL = load_extension("fpr.model._jets")
-
-#: The switch of :mod:`fpr.model._jets`' jet products and solves (:func:`fpr.model.compiled.choose`): None (the
-#: default) uses them when built, False always numpy's (the reference the tests hold them equal to), True
-#: requires them.
-compiled: bool | None = None
-
-
 def _kernel():
-    """fpr/model/_jets.c's module under :data:`compiled`, or None for numpy's."""
-    return choose(compiled, _KERNEL, "compiled", "fpr.model.jets.compiled = True", "jet products (fpr/model/_jets.c)")
+    """The native jet products and solves (:mod:`fpr._native`'s part ``jets``, ``fpr/_native/jets.c``), or None
+    for numpy's (the reference the tests hold them equal to)."""
+    return native.use("jets")
 
 
 def _suffix_batches(*batches):
     """(the broadcast batch shape, its size, each batch's size) when every batch shape with its leading 1s dropped
-    is a suffix of the broadcast one (what _jets.c's ``s % S_a`` indexing broadcasts); else None."""
+    is a suffix of the broadcast one (what ``fpr/_native/jets.c``'s ``s % S_a`` indexing broadcasts); else None."""
     try:
         out = np.broadcast_shapes(*batches)
     except ValueError:
@@ -58,9 +51,10 @@ def _suffix_batches(*batches):
 
 
 def _compiled_product(da, db, K):
-    """:func:`_leibniz`'s matrix products by _jets.c: ``da`` (Ka+1, ..., n, m), ``db`` (Kb+1, ..., m, k) padded to
-    one ndim, the result's orders 0..K (K <= Ka + Kb, terms beyond an operand's order are 0); None where it does
-    not apply (no kernel, mixed or other dtypes, sizes beyond its limits, batches that broadcast otherwise)."""
+    """:func:`_leibniz`'s matrix products natively (the part ``jets``): ``da`` (Ka+1, ..., n, m), ``db`` (Kb+1,
+    ..., m, k) padded to one ndim, the result's orders 0..K (K <= Ka + Kb, terms beyond an operand's order are 0);
+    None where it does not apply (no kernel, mixed or other dtypes, sizes beyond its limits, batches that broadcast
+    otherwise)."""
     if isinstance(da, Dual) or isinstance(db, Dual):
         return _dual_product(da, db, K)
     kernel = _kernel()
@@ -78,8 +72,9 @@ def _compiled_product(da, db, K):
 
 
 def small_matmul(a, b):
-    """``np.matmul(a, b)`` of batches of small matrices (..., n, m) @ (..., m, k), by _jets.c where it applies
-    (about 5 times faster than numpy's on the planner's batches of 4 x 4 matrices; round-off apart, the same)."""
+    """``np.matmul(a, b)`` of batches of small matrices (..., n, m) @ (..., m, k), natively (the part ``jets``)
+    where it applies (about 5 times faster than numpy's on the planner's batches of 4 x 4 matrices; round-off
+    apart, the same)."""
     if isinstance(a, Dual) or isinstance(b, Dual):
         return _dual_product(a[None], b[None], 0)[0]
     a, b = np.asarray(a), np.asarray(b)
@@ -136,9 +131,9 @@ def inexact(x) -> np.ndarray:
 
 def _small_solve(a, b=None):
     """``np.linalg.solve(a, b)`` (``b`` None: ``np.linalg.inv(a)``) of a real batch a (..., n, n), b (..., n, k),
-    n, k <= 32, by _jets.c's Gauss-Jordan elimination (about 3 times faster than numpy's on batches of 4 x 4
-    matrices, the same to round-off); numpy's for other batches and singular matrices (which numpy then reports
-    as it does)."""
+    n, k <= 32, natively by Gauss-Jordan elimination (the part ``jets``; about 3 times faster than numpy's on
+    batches of 4 x 4 matrices, the same to round-off); numpy's for other batches and singular matrices (which numpy
+    then reports as it does)."""
     kernel = _kernel()
     numpy_s = (lambda: np.linalg.inv(a)) if b is None else (lambda: np.linalg.solve(a, b))
     if kernel is None or a.dtype.char != "d" or a.ndim < 2 or not 1 <= a.shape[-1] <= 32 or a.size == 0:
@@ -624,9 +619,9 @@ def _dual_solve_matrices(a, b):
 
 
 def _compiled_solve(inv, dA, dB, K):
-    """The jet of A^-1 b, orders 0..K, by _jets.c's recurrence (:func:`solve`'s) from ``inv`` = A0^-1 (..., n, n),
-    A's jet ``dA`` (or None: a constant A) and b's ``dB`` (Kb+1, ..., n, k) (orders beyond Kb are 0); None where
-    it does not apply (as :func:`_compiled_product`)."""
+    """The jet of A^-1 b, orders 0..K, natively (the part ``jets``: :func:`solve`'s recurrence) from ``inv`` =
+    A0^-1 (..., n, n), A's jet ``dA`` (or None: a constant A) and b's ``dB`` (Kb+1, ..., n, k) (orders beyond Kb
+    are 0); None where it does not apply (as :func:`_compiled_product`)."""
     kernel = _kernel()
     dA = inv[None] if dA is None else dA[:K + 1]
     dB = dB[:K + 1]

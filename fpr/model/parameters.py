@@ -1,12 +1,19 @@
-"""Parameters that a URDF cannot hold: rotor constants, limits, planning margins.
+"""Parameters that a URDF cannot hold: rotor constants, limits, planning margins; and the physical ranges of
+the parameters a user may override.
 
 They are read from ``urdf/parameters.yaml``, the single file where the default numbers of the
 robots live (the xacro sources read their geometric defaults from the same file). Geometry and
 inertia are *not* taken from here by the model: :mod:`fpr.model.robot` reads them back from the URDF.
+
+:data:`PARAMETER_RANGES` and :func:`check_parameters` bound the xacro arguments (``fpr.load(..., link_length=1.0)``,
+a mission's ``[robot_parameters]``, ``--set``) to broad physical ranges for a multirotor and its chain: they
+exclude the absurd (a subnormal mass, a 10 km link), not the unusual.
 """
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -14,6 +21,7 @@ import numpy as np
 import yaml
 
 from fpr.model.description import URDF_DIR
+from fpr.model.errors import ModelArgumentError
 
 PARAMETERS_FILE = Path(URDF_DIR) / "parameters.yaml"
 
@@ -87,3 +95,82 @@ def margins(params: dict | None = None) -> Margins:
         force=float(p["margin_force"]),
         rotor_speed=float(p["margin_rotor_speed"]),
     )
+
+
+@dataclass(frozen=True)
+class ParameterRange:
+    """The physical range of a robot parameter.
+
+    Attributes:
+        low, high: least and largest value [unit].
+        unit: the unit, as written in messages.
+        meaning: what the range covers, in words (the message says it).
+        zero: 0 is allowed too (the part is absent), besides [low, high].
+    """
+
+    low: float
+    high: float
+    unit: str
+    meaning: str
+    zero: bool = False
+
+    def contains(self, value: float) -> bool:
+        """``value`` is in the range (or 0, when allowed)."""
+        return (self.zero and value == 0) or self.low <= value <= self.high
+
+    def text(self) -> str:
+        """The range as a message writes it: ``[0.01, 100] kg`` (``0 or [...]``)."""
+        return f"{'0 or ' if self.zero else ''}[{self.low:g}, {self.high:g}] {self.unit}"
+
+
+PARAMETER_RANGES: dict[str, ParameterRange] = {
+    "link_length": ParameterRange(0.05, 10.0, "m", "a link of the chain, from a drone's own size to 10 m"),
+    "link_mass": ParameterRange(1e-3, 100.0, "kg", "a link of the chain, from 1 g"),
+    "link_radius": ParameterRange(5e-4, 0.5, "m", "a rod, from 1 mm thick"),
+    "end_effector_mass": ParameterRange(1e-3, 100.0, "kg", "the end-effector's load, from 1 g (0: none)", zero=True),
+    "end_effector_radius": ParameterRange(1e-3, 1.0, "m", "the end-effector's sphere, from 1 mm"),
+    "drone_mass": ParameterRange(1e-2, 100.0, "kg", "a multirotor, from the smallest quadrotors that fly (about "
+                                                    "10 g) to 100 kg"),
+    "drone_ixx": ParameterRange(1e-6, 10.0, "kg m^2", "a multirotor's principal inertia, from that of a 10 g drone"),
+    "drone_iyy": ParameterRange(1e-6, 10.0, "kg m^2", "a multirotor's principal inertia, from that of a 10 g drone"),
+    "drone_izz": ParameterRange(1e-6, 10.0, "kg m^2", "a multirotor's principal inertia, from that of a 10 g drone"),
+    "hinge_offset": ParameterRange(1e-3, 2.0, "m", "the joint below the drone's centre of mass, from 1 mm (0: at "
+                                                   "it)", zero=True),
+    "rotor_arm": ParameterRange(1e-2, 2.0, "m", "a rotor's distance to the drone's centre, from 1 cm"),
+    "pivot_mass": ParameterRange(1e-9, 10.0, "kg", "the prototype's pivot rings (a model detail: tiny by design)"),
+    "pivot_inertia": ParameterRange(1e-15, 1.0, "kg m^2", "the prototype's pivot rings (a model detail: tiny by "
+                                                          "design)"),
+}
+"""Physical range of the xacro arguments of the built-in descriptions [SI units]; :func:`check_parameters` applies
+it. The least values exclude subnormal and vanishing numbers (a body of 1e-300 kg), the largest a robot of
+another scale; whether the rotors can lift the drones is checked against the rotor constants by the planner's
+command line (:mod:`fpr.cli.checks`)."""
+
+
+def check_parameters(overrides: dict, parameters: dict) -> None:
+    """Check xacro overrides before a robot is built from them.
+
+    Each key of :data:`PARAMETER_RANGES` given in ``overrides`` must be a finite number in its range; with
+    every value (``parameters``: the parameter file's, overrides included), the drone's principal inertias
+    must satisfy the triangle inequalities (a physical, positive-definite inertia). Whether the rotors can
+    lift the robot is the planner's to say (a controller's model may well be too heavy to fly).
+
+    Raises:
+        ModelArgumentError: ``argument`` the offending key, ``value`` its value, the message what to give.
+    """
+    for key, value in overrides.items():
+        bounds = PARAMETER_RANGES.get(key)
+        if bounds is None:
+            continue
+        if not isinstance(value, numbers.Real) or isinstance(value, bool) or not math.isfinite(value):
+            raise ModelArgumentError(key, value, f"{key} = {value!r}: give a finite number [{bounds.unit}]")
+        if not bounds.contains(value):
+            raise ModelArgumentError(key, value, f"{key} = {value:g} {bounds.unit} is outside the physical range "
+                                                 f"{bounds.text()} ({bounds.meaning}): give a value in it")
+    inertia = [parameters.get(f"drone_i{a}{a}") for a in "xyz"]
+    if any(f"drone_i{a}{a}" in overrides for a in "xyz") and all(isinstance(i, numbers.Real) for i in inertia):
+        for i, name in enumerate(("drone_ixx", "drone_iyy", "drone_izz")):
+            if inertia[i] > inertia[i - 1] + inertia[i - 2]:
+                raise ModelArgumentError(name, inertia[i], f"{name} = {inertia[i]:g} kg m^2 is more than the sum "
+                                                           "of the two other principal inertias: no rigid body "
+                                                           "has that inertia; give smaller or consistent values")

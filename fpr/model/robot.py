@@ -34,10 +34,9 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from fpr.model.compiled import choose, load_extension
+from fpr import _native as native
 from fpr.model.description import single_angle_urdf
 from fpr.model.errors import ModelArgumentError, NotUniformError, RobotDefinitionError, check_shape
-from fpr.model.multibody import kernel as _multibody, model_constants
 from fpr.model.parameters import Margins, RotorConstants, load_parameters, margins, rotor_constants
 from fpr.model.planar import PlanarModel
 from fpr.model.rotors import RotorModel
@@ -45,10 +44,6 @@ from fpr.model.rotors import RotorModel
 logger = logging.getLogger(__name__)
 
 _posv = lapack.dposv
-
-#: the numpy part of Robot.attitude_model in C (setup.py builds it when a compiler is there), or None
-_attitude_kernel = load_extension("fpr.model._attitude")
-
 
 @dataclass(frozen=True)
 class Layout:
@@ -254,16 +249,6 @@ class Robot:
         """m_i, mass of each drone, shape (n_d,) [kg]."""
         return np.array([self.model.inertias[j].mass for j in self.hinge_joint_ids], dtype=float)
 
-    @cached_property
-    def multibody(self) -> tuple[np.ndarray, dict] | None:
-        """The minimal model exported for ``fpr/model/_multibody.c`` (:func:`~fpr.model.multibody.model_constants`:
-        its constants and joint-id map), or None when the extension is not built or the model does not fit it
-        (nq != nv included: the compiled velocity and frame terms map T q into the model's q). Exported once for
-        the attitude model and the closed chain's measured velocity."""
-        if _multibody is None or self.model.nq != self.model.nv:
-            return None
-        return model_constants(self.model)
-
     def _uniform(self, quantity: str, values: np.ndarray, plural: str) -> float:
         if np.ptp(values) > 1e-12 * max(1.0, float(np.abs(values).max())):
             raise NotUniformError(quantity, values, f"use robot.{plural}, one value per drone")
@@ -400,28 +385,22 @@ class Robot:
         """Gravitational potential energy, zero at z = 0 [J]."""
         return float(pin.computePotentialEnergy(self.model, self.data, self._q(q)))
 
-    #: the numpy part of :meth:`attitude_model` compiled (``fpr/model/_attitude.c``): None (default) when the
-    #: extension is built, else the Python path; False: always the Python path (the reference); True: the
-    #: compiled part, an error when it is not built. Set it on a robot or on the class.
-    compiled_attitude: bool | None = None
-
     def attitude_model(self, q, v) -> AttitudeModel:
         """The attitude model of seed 2.12-2.13 at (q, qdot)."""
         # Speed (the controller calls this at every inner-loop tick; each numpy call costs a microsecond or
         # more on these small arrays): the same quantities as mass_matrix, nonlinear_effects and
         # drone_jacobians with fewer calls, from one Pinocchio pass (CRBA, RNEA, the joint Jacobians), or with
-        # the compiled part from one call of fpr/model/_multibody.c (the same algorithms, equal to round-off:
-        # tests/test_plant_compiled.py). The rest, in C when built (fpr/model/_attitude.c, about 3 times
-        # cheaper than the numpy calls of _attitude_python, its reference, equal to round-off:
-        # tests/test_fast_paths.py). Neither path leaves a state in ``data``.
+        # the native part (fpr._native's "attitude") from one call of the same algorithms in C++ (equal to
+        # round-off: tests/test_attitude_compiled.py), on a data of its own. The rest, natively in C
+        # (fpr/_native/attitude.c, about 3 times cheaper than the numpy calls of _attitude_python, its reference,
+        # equal to round-off: tests/test_fast_paths.py).
         constants = self.__dict__.get("_attitude_constants") or self._build_attitude_constants()
         q, v = check_shape("q", q, (self.nq,)), check_shape("v", v, (self.nq,))
-        post = choose(self.compiled_attitude, getattr(_attitude_kernel, "post", None), "compiled_attitude",
-                      "Robot.compiled_attitude = True", "attitude model (fpr/model/_attitude.c)",
-                      constants[-1] is not None)
-        terms = self.__dict__.get("_attitude_terms")
-        if post is not None and terms is not None:  # M_p, nle and the Jacobians by fpr/model/_multibody.c
-            m, nle, jacobians = _multibody.frame_terms(terms[0], terms[1], q, v)
+        kernel = native.use("attitude")
+        post = None if kernel is None or constants[-1] is None else kernel.post
+        terms = None if post is None else self._native_terms()
+        if terms is not None:  # M_p, nle and the Jacobians by Pinocchio's C++ algorithms
+            m, nle, jacobians = terms.frame_terms(q, v)
         else:
             t, model, data = self.T, self.model, self.data
             qp, vp = t.dot(q), t.dot(v)
@@ -442,32 +421,41 @@ class Robot:
 
     def _build_attitude_constants(self) -> tuple:
         """What :meth:`attitude_model` needs besides the state, built once: (T^-1)[a]^T, the Jacobian rows of
-        f and tau, and the compiled part's constants vector (``fpr/model/_attitude.c``: n, n_d, n_a, the
+        f and tau, and the native part's constants vector (``fpr/_native/attitude.c``: n, n_d, n_a, the
         attitude indices, T, T^-1; None when the robot does not fit it)."""
         n, n_d = self.nq, self.n_drones
         attitude = self.indices(self.layout.attitude)
         rows = np.arange(6 * n_d).reshape(n_d, 6)
         vector = None
-        if _attitude_kernel is not None and n <= _attitude_kernel.MAX_COORDINATES \
-                and n_d <= _attitude_kernel.MAX_DRONES:
+        kernel = native.module("_attitude")
+        if kernel is not None and n <= kernel.MAX_COORDINATES and n_d <= kernel.MAX_DRONES:
             vector = np.concatenate([[n, n_d, attitude.size], attitude, self.T.reshape(-1),
                                      self.T_inv.reshape(-1)]).astype(float)
         constants = self.__dict__["_attitude_constants"] = (
             np.ascontiguousarray(self.T_inv[attitude].T), rows[:, 2].copy(), rows[:, 3:].reshape(-1).copy(), vector)
-        exported = self.multibody
-        terms = None
-        if exported is not None:
-            frames = [self.model.frames[f] for f in self.drone_frame_ids]
-            terms = (exported[0], np.ascontiguousarray(
-                [n, self.model.nq, *self.T.reshape(-1), len(frames)]
-                + [x for fr in frames for x in (exported[1][fr.parentJoint], *fr.placement.rotation.reshape(-1),
-                                                 *fr.placement.translation)], dtype=float))
-        self.__dict__["_attitude_terms"] = terms  # frame_terms' constants and spec, or None
         return constants
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("_native_minimal", None)  # a native object: made again where it is next used
+        return state
+
+    def _native_terms(self):
+        """The minimal model's native terms (``fpr._native._pinocchio.Minimal``: M_p, nle and the drones' LOCAL frame
+        Jacobians at (T q, T v), on a data of its own), made at its first use; None when the model's nq != nv."""
+        terms = self.__dict__.get("_native_minimal", False)
+        if terms is False:
+            module = native.module("_pinocchio")
+            terms = None
+            if module is not None and self.model.nq == self.model.nv:
+                terms = module.Minimal(self.model, self.model.createData(), self.T, list(self.drone_frame_ids),
+                                       np.zeros((0, self.nq)), [], [])
+            self.__dict__["_native_minimal"] = terms
+        return terms
 
     def _attitude_python(self, m, nle, jacobians) -> AttitudeModel:
         """:meth:`attitude_model` from Pinocchio's M_p (upper triangle read), its nonlinear effects and the
-        drones' frame Jacobians (LOCAL), with numpy and LAPACK: the reference of the compiled part.
+        drones' frame Jacobians (LOCAL), with numpy and LAPACK: the reference of the native part.
 
         Only the n_a needed rows of M^-1, from M_p (upper triangle, as CRBA fills it and as LAPACK's posv
         reads it) without forming M = T^T M_p T: M^-1 = T^-1 M_p^-1 T^-T, so the rows a of M^-1 are

@@ -20,13 +20,11 @@ from __future__ import annotations
 
 import importlib.metadata
 import logging
-import math
-import numbers
 from pathlib import Path
 
 from fpr.model import description
-from fpr.model.errors import ModelArgumentError, RobotDefinitionError, UnknownRobotError
-from fpr.model.parameters import load_parameters
+from fpr.model.errors import RobotDefinitionError, UnknownRobotError
+from fpr.model.parameters import PARAMETER_RANGES, check_parameters, load_parameters  # ranges: fpr.model.parameters
 from fpr.model.robot import Robot
 from fpr.robots.base import RobotKind
 from fpr.robots.fpr import Fpr
@@ -107,55 +105,6 @@ def names() -> tuple[str, ...]:
     """The registered robot names, in registration order (the built-in ones first, then the entry points')."""
     _load_entry_points()
     return tuple(_REGISTRY)
-
-
-PARAMETER_RANGES: dict[str, tuple[float, float, bool, str]] = {
-    "link_length": (0.05, 10.0, True, "m"),
-    "link_mass": (0.0, 100.0, False, "kg"),
-    "link_radius": (0.0, 0.5, False, "m"),
-    "end_effector_mass": (0.0, 100.0, True, "kg"),
-    "end_effector_radius": (0.0, 1.0, False, "m"),
-    "drone_mass": (0.0, 100.0, False, "kg"),
-    "drone_ixx": (0.0, 10.0, False, "kg m^2"),
-    "drone_iyy": (0.0, 10.0, False, "kg m^2"),
-    "drone_izz": (0.0, 10.0, False, "kg m^2"),
-    "hinge_offset": (0.0, 2.0, True, "m"),
-    "rotor_arm": (0.0, 2.0, False, "m"),
-    "pivot_mass": (0.0, 10.0, False, "kg"),
-    "pivot_inertia": (0.0, 1.0, False, "kg m^2"),
-}
-"""Sane physical range of the xacro arguments of the built-in descriptions: name -> (least, largest,
-whether the least itself is allowed, unit) [SI units]; :func:`check_parameters` applies it."""
-
-
-def check_parameters(overrides: dict, parameters: dict) -> None:
-    """Check xacro overrides before a robot is built from them.
-
-    Each key of :data:`PARAMETER_RANGES` given in ``overrides`` must be a finite number in its range; with
-    every value (``parameters``: the parameter file's, overrides included), the drone's principal inertias
-    must satisfy the triangle inequalities (a physical, positive-definite inertia). Whether the rotors can
-    lift the robot is the planner's to say (a controller's model may well be too heavy to fly).
-
-    Raises:
-        ModelArgumentError: ``argument`` the offending key, ``value`` its value, the message what to give.
-    """
-    for key, value in overrides.items():
-        if key not in PARAMETER_RANGES:
-            continue
-        low, high, low_allowed, unit = PARAMETER_RANGES[key]
-        if not isinstance(value, numbers.Real) or isinstance(value, bool) or not math.isfinite(value):
-            raise ModelArgumentError(key, value, f"{key} = {value!r}: give a finite number [{unit}]")
-        if value < low or value > high or (value == low and not low_allowed):
-            bracket = "[" if low_allowed else "("
-            raise ModelArgumentError(key, value, f"{key} = {value:g} {unit} is outside the sane range "
-                                                 f"{bracket}{low:g}, {high:g}] {unit}: give a value in it")
-    inertia = [parameters.get(f"drone_i{a}{a}") for a in "xyz"]
-    if any(f"drone_i{a}{a}" in overrides for a in "xyz") and all(isinstance(i, numbers.Real) for i in inertia):
-        for i, name in enumerate(("drone_ixx", "drone_iyy", "drone_izz")):
-            if inertia[i] > inertia[i - 1] + inertia[i - 2]:
-                raise ModelArgumentError(name, inertia[i], f"{name} = {inertia[i]:g} kg m^2 is more than the sum "
-                                                           "of the two other principal inertias: no rigid body "
-                                                           "has that inertia; give smaller or consistent values")
 
 
 def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Robot:

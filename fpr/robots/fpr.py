@@ -215,6 +215,16 @@ class _FprReader:
         rel = hinge_frame.rotation.T @ omi[self.freeflyer_2].rotation
         qp[self.hinge_2_q] = np.arctan2(rel[2, 1], rel[1, 1])
 
+    def native_reads(self) -> tuple[list, list]:
+        """:meth:`read` as the native measurement takes it (``fpr/_native/cpp/native.hpp``: EulerRead,
+        AngleRead): the root joint's translation and Euler angles off the end-effector placement, hinge 2's
+        angle about x."""
+        i0 = self.root_q
+        eulers = [(self.reversed_1, self.root_placement_inv.homogeneous, self.hinge_1_inv.homogeneous,
+                   (i0, i0 + 1, i0 + 2), (i0 + 3, i0 + 4, i0 + 5), tuple(int(i) for i in self.euler_coordinates))]
+        angles = [(self.q21, self.hinge_2.homogeneous, self.freeflyer_2, self.hinge_2_q)]
+        return eulers, angles
+
     def wrap(self, q) -> None:
         """Drone 2's absolute roll phi2 within pi of level (in place)."""
         q[self.phi2] = wrap_angle(q[self.phi2])

@@ -159,6 +159,13 @@ class _PrototypeReader:
         ref = None if reference is None else reference[self.euler_coordinates]
         qp[self.pivot_q] = euler_zyx(link_1.rotation, ref)
 
+    def native_reads(self) -> tuple[list, list]:
+        """:meth:`read` as the native measurement takes it (``fpr/_native/cpp/native.hpp``: EulerRead): the
+        pivot's Euler angles off link 1's placement."""
+        eulers = [(self.q2_reversed, np.eye(4), self.q2_placement_inv.homogeneous, (-1, -1, -1),
+                   tuple(int(i) for i in self.pivot_q), tuple(int(i) for i in self.euler_coordinates))]
+        return eulers, []
+
     def wrap(self, q) -> None:
         """Nothing to do: q1 is in [-pi, pi) already, q2 and phi1 continuous."""
 

@@ -20,6 +20,18 @@ Every field is optional (defaults of :class:`fpr.robustness.spec.Campaign`)::
     "initial_error.y" = "normal(0, 0.02)"
     drone_mass = "uniform(0.95, 1.05)"
 
+An event family (:mod:`fpr.robustness.events`), optional::
+
+    events = "gust"             # or "move": one random event per run
+    replan = false              # fly with the replanner (moves need it)
+    without_observer = true     # the same runs by the controller without its observer, beside
+    max_saturation = 0.01       # a gust's run succeeds with at most this share of saturated ticks
+    pass_tolerance = 0.02       # a move's run succeeds within this of the moved way point [m]
+
+    [event_options]             # the family's options
+    force = [0.0, 8.0]          # gust: strength [N]; rise, duration [s]; bodies ("all", "end_effector", "drones")
+    # distance = [0.05, 0.3]    # move: displacement [m]; warning [s] before the way point
+
 :func:`campaign_to_toml` writes one back (the folder's ``campaign.toml``).
 """
 
@@ -37,7 +49,9 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-FIELDS = ("mission", "method", "runs", "seed", "hold", "tracking_tolerance", "robot_parameters", "vary")
+FIELDS = ("mission", "method", "runs", "seed", "hold", "tracking_tolerance", "events", "replan", "without_observer",
+          "pass_tolerance", "max_saturation", "robot_parameters", "vary", "event_options")
+SCALARS = FIELDS[:11]
 
 
 def load_campaign(path) -> Campaign:
@@ -64,7 +78,7 @@ def campaign_from_dict(document: dict, path=None) -> Campaign:
     unknown = sorted(set(document) - set(FIELDS))
     if unknown:
         raise CampaignError(f"{where}: field {unknown[0]!r}", f"unknown field: use {', '.join(FIELDS)}")
-    fields = {k: document[k] for k in FIELDS[:6] if k in document}
+    fields = {k: document[k] for k in SCALARS if k in document}
     mission = fields.get("mission")
     if mission is not None:
         if not isinstance(mission, str):
@@ -72,7 +86,7 @@ def campaign_from_dict(document: dict, path=None) -> Campaign:
         local = Path(path).parent / mission if path is not None else None
         if local is not None and mission.endswith(".toml") and not Path(mission).is_absolute():
             fields["mission"] = str(local)
-    for key in ("robot_parameters", "vary"):
+    for key in ("robot_parameters", "vary", "event_options"):
         if not isinstance(document.get(key, {}), dict):
             raise CampaignError(f"{where}: field {key!r}", "give a table ([" + key + "])")
     parameters = document.get("robot_parameters", {})
@@ -80,7 +94,8 @@ def campaign_from_dict(document: dict, path=None) -> Campaign:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise CampaignError(f"{where}: field 'robot_parameters.{key}'", "give a number [SI units]")
     try:
-        campaign = Campaign(**fields, robot_parameters={k: float(v) for k, v in parameters.items()})
+        campaign = Campaign(**fields, robot_parameters={k: float(v) for k, v in parameters.items()},
+                            event_options=dict(document.get("event_options", {})))
         for name, text in document.get("vary", {}).items():
             campaign = campaign.with_vary(name, text)
     except CampaignError as error:
@@ -104,8 +119,16 @@ def campaign_to_toml(campaign: Campaign, mission: str | None = None) -> str:
              f"hold = {float(campaign.hold)!r}"]
     if campaign.tracking_tolerance is not None:
         lines.append(f"tracking_tolerance = {float(campaign.tracking_tolerance)!r}")
+    if campaign.events is not None:
+        lines += [f"events = {_value(campaign.events)}", f"pass_tolerance = {float(campaign.pass_tolerance)!r}",
+                  f"max_saturation = {float(campaign.max_saturation)!r}"]
+    if campaign.events is not None or campaign.replan or campaign.without_observer:
+        lines += [f"replan = {_value(campaign.replan)}", f"without_observer = {_value(campaign.without_observer)}"]
     lines += ["", "[robot_parameters]"]
     lines += [f"{k} = {float(v)!r}" for k, v in sorted(campaign.robot_parameters.items())]
     lines += ["", "[vary]"]
     lines += [f"{_value(k)} = {_value(campaign.vary[k].text())}" for k in campaign.columns]
+    if campaign.event_options:
+        lines += ["", "[event_options]"]
+        lines += [f"{k} = {_value(v)}" for k, v in sorted(campaign.event_options.items())]
     return "\n".join(lines) + "\n"

@@ -19,13 +19,17 @@ import os
 import time
 from dataclasses import dataclass, field
 
+from fpr import extras
 from fpr.model import description
 from fpr.model.errors import CampaignError
-from fpr.robustness.outcomes import Flight, error_row, fly
+from fpr.robustness.outcomes import EventSetup, Flight, error_row, fly
 from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign
 from fpr.robustness.store import RunStore
+from fpr.tuning import tune_process
 from planners.missions.mission import load_mission
 from planners.optimize import plan
+from planners.replanning.latency import machine_latency
+from planners.replanning.replanner import measure_latency
 
 logger = logging.getLogger(__name__)
 
@@ -59,19 +63,39 @@ def check_quantities(campaign: Campaign, robot) -> None:
                                   f"{INITIAL_ERROR}<coordinate> or a robot parameter ({', '.join(sorted(parameters))})")
 
 
-def make_flight(campaign: Campaign, mission=None, progress=None):
+def make_flight(campaign: Campaign, mission=None, progress=None, latency=None):
     """Plan the campaign's mission once.
+
+    With an event family, the flight carries the mission, the plan's constraints (the closed loop's physical
+    limits) and the :class:`fpr.robustness.outcomes.EventSetup`; the replanner's latency model is resolved here,
+    once (``latency``, or this machine's calibration: :func:`planners.replanning.latency.machine_latency`), so
+    that every worker decides alike; the first run's event is drawn here, to refuse a family that cannot give
+    one before any run.
 
     Returns:
         (flight, result): the :class:`fpr.robustness.outcomes.Flight` the workers get and the
         :class:`planners.optimize.PlanResult` (for its feasibility and report).
+
+    Raises:
+        fpr.extras.MissingExtraError: the campaign extra (Dask, pyarrow) is not installed: checked before the
+            plan's work, since the runs need it.
     """
+    extras.require("campaign")
     mission = mission or mission_of(campaign)
     robot = mission.load_robot()
     check_quantities(campaign, robot)
     result = plan(mission, campaign.method, robot=robot, progress=progress)
+    setup = None
+    if campaign.events is not None:
+        if campaign.replan and latency is None:
+            latency = machine_latency(robot, measure_latency)
+        setup = EventSetup(campaign.events, campaign.event_family(), campaign.seed, campaign.replan, latency,
+                           campaign.without_observer, campaign.pass_tolerance, campaign.max_saturation)
+        setup.event(mission, robot, 0)
     flight = Flight(robot.name, tuple(sorted(mission.robot_parameters.items())), tuple(robot.layout.chain),
-                    result.trajectory, float(campaign.hold), campaign.tracking_tolerance)
+                    result.trajectory, float(campaign.hold), campaign.tracking_tolerance,
+                    mission if setup is not None else None,
+                    result.report.constraints if setup is not None else None, setup)
     return flight, result
 
 
@@ -97,12 +121,35 @@ class CampaignRun:
 def local_client(workers: int | None = None):
     """A Dask client of a new local cluster: ``workers`` processes (default: the number of cores), one thread
     each, its dashboard on a free port; closing the client closes the cluster. (Worker processes are
-    spawned: in a script, call it under ``if __name__ == "__main__":``.)"""
+    spawned: in a script, call it under ``if __name__ == "__main__":``.) Each worker process calls
+    :func:`fpr.tune_process` before its first run; it leaves alone what Dask's nanny already chose for its
+    workers (by default one BLAS thread and ``MALLOC_TRIM_THRESHOLD_``, in ``distributed.nanny.pre-spawn-environ``).
+
+    Raises:
+        fpr.extras.MissingExtraError: the campaign extra is not installed.
+    """
+    extras.require("campaign")
     from distributed import Client
 
     n = int(workers or os.cpu_count() or 1)
-    return Client(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                  silence_logs=logging.ERROR)
+    client = Client(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                    silence_logs=logging.ERROR)
+    client.register_plugin(_tuned_worker())
+    return client
+
+
+def _tuned_worker():
+    """A Dask worker plugin that makes :func:`fpr.tune_process` in each worker process, also in one the nanny
+    restarts (a plugin's ``setup`` runs in every worker, present or future)."""
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class TunedWorker(WorkerPlugin):
+        name = "fpr-tune-process"
+
+        def setup(self, worker) -> None:
+            tune_process()
+
+    return TunedWorker()
 
 
 def open_store(folder, campaign: Campaign, description: dict | None = None) -> RunStore:
@@ -126,6 +173,7 @@ def run_campaign(campaign: Campaign, flight: Flight, store: RunStore, client, pr
 
     A ``KeyboardInterrupt`` cancels the tasks still pending and propagates: what finished is stored.
     """
+    extras.require("campaign")
     from distributed import as_completed
 
     start = time.perf_counter()

@@ -25,6 +25,13 @@ lo + (hi - lo) i / (N - 1): a sweep), or a plain number (a constant). A vector q
 ``noise``) takes one distribution per component: ``wind=normal(0, 1)`` draws each axis independently
 from N(0, 1); ``wind=normal([0, 2, 0], [1, 1, 0.5])`` gives each axis its own parameters.
 
+**Event families** (``events = "move"`` or ``"gust"``, :mod:`fpr.robustness.events`): each run also gets one
+random event (a way point that moves, a gust), drawn from ``spawn_key=(i, 2)``, with the family's options
+(``event_options``), flown with the replanner (``replan``) and, with ``without_observer``, also by the
+controller without its observer; a move's run succeeds when the robot passes within ``pass_tolerance`` of the
+moved way point, a gust's when the robot is not lost, breaks no physical limit and has at most
+``max_saturation`` of its ticks saturated (:mod:`fpr.robustness.outcomes`).
+
 Determinism: run ``i`` draws its values from ``numpy.random.SeedSequence(seed, spawn_key=(i, 0))`` and its
 measurement noise from ``spawn_key=(i, 1)``: the children ``SeedSequence(seed).spawn`` would give, made
 directly from the run's index. A run's values therefore depend only on the campaign and its index, never on
@@ -44,6 +51,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fpr.model.errors import CampaignError
+from fpr.robots import PARAMETER_RANGES
+from fpr.robustness.events import family
 
 VECTORS = {"wind": ("wind_x", "wind_y", "wind_z"), "noise": ("noise_q", "noise_v")}
 """Vector quantities and their components (columns of the table)."""
@@ -196,6 +205,34 @@ def parse_distribution(text, components: int = 1) -> list[Distribution]:
             for c in range(components)]
 
 
+#: Units of the scalar settings a campaign varies ("1": a ratio).
+SETTING_UNITS = {"model_mass_scale": "1", "rotor_constant_scale": "1", "wind_x": "N", "wind_y": "N", "wind_z": "N",
+                 "noise_q": "m or rad", "noise_v": "m/s or rad/s"}
+#: Units of the outcome columns that are not a coordinate's (``max_error_<coordinate>`` is the coordinate's).
+OUTCOME_UNITS = {"least_clearance_m": "m", "saturated_ticks": "ticks", "peak_rotor_speed_rad_s": "rad/s"}
+
+
+def coordinate_unit(coordinate: str) -> str:
+    """The unit of a planning coordinate: "m" for a position (``x``, ``y``, ``z``), "rad" for an angle (``phi``,
+    ``q21``, ``q1``...)."""
+    return "m" if coordinate in ("x", "y", "z") else "rad"
+
+
+def unit(name: str) -> str:
+    """The unit of a campaign column (a varied quantity or an outcome), for axis labels; "" when unknown."""
+    if name in SETTING_UNITS:
+        return SETTING_UNITS[name]
+    if name in OUTCOME_UNITS:
+        return OUTCOME_UNITS[name]
+    if name.startswith(INITIAL_ERROR):
+        return coordinate_unit(name[len(INITIAL_ERROR):])
+    if name.startswith("max_error_"):
+        return coordinate_unit(name[len("max_error_"):])
+    if name in PARAMETER_RANGES:
+        return PARAMETER_RANGES[name].unit
+    return ""
+
+
 def components(name: str) -> tuple[str, ...]:
     """The column names a quantity stands for (``wind`` -> wind_x, wind_y, wind_z; others: itself)."""
     return VECTORS.get(name, (name,))
@@ -215,6 +252,13 @@ class Campaign:
         hold: time simulated after the plan's end [s].
         tracking_tolerance: a run succeeds only if every planning coordinate stays within this of the plan
             [m or rad]; None: a run succeeds when the robot is not lost (:mod:`fpr.sim.watch`).
+        events: an event family (:data:`fpr.robustness.events.FAMILIES`), or None.
+        event_options: the family's options (:class:`fpr.robustness.events.MoveFamily`,
+            :class:`~fpr.robustness.events.GustFamily`).
+        replan: fly with the replanner (needed for moves).
+        without_observer: also fly each run with the controller without its observer (``no_observer_*``).
+        pass_tolerance: a move's run succeeds within this of the moved way point [m].
+        max_saturation: a gust's run succeeds with at most this share of saturated ticks.
     """
 
     mission: str = "square"
@@ -225,6 +269,12 @@ class Campaign:
     robot_parameters: dict = field(default_factory=dict)
     hold: float = 1.0
     tracking_tolerance: float | None = None
+    events: str | None = None
+    event_options: dict = field(default_factory=dict)
+    replan: bool = False
+    without_observer: bool = False
+    pass_tolerance: float = 0.02
+    max_saturation: float = 0.01
 
     def __post_init__(self):
         if isinstance(self.runs, bool) or not isinstance(self.runs, int) or self.runs < 1:
@@ -239,6 +289,17 @@ class Campaign:
         for name, dist in self.vary.items():
             if not isinstance(dist, Distribution):
                 raise CampaignError(f"{name}", "give a Distribution (parse_distribution makes one)")
+        if self.events is not None:
+            family(self.events, **self.event_options)  # refuses an unknown family or option
+        elif self.event_options:
+            raise CampaignError("event_options", "give an event family (events = \"move\" or \"gust\") first")
+        for name in ("replan", "without_observer"):
+            if not isinstance(getattr(self, name), bool):
+                raise CampaignError(f"{name} = {getattr(self, name)!r}", "give true or false")
+        for name, high in (("pass_tolerance", math.inf), ("max_saturation", 1.0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 < value <= high):
+                raise CampaignError(f"{name} = {value!r}", f"give a number in (0, {high:g}]")
 
     def with_vary(self, name: str, text) -> Campaign:
         """This campaign with quantity ``name`` (a component, a vector such as ``wind``, a robot parameter or
@@ -264,6 +325,10 @@ class Campaign:
         rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index, 0)))
         return {name: self.vary[name].draw(rng, index, self.runs) for name in self.columns}
 
+    def event_family(self):
+        """The event family's generator (:func:`fpr.robustness.events.family`), or None."""
+        return None if self.events is None else family(self.events, **self.event_options)
+
     def noise_seed(self, index: int) -> int:
         """The measurement-noise seed of run ``index`` (from the campaign's seed and the index)."""
         return int(np.random.SeedSequence(self.seed, spawn_key=(index, 1)).generate_state(1)[0])
@@ -277,5 +342,11 @@ class Campaign:
                     "vary": {k: self.vary[k].text() for k in self.columns}}
         if any(d.kind == "linspace" for d in self.vary.values()):
             document["runs"] = self.runs
+        if self.events is not None:  # (absent otherwise: the keys of campaigns without events are unchanged)
+            document.update(events=self.events, event_options=self.event_options, replan=self.replan,
+                            without_observer=self.without_observer, pass_tolerance=self.pass_tolerance,
+                            max_saturation=self.max_saturation)
+        elif self.replan or self.without_observer:
+            document.update(replan=self.replan, without_observer=self.without_observer)
         text = json.dumps(document, sort_keys=True)
         return hashlib.sha256(text.encode("utf-8")).hexdigest()

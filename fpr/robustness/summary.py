@@ -18,6 +18,8 @@ from collections import Counter
 
 import numpy as np
 
+from fpr import extras
+
 Z95 = 1.959963984540054
 """The standard normal's 97.5 % quantile."""
 
@@ -33,7 +35,12 @@ def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, floa
 
 
 def table(rows: list[dict], columns: list[str]):
-    """The rows as a ``pyarrow.Table``, one column per name, in that order (bool, int64, float64 or string)."""
+    """The rows as a ``pyarrow.Table``, one column per name, in that order (bool, int64, float64 or string).
+
+    Raises:
+        fpr.extras.MissingExtraError: pyarrow (the campaign extra) is not installed.
+    """
+    extras.require("campaign", ("pyarrow",))
     import pyarrow as pa
 
     arrays, fields = [], []
@@ -89,7 +96,9 @@ def summarise(rows: list[dict], varied: list[str], outcomes: list[str]) -> dict:
     low, high = wilson_interval(successes, n)
     lost = Counter(failure_kind(r["failure"]) for r in rows if r["lost"])
     errors = Counter(r["error"].split(":")[0] for r in rows if r["error"])
-    numeric = [c for c in outcomes if c not in ("success", "lost", "failure", "error")]
+    numeric = [c for c in outcomes if c not in ("success", "lost", "failure", "error")
+               and all(isinstance(r.get(c), (int, float)) and not isinstance(r.get(c), bool)
+                       for r in rows if not r["error"] and r.get(c) is not None)]
     return {
         "runs": n,
         "successes": successes,
@@ -102,6 +111,46 @@ def summarise(rows: list[dict], varied: list[str], outcomes: list[str]) -> dict:
         "varied": {c: _distribution([r[c] for r in rows]) for c in varied},
         "outcomes": {c: _distribution([r[c] for r in rows if not r["error"]]) for c in numeric},
     }
+
+
+def event_summary(rows: list[dict], family: str, without_observer: bool = False) -> dict:
+    """The numbers of an event family's campaign (:mod:`fpr.robustness.outcomes`).
+
+    Moves: the runs that passed (with the 95 % Wilson interval) and every miss with its reason. Gusts: those
+    the robot cannot hold even as a steady force (:mod:`fpr.robustness.holding`) are counted apart, listed;
+    over the others, the success rate (with and without the observer, each with its interval), the runs
+    that broke a physical limit or had more than the allowed share of ticks saturated. Both: the replans'
+    wall latency (count, median, p95, max), their CPU time and their modelled latency.
+    """
+    def rate(flags) -> dict:
+        flags = [bool(f) for f in flags]
+        low, high = wilson_interval(sum(flags), len(flags))
+        return {"runs": len(flags), "successes": sum(flags),
+                "success_rate": sum(flags) / len(flags) if flags else math.nan, "wilson95": [low, high]}
+
+    out = {"family": family}
+    counted = rows
+    if family == "gust":
+        apart = [r for r in rows if r.get("holdable") is False]
+        counted = [r for r in rows if r.get("holdable") is not False]
+        out["not_holdable"] = [{"index": r["index"], "body": r["gust_body"], "force_n": r["gust_force_n"],
+                                "margin_rad_s": r["hold_margin_rad_s"]} for r in apart]
+        out["broke_a_physical_limit"] = [r["index"] for r in counted if r.get("broken")]
+        out["over_saturation"] = [r["index"] for r in counted if r.get("miss", "").startswith("saturated")]
+    out["with_observer"] = rate(r["success"] for r in counted)
+    if without_observer:
+        out["without_observer"] = rate(r.get("no_observer_success") for r in counted)
+        if family == "gust":
+            out["without_observer"]["broke_a_physical_limit"] = [r["index"] for r in counted
+                                                                 if r.get("no_observer_broken")]
+    out["misses"] = [{"index": r["index"], "why": r.get("miss") or r.get("error") or "",
+                      **({"way_point": r.get("event_way_point"), "pass_distance_m": r.get("pass_distance_m")}
+                         if family == "move" else {"body": r.get("gust_body"), "force_n": r.get("gust_force_n")})}
+                     for r in counted if not r["success"]]
+    for key in ("replan_wall_s", "replan_cpu_s", "replan_latency_s"):
+        out[key if key != "replan_latency_s" else "replan_modelled_s"] = _distribution(
+            [w for r in rows for w in r.get(key) or []])
+    return out
 
 
 def broken_margins(row: dict, tracking: float = 0.05, speed_limit: float = 750.0, clearance: float = 0.1) -> dict:

@@ -68,7 +68,7 @@ class SimulationSettings:
         max_drone_rate: angular speed of a drone past which the state diverged [rad/s] (default 60).
         max_tilt: angle of a drone's thrust axis from the vertical past which it is lost [rad] (default pi/2:
             the thrust pushes it down).
-        max_tracking_error: |measured - planned| of each planning coordinate past which tracking is lost
+        max_tracking_error: ``|measured - planned|`` of each planning coordinate past which tracking is lost
             [m or rad, the coordinate's unit] (default 1; the reference missions stay below 0.01).
     """
 
@@ -117,6 +117,9 @@ class SimulationLog:
             The arrays then stop at that tick (their last sample is at ``failure_time``), or, when the state
             turned non-finite, at the last finite sample, just before ``failure_time``.
         failure_time: simulated time of the failure [s], or None.
+        disturbance: the controller's estimate of the external generalised force on the chain at each tick
+            (:attr:`controllers.ctc.CascadedController.disturbance`, zeros without its observer) (N, n_s)
+            [N or N m], or None (a log saved before it was recorded).
     """
 
     robot_name: str
@@ -140,6 +143,7 @@ class SimulationLog:
     wall_time: float
     failure: str | None = None
     failure_time: float | None = None
+    disturbance: np.ndarray | None = None
 
     def column(self, name: str) -> np.ndarray:
         """The measured coordinate ``name`` over time."""
@@ -266,7 +270,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
             plant (gusts), its ``after_tick(t, q, v, reference)`` may return a new plan in force, tracked from
             the next tick on (the log's reference is then the plan in force at each tick); its
             ``known_force(t)`` is the wind the controller knows, fed forward, and ``inputs`` the plan's
-            inputs flown in it (the roll feed-forward). None: neither.
+            inputs flown in it (the roll feed-forward); its ``attach(controller)``, when it has one, is given
+            the controller (its observer's estimate of the wind). None: neither.
 
     Returns:
         the :class:`SimulationLog`; when the robot is lost (:mod:`fpr.sim.watch`, or a state that turns
@@ -298,6 +303,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     q_plan = planned.full_state(robot)[0]
 
     controller = CascadedController(_scaled_robot(robot, st.model_mass_scale), ctrl_settings)
+    if in_flight is not None and hasattr(in_flight, "attach"):
+        in_flight.attach(controller)
     q0 = q_plan[0].copy()
     for name, offset in st.initial_error.items():
         q0[robot.index[name]] += offset
@@ -340,7 +347,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
             reference.task_force, reference.drone_forces = in_flight.known_force(float(t))
         out = update(t, q_meas, v_meas, reference)
         allocation = out.allocation
-        log_commanded((out.roll_desired, out.speeds, allocation.thrust, allocation.torque, allocation.saturated))
+        log_commanded((out.roll_desired, out.speeds, allocation.thrust, allocation.torque, allocation.saturated,
+                       controller.disturbance))
         if failure is not None:
             last, failure_time = k, float(t)
             break
@@ -367,7 +375,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     for rows, fields in ((measured, {"q": (n,), "v": (n,), "speed": (n_d, 4), "closure_error": (),
                                      "positions": (n_d, 3)}),
                          (commanded, {"roll_desired": (n_d,), "speed_command": (n_d, 4), "thrust": (n_d,),
-                                      "torque": (n_d, 3), "saturated": (n_d, 4)})):
+                                      "torque": (n_d, 3), "saturated": (n_d, 4),
+                                      "disturbance": (len(robot.layout.chain),)})):
         columns = zip(*rows, strict=True) if rows else [()] * len(fields)
         for (name, shape), column in zip(fields.items(), columns, strict=True):
             dtype = bool if name == "saturated" else float
@@ -379,4 +388,4 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
                          log["speed_command"], log["speed"], log["thrust"], log["torque"],
                          log["saturated"], log["drone_height"], log["closure_error"],
                          robot.rotor_constants.max_speed, speed_limit, time.perf_counter() - start, failure,
-                         failure_time)
+                         failure_time, log["disturbance"])

@@ -11,7 +11,7 @@ constraints are measured again on what the plant did, at every control tick, aga
   that is reported, not a failure (the margins exist for that);
 * the **physical limit**, the same constraint with every design margin set to zero: the drone joints on
   the ground (z = -L), the chain's Type-2 singularity (q21 or q2 = 0 or pi), a drone rolled on its side
-  (|phi_i| = pi/2), the rotor speeds 0 .. w_max, the fixed point's vertical (y = 0), and a thrust of 0 for
+  (``|phi_i| = pi/2``), the rotor speeds 0 .. w_max, the fixed point's vertical (y = 0), and a thrust of 0 for
   the thrust floor. A negative margin there means the robot broke a physical limit: a failure (exit 1 of
   the command line, :mod:`fpr.cli.contract`).
 

@@ -23,8 +23,8 @@ prototype (5 s, yaw rate 0.5 rad/s, hinge rate 2 rad/s): energy drift 8.6e-3 J a
 plain RK4, 1.6e-5 J for RKMK4 (2.8e-3 J at dt = 5 ms), for 1.7 times the cost per step;
 semi-implicit Euler gains 19 J.
 
-The steps run in C when built (``fpr/model/_multibody.c``, :attr:`Plant.compiled_step`), with or without wind:
-the same method on the same model, its dynamics written there and equal to Pinocchio's to round-off.
+The steps run native when built (:mod:`fpr._native`'s part ``plant``), with or without wind: the same method on
+the same model, by the same Pinocchio algorithms called from C++ instead of Python.
 """
 
 from __future__ import annotations
@@ -36,13 +36,11 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from fpr.model.compiled import choose
+from fpr import _native as native
 from fpr.model.constrained import ClosedChainModel, build_closed_chain
 from fpr.model.errors import FprError, ModelArgumentError, check_shape
 from fpr.robots import load
 from fpr.sim.hover import hover_configuration, hover_speeds
-from fpr.model.multibody import kernel as _plant_kernel
-from fpr.model.multibody import model_constants
 
 _gesv = lapack.dgesv
 
@@ -87,7 +85,7 @@ def rkmk4_step(model: pin.Model, q, v, dt: float, acceleration):
     def theta_rate(theta, vel):
         jac = pin.dIntegrate(model, q, theta, pin.ArgumentPosition.ARG1)
         # LAPACK's gesv directly: the same LU solve as np.linalg.solve (identical results here), without
-        # its ~5 us of Python-level checks per call (3 calls per step)
+        # its Python-level checks at each call (3 calls per step)
         x, info = _gesv(jac, vel)[2:]
         if info != 0:  # singular (never for |theta| << pi): let numpy raise its usual error
             return np.linalg.solve(jac, vel)
@@ -143,12 +141,6 @@ class Plant:
         time: simulated time [s].
     """
 
-    #: the steps compiled (``fpr/model/_multibody.c``, with or without wind): None (default) when built and the
-    #: model fits (:func:`~fpr.model.multibody.model_constants`), else the Python steps; False: always the Python
-    #: steps (the reference, on Pinocchio's ``constraintDynamics``); True: the compiled ones, an error when they
-    #: cannot run.
-    compiled_step: bool | None = None
-
     def __init__(self, closed: ClosedChainModel, qc, vc=None, w=None, time: float = 0.0, reference=None,
                  rotor_constant_scale: float = 1.0):
         """
@@ -184,7 +176,7 @@ class Plant:
         self._rotor_map = _rotor_force_map(closed, self._mixing)
         self._max_speed = closed.robot.rotor_constants.max_speed
         self._step_constants = {}  # dt -> (lag decay at 0, dt/2, dt; dt/2; RK4 weights), see _python_steps
-        self._plant_constants = False  # the compiled step's model (_export), looked up at the first step
+        self._native_plant = None  # the native part's plant (fpr._native, "plant"), made at its first use
         # constraint and frame data read by drone_positions_and_closure_error (looked up once)
         self._closure_terms = tuple((cm.joint1_id, cm.joint1_placement.translation.copy(), cm.joint2_id,
                                      cm.joint2_placement.translation.copy()) for cm in closed.constraints)
@@ -201,6 +193,11 @@ class Plant:
         self._freeflyers = tuple((model.joints[j].idx_q, model.joints[j].idx_v,
                                   model.frames[f].placement.rotation[:, 2].copy())
                                  for j, f in zip(closed.freeflyer_ids, closed.drone_frame_ids, strict=True))
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_native_plant"] = None  # a native object: made again at the next step
+        return state
 
     @classmethod
     def from_minimal(cls, robot, q, v=None, w=None, baumgarte: tuple[float, float] = (400.0, 40.0),
@@ -302,14 +299,14 @@ class Plant:
         for j1, p1, j2, p2 in self._closure_points:
             a, b = point(j1, p1), point(j2, p2)
             e = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
-            if e > error or e != e:  # NaN stays NaN, as in the compiled points() (max(0.0, nan) is 0.0)
+            if e > error or e != e:  # NaN stays NaN, as in the native points() (max(0.0, nan) is 0.0)
                 error = e
         return positions, error
 
     def observe(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """What the closed loop reads at every tick, from one forward kinematics pass: :meth:`measure` (q, v)
         and :meth:`drone_positions_and_closure_error` (positions, closure error), the same values (the
-        positions and the closure error from the compiled plant's kinematics when it steps the plant: equal to
+        positions and the closure error from the native plant's kinematics when it steps the plant: equal to
         round-off, a NaN state giving a NaN closure error).
 
         Returns:
@@ -319,8 +316,9 @@ class Plant:
         q, v = self.measure()
         if not self._closure_is_3d:
             return (q, v) + self.drone_positions_and_closure_error()
-        if self._step_kernel() is not None:  # the compiled plant's kinematics (the same points, to round-off)
-            return (q, v) + _plant_kernel.points(self._plant_constants, self.qc, self._point_spec)
+        kernel = self._step_kernel()
+        if kernel is not None:  # the native plant's kinematics (the same points, to round-off)
+            return (q, v) + kernel.points(self.qc)
         # ClosedChainModel.to_minimal (in measure) left the placements at qc in closed.data
         return (q, v) + self._positions_and_closure()
 
@@ -435,8 +433,8 @@ class Plant:
         if not dt > 0:
             raise ModelArgumentError("dt", dt, f"dt = {dt!r}: the time step must be positive [s]")
         kernel = self._step_kernel() if self._compiles_forces() else None
-        if kernel is not None:  # the C code saturates the command itself (the same clip)
-            self._compiled_steps(kernel, self._checked_command(w_command), dt, 1, self._wind_forces(wind))
+        if kernel is not None:  # the native steps saturate the command themselves (the same clip)
+            self._native_steps(kernel, self._checked_command(w_command), dt, 1, self._wind_forces(wind))
             return
         w_cmd = self.saturate(w_command)
         if wind is None and self._rotor_map is not None:
@@ -474,7 +472,7 @@ class Plant:
         """``steps`` calls of :meth:`step` with one command held (the closed loop's plant steps of one tick).
 
         A subclass that overrides :meth:`step` (e.g. :class:`fpr.sim.replanning.ForcedPlant`) gets its own
-        :meth:`step` called ``steps`` times; the base plant runs the steps in one call of the compiled steps, or
+        :meth:`step` called ``steps`` times; the base plant runs the steps in one call of the native steps, or
         of :meth:`_python_steps` without wind (the same steps bit for bit, set up once).
 
         Args:
@@ -492,8 +490,8 @@ class Plant:
             if not dt > 0:
                 raise ModelArgumentError("dt", dt, f"dt = {dt!r}: the time step must be positive [s]")
             kernel = self._step_kernel()
-            if kernel is not None:  # the C code saturates the command itself (the same clip)
-                self._compiled_steps(kernel, self._checked_command(w_command), dt, steps, self._wind_forces(wind))
+            if kernel is not None:  # the native steps saturate the command themselves (the same clip)
+                self._native_steps(kernel, self._checked_command(w_command), dt, steps, self._wind_forces(wind))
                 return
             if wind is None:
                 self._python_steps(self.saturate(w_command), dt, steps)
@@ -502,7 +500,7 @@ class Plant:
             self.step(w_command, dt, wind)
 
     def _lean_constants(self, dt: float) -> tuple:
-        """What :meth:`_python_steps` and :meth:`_compiled_steps` read, looked up once per dt: the lag's decay at
+        """What :meth:`_python_steps` and :meth:`_native_steps` read, looked up once per dt: the lag's decay at
         (0, dt/2, dt), dt/2, the RK4 weights (dt/6, dt/3, dt/3, dt/6), G^T, the Pinocchio objects and functions,
         two stage buffers, G^T in C order."""
         constants = self._step_constants.get(dt)
@@ -520,7 +518,7 @@ class Plant:
         return constants
 
     def _compiles_forces(self) -> bool:
-        """Whether the compiled steps compute this plant's forces: the rotors' as one constant map, and no
+        """Whether the native steps compute this plant's forces: the rotors' as one constant map, and no
         subclass adds its own through :meth:`generalized_force` (a subclass that does says when it does not)."""
         return self._rotor_map is not None and type(self).generalized_force is Plant.generalized_force
 
@@ -530,52 +528,43 @@ class Plant:
         return w if ok else check_shape("w_command", w, (self.robot.n_drones, 4))
 
     def _step_kernel(self):
-        """``fpr.model._multibody.steps`` under :attr:`compiled_step`, or None for the Python steps."""
-        if self._plant_constants is False:  # not looked up yet
-            self._export()
-        return choose(self.compiled_step, getattr(_plant_kernel, "steps", None), "compiled_step",
-                      "Plant.compiled_step = True", "plant step (fpr/model/_multibody.c)",
-                      fits=self._plant_constants is not None)
+        """The native plant (:mod:`fpr._native`'s part ``plant``), made at its first use, or None for the Python
+        steps (the part switched off or not built, or the rotors' force not one constant map).
 
-    def _export(self) -> None:
-        """The compiled plant's constants (None when it does not fit) and the drones' centres in its numbering."""
-        closed = self.closed
-        exported = None if _plant_kernel is None else model_constants(closed.model, closed.constraints,
-                                                                      closed.settings)
-        self._plant_constants = None if exported is None else exported[0]
-        if exported is not None:
-            ids = exported[1]
-            self._point_spec = np.array([len(self._drone_points)] + [x for joint, p in self._drone_points
-                                                                      for x in (ids[joint], *p)], dtype=float)
+        It steps the closed chain's own model, constraints and proximal settings (the same objects, not a copy),
+        on a data and constraint datas of its own (``closed.data`` is left to the Python side).
+        """
+        module = native.use("plant")
+        if module is None or self._rotor_map is None:
+            return None
+        if self._native_plant is None:
+            closed = self.closed
+            data = closed.model.createData()
+            datas = pin.StdVec_RigidConstraintData()
+            for cm in closed.constraints:
+                datas.append(cm.createData())
+            pin.initConstraintDynamics(closed.model, data, closed.constraints, datas)
+            self._native_plant = module.Plant(closed.model, data, closed.constraints, datas, closed.settings,
+                                              np.ascontiguousarray(self._rotor_map.T), list(closed.drone_frame_ids))
+        return self._native_plant
 
-    def _compiled_steps(self, kernel, w_cmd, dt: float, steps: int, wind_forces=None) -> None:
-        """:meth:`_python_steps` in C (``fpr/model/_multibody.c``): the same RKMK4 steps, the dynamics, the group's
-        exponential and dexp^-1 computed there (equal to Pinocchio's to round-off; tests/test_plant_compiled.py),
-        with the wind's J^T F of each drone's centre at every stage when ``wind_forces`` (n_d, 3) is given.
-        A step that turns a free flyer by more than the C series covers (0.5 rad in half a step) runs in Python.
-        The C code saturates w_cmd to [0, w_max] as :meth:`saturate` does (a saturated command is unchanged)."""
-        push = () if wind_forces is None else (self._point_spec, wind_forces)
-        constants = self._lean_constants(dt)
-        force_map_t, decay = constants[11], constants[0]  # G^T C-contiguous: the C code reads it without a copy
-        while steps > 0:
-            q, v, w, w_cmd, done, status = kernel(self._plant_constants, force_map_t, decay, self.qc, self.vc,
-                                                  self._w, w_cmd, self._max_speed, dt, steps, *push)
-            if done:
-                self.qc, self.vc, self._w = q, v, w
-                for _ in range(done):
-                    self.time += dt
-            steps -= done
-            if status == 1:
-                raise PlantDivergedError(self.time, dt)
-            if status == 2:
-                raise PlantDivergedError(self.time, dt, "the plant's integrator failed (a matrix of the "
-                                                        "constraint dynamics is not positive definite)")
-            if status == 3:  # a fast turn: this step in Python
-                if wind_forces is None:
-                    self._python_steps(w_cmd, dt, 1)
-                else:
-                    self._python_wind_step(w_cmd, dt, wind_forces)
-                steps -= 1
+    def _native_steps(self, kernel, w_cmd, dt: float, steps: int, wind_forces=None) -> None:
+        """:meth:`_python_steps` natively (``fpr/_native/cpp/plant.cpp``): the same RKMK4 steps on the same
+        Pinocchio calls (``constraintDynamics``, ``integrate``, ``dIntegrate``), with the wind's J^T F of each
+        drone's centre at every stage when ``wind_forces`` (n_d, 3) is given. The native steps saturate w_cmd to
+        [0, w_max] as :meth:`saturate` does (a saturated command is unchanged)."""
+        decay = self._lean_constants(dt)[0]
+        q, v, w, done, status = kernel.steps(self.qc, self.vc, self._w, w_cmd, self._max_speed, decay, dt, steps,
+                                             wind_forces)
+        if done:
+            self.qc, self.vc, self._w = q, v, w
+            for _ in range(done):
+                self.time += dt
+        if status == 1:
+            raise PlantDivergedError(self.time, dt)
+        if status == 2:
+            raise PlantDivergedError(self.time, dt, "the plant's integrator failed (dexp^-1 singular: a turn of "
+                                                    "about 2 pi within one step)")
 
     def _python_steps(self, w_cmd, dt: float, steps: int) -> None:
         """``steps`` RKMK4 steps without wind, w_cmd saturated: the same steps as :func:`rkmk4_step` (equal to

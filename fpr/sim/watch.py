@@ -24,10 +24,7 @@ import math
 
 import numpy as np
 
-from fpr.model.compiled import choose, load_extension
-
-#: the screen in C (setup.py builds it when a compiler is there), or None
-_screen_kernel = load_extension("fpr.sim._watch")
+from fpr import _native as native
 
 
 def _past(value: float, bound: float) -> str:
@@ -60,11 +57,6 @@ class Watch:
         self.chain_index = robot.indices(robot.layout.chain)
         self._screen = None  # index arrays of the plant's state, built at the first check
 
-    #: the screen compiled (``fpr/sim/_watch.c``): None (default) when the extension is built, else the Python
-    #: screen; False: always the Python screen (the reference); True: the compiled one, an error when it is
-    #: not built. Set it on a watch or on the class.
-    compiled_screen: bool | None = None
-
     def _build_screen(self, plant) -> None:
         """Indices into the plant's state for :meth:`_may_be_lost`, as tuples of ints, and the bounds moved
         1e-9 (relative) towards the safe side; the same as one float64 vector for the compiled screen."""
@@ -93,21 +85,22 @@ class Watch:
         :meth:`check` finds nothing; True sends the state to the full check, which decides and words the
         failure.
 
-        It runs at every inner-loop tick (500 Hz) on a few dozen numbers: in C when built
-        (``fpr/sim/_watch.c``, below a microsecond), else :meth:`_may_be_lost_python`, its reference (the
-        same comparisons; tests/test_watch_compiled.py holds them equal).
+        It runs at every inner-loop tick (500 Hz) on a few dozen numbers: natively when built
+        (:mod:`fpr._native`'s part ``watch``, ``fpr/_native/watch.c``, below a microsecond), else
+        :meth:`_may_be_lost_python`, its reference (the same comparisons; tests/test_watch_compiled.py holds them
+        equal).
         """
         if self._screen is None:
             self._build_screen(plant)
-        screen = choose(self.compiled_screen, getattr(_screen_kernel, "may_be_lost", None),
-                        "compiled_screen", "Watch.compiled_screen = True", "screen (fpr/sim/_watch.c)")
-        if screen is not None:
-            return screen(plant.qc, plant.vc, q, v, positions, closure_error, planned, self._screen_constants)
+        kernel = native.use("watch")
+        if kernel is not None:
+            return kernel.may_be_lost(plant.qc, plant.vc, q, v, positions, closure_error, planned,
+                                      self._screen_constants)
         return self._may_be_lost_python(plant, q, v, positions, closure_error, planned)
 
     def _may_be_lost_python(self, plant, q, v, positions, closure_error: float, planned) -> bool:
-        """:meth:`_may_be_lost` in plain Python on the state as lists (~15 us instead of the full check's
-        ~140 us): the reference of the compiled screen."""
+        """:meth:`_may_be_lost` in plain Python on the state as lists (a small part of the full check's
+        cost): the reference of the compiled screen."""
         if self._screen is None:
             self._build_screen(plant)
         hinge_z, linear, angular, quaternions, chain = self._screen

@@ -1,5 +1,8 @@
 """A steady force on the robot's task point, estimated in flight from the chain's tracking error.
 
+The replanner's wind estimate when the controller has no observer (``observer_bandwidth = 0``); with one,
+the observer's estimate (:mod:`controllers.observer`) is used instead (:mod:`fpr.sim.replanning`).
+
 The cascaded controller (:mod:`controllers.ctc`) commands the chain acceleration
 u = s_d'' - K_p e - K_d e' - K_i int(e) (e = s - s_d) and the generalised force M_s u + c_s. An unknown
 external force Q_ext adds M_s^-1 Q_ext to the acceleration, so once the robot follows the plan's

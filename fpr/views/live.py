@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fpr import extras
 from planners.optimize import plan
 
 
@@ -94,6 +95,7 @@ class LivePlan:
             the ``ipywidgets.interactive`` (its ``children[:3]`` are the sliders; setting a slider's
             ``value`` replans).
         """
+        extras.require("notebooks", ("ipywidgets",))
         import ipywidgets as widgets  # optional: the notebooks extra
 
         start = self.mission

@@ -24,8 +24,8 @@ from 0 (a simple crossing), and (``smooth_crossing``) the 5th derivative continu
 there F is one derivative less smooth than the motion, and a C4 knot would step the roll acceleration.
 The methods that solve it are in :mod:`planners.crossing.solve`.
 
-Derivatives: the motion entries by complex step (:class:`planners.problem.motion.MotionProblem`), the
-crossing acceleration's dependence on (q1_s, xi_s', mu) by complex step too, the travel times by
+Derivatives: the motion entries by dual numbers (:class:`planners.problem.motion.MotionProblem`), the
+crossing acceleration's dependence on (q1_s, xi_s', mu) by complex step, the travel times by
 central differences (each needs a new grid).
 """
 

@@ -73,7 +73,7 @@ def way_point_start(task: WayPointTask, grid: Grid, options: PlanOptions):
     :func:`planners.methods.two_step.step1_problem`: half the grid nodes, a fraction of the variables),
     cut at the via times. Returns (points of the 1-step layout, the stage ``"start (way points)"``).
     From the stop motion the prototype tour's 1-step solve ends in a local minimum 0.7 % above the best
-    J known; from this start, at the best (issue 17).
+    J known; from this start, at the best.
     """
     free = np.zeros(task.stop.points.shape, dtype=bool)
     free[1:-1, 1:] = True

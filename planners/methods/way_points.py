@@ -17,7 +17,7 @@ import numpy as np
 from planners.trajectory.polynomial import PiecewisePolynomial, stop_points, with_via_points
 from planners.problem.motion import MotionProblem
 from planners.problem.report import MotionReport
-from planners.result import PlanResult
+from planners.result import PlanResult, normalisation
 from planners.optimisation.solving import Grid
 
 
@@ -73,7 +73,8 @@ class WayPointTask:
                              windows_per_segment=grid.windows_per_segment, dips=True)
 
     def normalisation(self, grid: Grid) -> tuple[float, float]:
-        """(J_e0, J_phi0) of the stop motion on ``grid`` (smoothed |.|, as the optimiser sees them, 3.26).
+        """(J_e0, J_phi0) of the stop motion on ``grid`` (smoothed |.|, as the optimiser sees them, 3.26), each at
+        least its floor (:func:`planners.result.normalisation`).
 
         Computed once per grid (a method asks for it in each of its stages).
         """
@@ -82,7 +83,8 @@ class WayPointTask:
             free_way = np.zeros(self.stop.points.shape, dtype=bool)
             free_way[1:-1, 1:] = True
             problem = self.problem(self.stop.points, self.way_times, free_way, (1.0, 1.0), grid)
-            known[grid] = tuple(problem.objective_terms(self.stop.points))
+            known[grid] = normalisation(self.robot, float(np.sum(self.way_times)),
+                                        problem.objective_terms(self.stop.points))  # floored: planners.result
         return known[grid]
 
     def result(self, method: str, trajectory: PiecewisePolynomial, is_way, report: MotionReport,

@@ -13,7 +13,8 @@ A mission file may list ``[[events]]`` tables (TOML array of tables), each with 
     (4 numbers for the FPR, 2 for the prototype), finite; it is checked against the workspace margins
     like the way points (:func:`moved_positions`).
 ``kind = "gust"``: an external force for a while.
-    ``force`` (array of 3 numbers, required): [x, y, z] in world axes [N], finite.
+    ``force`` (array of 3 numbers, required): [x, y, z] in world axes [N], finite, each at most
+    :data:`MAX_FORCE` in size.
     ``duration`` (number, required): how long it pushes [s], finite and > 0; the force is constant
     from ``at`` to ``at + duration`` (a step on and off) unless ``rise`` is given.
     ``rise`` (number, optional, default 0): onset and decay time [s], finite, >= 0 and at most half the
@@ -24,7 +25,7 @@ A mission file may list ``[[events]]`` tables (TOML array of tables), each with 
     wind that builds up, which the controller's integral term and a replanner can follow.
     ``body`` (string, optional): where it pushes: ``"end_effector"`` (default; the robot kind's task
     point: the FPR's end-effector, the prototype's drone joint) or ``"drone_<i>"`` (the centre of mass
-    of drone i, 1-based).
+    of drone i, 1-based, i at most the robot's number of drones).
 
 Events are validated when the mission is built (:class:`planners.missions.mission.Mission` calls
 :func:`parse_events`); an error is a :class:`fpr.model.errors.MissionError` naming the field as
@@ -48,6 +49,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from fpr.model.errors import MissionError
+
+MAX_FORCE = 1000.0
+"""Largest component of a gust's force [N]: about the drag of a 100 m/s wind (beyond any measured gust) on a
+large multirotor (0.5 rho v^2 C_d A with rho = 1.2 kg/m^3, C_d A = 0.2 m^2: 1200 N). A larger force is no wind."""
 
 #: The kinds of event and the keys each takes (besides ``at`` and ``kind``), required first.
 EVENT_KEYS = {"move": (("way_point", "to"), ()), "gust": (("force", "duration"), ("body", "rise"))}
@@ -139,13 +144,22 @@ def _number(x) -> bool:
     return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_))
 
 
-def _finite_list(error, name: str, value, n: int, meaning: str) -> tuple:
+def _finite_list(error, name: str, value, n: int, meaning: str, largest: float | None = None) -> tuple:
     if not isinstance(value, (list, tuple)) or len(value) != n:
-        raise error(name, f"{value!r}: give a list of {n} numbers ({meaning})")
+        shown = f"a list of {len(value)}" if isinstance(value, (list, tuple)) else _short(value)
+        raise error(name, f"{shown}: give a list of {n} numbers ({meaning})")
     for j, x in enumerate(value):
         if not _number(x) or not np.isfinite(x):
-            raise error(name, f"entry {j} is {x!r}: give {n} finite numbers ({meaning})")
+            raise error(name, f"entry {j} is {_short(x)}: give {n} finite numbers ({meaning})")
+        if largest is not None and abs(x) > largest:
+            raise error(name, f"entry {j} is {x:g}: give numbers within +-{largest:g} ({meaning})")
     return tuple(float(x) for x in value)
+
+
+def _short(value, limit: int = 60) -> str:
+    """``repr(value)``, cut to ``limit`` characters."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def parse_events(value, mission) -> tuple:
@@ -169,7 +183,7 @@ def parse_events(value, mission) -> tuple:
     if value is None:
         return ()
     if not isinstance(value, (list, tuple)):
-        raise error("events", f"{value!r}: write events as [[events]] tables (a list of tables)")
+        raise error("events", f"{_short(value)}: write events as [[events]] tables (a list of tables)")
     k = mission.way_points.shape[0]
     ends = np.concatenate([[0.0], np.cumsum(mission.times)])
     coords = mission.kind.mission_coordinates(mission.space)
@@ -179,10 +193,10 @@ def parse_events(value, mission) -> tuple:
             item = item.to_dict()
         where = f"events[{i}]"
         if not isinstance(item, dict):
-            raise error(where, f"{item!r}: each event is a table with at, kind and the kind's keys")
+            raise error(where, f"{_short(item)}: each event is a table with at, kind and the kind's keys")
         kind = item.get("kind")
         if kind not in EVENT_KEYS:
-            raise error(f"{where}.kind", f"{kind!r}: use one of {', '.join(map(repr, EVENT_KEYS))}")
+            raise error(f"{where}.kind", f"{_short(kind)}: use one of {', '.join(map(repr, EVENT_KEYS))}")
         required, optional = EVENT_KEYS[kind]
         allowed = ("at", "kind", *required, *optional)
         for key in item:
@@ -198,7 +212,7 @@ def parse_events(value, mission) -> tuple:
         at = item["at"]
         if not _number(at) or not (np.isfinite(at) and 0.0 <= at < ends[-1]):
             raise error(
-                f"{where}.at", f"{at!r}: give a time [s] in [0, {ends[-1]:g}) (the motion's duration)"
+                f"{where}.at", f"{_short(at)}: give a time [s] in [0, {ends[-1]:g}) (the motion's duration)"
             )
         at = float(at)
         if kind == "move":
@@ -206,7 +220,7 @@ def parse_events(value, mission) -> tuple:
             if not isinstance(wp, (int, np.integer)) or isinstance(wp, bool) or not 1 <= wp <= k - 1:
                 raise error(
                     f"{where}.way_point",
-                    f"{wp!r}: give the index of a way point, 1..{k - 1} (the start cannot move)",
+                    f"{_short(wp)}: give the index of a way point, 1..{k - 1} (the start cannot move)",
                 )
             if at >= ends[wp]:
                 raise error(
@@ -223,18 +237,24 @@ def parse_events(value, mission) -> tuple:
             )
             events.append(MoveEvent(at, int(wp), to))
         else:
-            force = _finite_list(error, f"{where}.force", item["force"], 3, "[x, y, z] in N, world axes")
+            force = _finite_list(error, f"{where}.force", item["force"], 3,
+                                 f"[x, y, z] in N, world axes; more than {MAX_FORCE:g} N is no wind", MAX_FORCE)
             duration = item["duration"]
             if not _number(duration) or not (np.isfinite(duration) and duration > 0):
-                raise error(f"{where}.duration", f"{duration!r}: give a finite duration > 0 [s]")
+                raise error(f"{where}.duration", f"{_short(duration)}: give a finite duration > 0 [s]")
             body = item.get("body", END_EFFECTOR)
+            drones = len(mission.kind.layout.drones)
+            names = ", ".join(f'"drone_{j}"' for j in range(1, drones + 1))
             if not isinstance(body, str) or not (body == END_EFFECTOR or _drone_name(body)):
-                raise error(f"{where}.body", f'{body!r}: use "end_effector" or "drone_<i>" (i = 1, 2...)')
+                raise error(f"{where}.body", f'{_short(body)}: use "end_effector" or {names}')
+            if body != END_EFFECTOR and int(body.split("_")[1]) > drones:
+                raise error(f"{where}.body", f'{body!r}: the {mission.robot} robot has {drones} drone(s): use '
+                                             f'"end_effector" or {names}')
             rise = item.get("rise", 0.0)
             if not _number(rise) or not (np.isfinite(rise) and 0.0 <= 2.0 * rise <= duration):
                 raise error(
                     f"{where}.rise",
-                    f"{rise!r}: give an onset time [s] >= 0 and at most half the duration ({duration:g} s)",
+                    f"{_short(rise)}: give an onset time [s] >= 0 and at most half the duration ({duration:g} s)",
                 )
             events.append(GustEvent(at, force, float(duration), body, float(rise)))
     return tuple(sorted(events, key=lambda e: e.at))
@@ -278,7 +298,7 @@ def moved_positions(mission, robot, events=None) -> dict:
             continue
         point = np.array(event.to)
         mode = mission.arm_of(event.way_point) if mission.kind.assembly_modes else None
-        what = f"events[{i}].to = {list(event.to)} of mission {mission.name!r}"
+        what = f"events[{i}].to = [{', '.join(f'{x:.6g}' for x in event.to)}] of mission {mission.name!r}"
         pose = robot.kind.planning_pose(point, mission.space, mode, what)
         robot.kind.check_pose(pose, mode, what)
         out[i] = np.asarray(pose, dtype=float)
@@ -304,6 +324,7 @@ def gust_force(events, t: float, n_drones: int) -> tuple[np.ndarray | None, np.n
 __all__ = [
     "END_EFFECTOR",
     "EVENT_KEYS",
+    "MAX_FORCE",
     "GustEvent",
     "MoveEvent",
     "events_toml",

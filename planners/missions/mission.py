@@ -43,7 +43,7 @@ File format (every key at the top level, except the optional ``[robot_parameters
 ``times`` (array of numbers, required)
     k - 1 travel times [s], finite and > 0: ``times[i]`` is the time from way point i to i + 1.
 ``via_points`` (integer or array of integers, optional)
-    n_vp >= 0, the number of via points the optimiser places inside each travel; one integer is
+    0 <= n_vp <= 1000, the number of via points the optimiser places inside each travel; one integer is
     used for every travel, an array gives one per travel (k - 1 entries). Default 1.
 ``alpha`` (number, optional)
     Weight in [0, 1] of the energy term of the objective (seed 3.25)
@@ -99,7 +99,6 @@ import importlib.resources
 import logging
 import numbers
 import os
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -110,20 +109,19 @@ import numpy as np
 
 from fpr import robots
 from fpr.model import description
-from fpr.model.errors import MissionError
+from fpr.model.errors import MissionError, ModelArgumentError
+from fpr.model.parameters import check_parameters
+from planners.missions import BUILTIN_MISSIONS
 from planners.missions.events import events_toml, parse_events
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # Python 3.10: tomllib joined the standard library in 3.11; "tomli" is the same parser
-    import tomli as tomllib
+from planners.missions.files import MAX_FILE_BYTES, parse_toml, read_mission_text
 
 logger = logging.getLogger(__name__)
 
 SPACES = ("task", "joint")
 ARMS = ("down", "up")
-BUILTIN_MISSIONS = ("square", "study", "prototype-tour", "cross-singularity", "moving-target", "gust")
-"""Names of the built-in missions, files ``planners/missions/<name>.toml``."""
+
+MAX_VIA_POINTS = 1000
+"""Most via points in one travel (``python -m fpr.plan`` optimises at most 64 polynomial segments in all)."""
 
 _REQUIRED_KEYS = ("robot", "way_points", "times")
 _FILE_KEYS = ("name", "description", "robot", "space", "arm", "way_points", "times", "via_points", "alpha",
@@ -221,14 +219,14 @@ class Mission:
 
     def _text(self, field_name: str, value, allow_empty: bool = True) -> str:
         if not isinstance(value, str):
-            raise self._error(field_name, f"{value!r} is a {type(value).__name__}: write a string in quotes")
+            raise self._error(field_name, f"{_short(value)} is a {type(value).__name__}: write a string in quotes")
         if not allow_empty and not value.strip():
             raise self._error(field_name, "is empty: give the mission a name")
         return value
 
     def _choice(self, field_name: str, value, choices: tuple[str, ...], meaning: str) -> str:
         if not isinstance(value, str) or value not in choices:
-            raise self._error(field_name, f"{value!r} is not known ({meaning}): use one of "
+            raise self._error(field_name, f"{_short(value)} is not known ({meaning}): use one of "
                                           f"{', '.join(map(repr, choices))}")
         return value
 
@@ -242,7 +240,7 @@ class Mission:
         n, listed = len(coords), ", ".join(coords)
         shape_hint = f"a list of way points, each a list of {n} numbers [{listed}]"
         if not _is_sequence(value):
-            raise self._error("way_points", f"{value!r} is not a list: give {shape_hint}")
+            raise self._error("way_points", f"{_short(value)} is not a list: give {shape_hint}")
         rows = list(value)
         if len(rows) < 2:
             reason = f"{len(rows)} way point(s): give at least 2 (a start and an end), as {shape_hint}"
@@ -250,21 +248,21 @@ class Mission:
         for i, row in enumerate(rows):
             name = f"way_points[{i}]"
             if not _is_sequence(row) or np.ndim(row) != 1:
-                raise self._error(name, f"{row!r} is not a list of numbers: give {n} numbers [{listed}]")
+                raise self._error(name, f"{_short(row)} is not a list of numbers: give {n} numbers [{listed}]")
             if len(row) != n:
                 reason = f"has {len(row)} entries; a {self.robot} way point in {self.space} space has {n}: " \
                          f"[{listed}]"
                 raise self._error(name, reason)
             for j, x in enumerate(row):
                 if not _is_number(x):
-                    raise self._error(name, f"entry {j} ({coords[j]}) is {x!r}, not a number")
+                    raise self._error(name, f"entry {j} ({coords[j]}) is {_short(x)}, not a number")
                 if not np.isfinite(x):
                     raise self._error(name, f"entry {j} ({coords[j]}) is {x}: give a finite number")
         return _read_only(np.array([[float(x) for x in row] for row in rows], dtype=float))
 
     def _crossing(self, value, k: int) -> bool:
         if not isinstance(value, (bool, np.bool_)):
-            raise self._error("cross_singularity", f"{value!r}: write true or false")
+            raise self._error("cross_singularity", f"{_short(value)}: write true or false")
         if value and (not self.kind.crosses_singularity or k != 2):
             able = [name for name in robots.names() if robots.get(name).crosses_singularity]
             reason = (f"true needs a robot that can cross its singularity ({', '.join(map(repr, able))}) and "
@@ -276,17 +274,17 @@ class Mission:
     def _travels_text(self, k: int, travels: int) -> str:
         if self.cross_singularity:
             return "a singularity crossing has 2 travels (start -> crossing -> end)"
-        return f"{k} way points make {travels} travel(s)"
+        return f"{k} way points make {travels} travel{'' if travels == 1 else 's'}"
 
     def _times(self, value, k: int, travels: int) -> np.ndarray:
         count = f"{self._travels_text(k, travels)}: give {travels} travel time(s) [s]"
         if not _is_sequence(value) or np.ndim(value) != 1:
-            raise self._error("times", f"{value!r} is not a list: {count}, e.g. times = {[3.0] * travels}")
+            raise self._error("times", f"{_short(value)} is not a list: {count}, e.g. times = {_short([3.0] * travels)}")
         if len(value) != travels:
             raise self._error("times", f"has {len(value)} entries; {count}, one per travel")
         for i, t in enumerate(value):
             if not _is_number(t):
-                raise self._error(f"times[{i}]", f"{t!r} is not a number: give a travel time in seconds")
+                raise self._error(f"times[{i}]", f"{_short(t)} is not a number: give a travel time in seconds")
             if not (np.isfinite(t) and t > 0):
                 raise self._error(f"times[{i}]", f"{t} s: a travel time must be finite and > 0 [s]")
         return _read_only(np.array([float(t) for t in value], dtype=float))
@@ -305,21 +303,24 @@ class Mission:
 
     def _check_via_point(self, field_name: str, value) -> None:
         if not _is_integer(value):
-            reason = (f"{value!r} is not an integer: give the number of via points of a travel as an integer "
+            reason = (f"{_short(value)} is not an integer: give the number of via points of a travel as an integer "
                       ">= 0 (e.g. 1, not 1.0)")
             raise self._error(field_name, reason)
         if value < 0:
             raise self._error(field_name, f"{value}: the number of via points must be >= 0")
+        if value > MAX_VIA_POINTS:
+            raise self._error(field_name, f"{_short(value)}: give at most {MAX_VIA_POINTS} via points a travel (no "
+                                          "planner optimises more)")
 
     def _alpha(self, value) -> float:
         if not _is_number(value) or not np.isfinite(value) or not 0.0 <= value <= 1.0:
-            reason = f"{value!r}: give a number in [0, 1] (1: energy only, 0: drone perturbation only)"
+            reason = f"{_short(value)}: give a number in [0, 1] (1: energy only, 0: drone perturbation only)"
             raise self._error("alpha", reason)
         return float(value)
 
     def _robot_parameters(self, value) -> Mapping[str, float]:
         if not isinstance(value, Mapping):
-            reason = f"{value!r} is not a table: write [robot_parameters] then lines like link_length = 1.0"
+            reason = f"{_short(value)} is not a table: write [robot_parameters] then lines like link_length = 1.0"
             raise self._error("robot_parameters", reason)
         known = description.xacro_arguments(self.kind.xacro)
         checked = {}
@@ -330,7 +331,11 @@ class Mission:
                           f"{', '.join(known)} (rotor constants, margins: edit urdf/parameters.yaml instead)")
                 raise self._error(name, reason)
             if not _is_number(x) or not np.isfinite(x) or x < 0 or (key == "link_length" and x == 0):
-                raise self._error(name, f"{x!r}: give a finite number >= 0 (> 0 for link_length) [SI units]")
+                raise self._error(name, f"{_short(x)}: give a finite number >= 0 (> 0 for link_length) [SI units]")
+            try:
+                check_parameters({key: float(x)}, {})
+            except ModelArgumentError as error:
+                raise self._error(name, error.reason) from None
             checked[key] = float(x)
         return MappingProxyType(checked)
 
@@ -525,7 +530,13 @@ class Mission:
 
 
 def _text_of(values: np.ndarray) -> str:
-    return np.array2string(values, precision=6, separator=", ")
+    return "[" + ", ".join(f"{x:.6g}" for x in np.asarray(values, dtype=float).reshape(-1)) + "]"
+
+
+def _short(value, limit: int = 80) -> str:
+    """``repr(value)`` for a message, cut to ``limit`` characters (a list of 20,000 numbers is not echoed)."""
+    text = repr(value.tolist() if isinstance(value, np.ndarray) else value)
+    return text if len(text) <= limit else f"{text[:limit - 20]}... ({len(text)} characters)"
 
 
 def _field_equal(a, b) -> bool:
@@ -581,7 +592,7 @@ def mission_from_dict(data: Mapping[str, Any], source: str = "", *,
         if key not in _FILE_KEYS:
             reason = f"unknown key{_did_you_mean(key, _FILE_KEYS)}: the keys of a mission are " \
                      f"{', '.join(_FILE_KEYS)}"
-            raise MissionError(str(key), reason, source)
+            raise MissionError(_short(str(key), 60).strip("'\""), reason, source)
     missing = [key for key in _REQUIRED_KEYS if key not in data]
     if missing:
         raise MissionError(missing[0], f"missing: a mission needs {', '.join(_REQUIRED_KEYS)} (missing: "
@@ -606,14 +617,7 @@ def mission_from_toml(text: str, source: str = "", *, default_name: str | None =
         MissionError: a TOML syntax error (field ``"<toml>"``, the reason gives line and column),
             or any error of :func:`mission_from_dict`.
     """
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        reason = str(error)
-        if "end of document" in reason:  # tomllib gives no line number there: add it
-            reason += f" (line {text.count(chr(10)) + 1})"
-        raise MissionError("<toml>", f"not valid TOML: {reason}; see the format in planners/missions/mission.py",
-                           source) from error
+    data = parse_toml(text, source)
     return mission_from_dict(data, source, default_name=default_name)
 
 
@@ -639,21 +643,16 @@ def load_mission(name_or_path: str | os.PathLike) -> Mission:
 
     Raises:
         MissionError: no such built-in mission or readable file (field ``"<file>"``, the message
-            lists the built-in missions), or an invalid file.
+            lists the built-in missions), a file larger than :data:`MAX_FILE_BYTES` or not UTF-8
+            (:func:`read_mission_text`), or an invalid file.
     """
     if isinstance(name_or_path, str) and name_or_path in BUILTIN_MISSIONS:
         logger.debug("loading the built-in mission %s", name_or_path)
         return mission_from_toml(builtin_mission_text(name_or_path), f"built-in {name_or_path}",
                                  default_name=name_or_path)
-    path = Path(name_or_path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        reason = (f"cannot read {str(path)!r} ({error.__class__.__name__}: {error}): give the path of a "
-                  f".toml mission file or a built-in mission: {', '.join(BUILTIN_MISSIONS)}")
-        raise MissionError("<file>", reason, str(name_or_path)) from error
-    logger.debug("loading the mission file %s", path)
-    return mission_from_toml(text, str(path))
+    text = read_mission_text(name_or_path)
+    logger.debug("loading the mission file %s", name_or_path)
+    return mission_from_toml(text, str(name_or_path))
 
 
 __all__ = [
@@ -662,7 +661,9 @@ __all__ = [
     "Mission",
     "SPACES",
     "builtin_mission_text",
+    "MAX_FILE_BYTES",
     "load_mission",
     "mission_from_dict",
     "mission_from_toml",
+    "read_mission_text",
 ]

@@ -8,13 +8,13 @@ h(P(x)) keeps the outer function's curvature and drops P's own: grad P^T h''(P) 
   majoriser curvature 1 / |P_k| (a reweighted least-squares model: the quadratic through |P| that
   touches it at +-P_k). Along a step that moves P_k by dP with |dP| >> |P_k|, that quadratic grows as
   dP^2 / (2 |P_k|) where |P| grows as |dP|: it makes every step far too short, and the SQP stops
-  1 % above the optimum of the square (issue 17: 305 iterations to 0.5036 at tolerance 1e-6).
+  1 % above the optimum of the square (305 iterations to reach 0.5036 at tolerance 1e-6).
 * This model gives each term h''(P) of a wider smoothing, sqrt(P^2 + mu^2) with mu = ``width``
   (0.1 W): mu^2 / (P^2 + mu^2)^(3/2), large only within about mu of a sign change of P (where |P|
   bends), small where P keeps its sign (where |P| is linear in P), plus ``share`` (0.05) times the
   majoriser, which keeps the model's Hessian well conditioned (the active-set QP, planners.optimisation.active_set,
   needs it) and its steps inside the region where the linearisation of P holds. Measured with the
-  planner's defaults (dense-grid J, SQP iterations of all stages; issue 17): square one-step 0.5046
+  planner's defaults (dense-grid J, SQP iterations of all stages): square one-step 0.5046
   in 19 iterations (Gauss-Newton: 0.5087, stopped after 12, 0.5036 only after 305), tour one-step
   0.6853 in 52, study n_vp = 3 0.6661 in 24. A share of 0.1 takes 34, 45 and 26 iterations there;
   there the model's predictions fell short of the actual decrease (ratios 1.3-1.8 on the square).

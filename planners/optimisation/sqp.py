@@ -30,7 +30,7 @@ rule, which the replanner and the singularity crossing keep): H is the problem's
 matrix, where J_e's |P| (drone powers P, seed 3.24) gets the reweighted majoriser
 a_e w |nabla P|^2 / |P|. It overestimates the curvature along the steps (accepted steps decrease the
 merit by twice the prediction) and converges linearly: the square one-step stops 1 % above the best
-known J, and reaches 0.5036 only after 305 iterations (issue 17). ``"composite"``:
+known J, and reaches 0.5036 only after 305 iterations. ``"composite"``:
 J = a_phi J_phi + sum_k pw_k |P_k| is modelled as what it is, a smooth part plus a weighted l1 sum:
 each |P_k| that can change sign inside the trust region becomes a QP variable
 t_k >= |P_k + nabla P_k d| (the rest are linear there),
@@ -78,8 +78,6 @@ from planners.optimisation.interior_point import solve_interior_point
 from planners.problem.banded import Banded
 from planners.problem.motion import POWER_SMOOTHING
 
-# the portable build: its results do not depend on memory alignment (fpr.model.qp): plans repeat bit for bit
-proxsuite = proxsuite_module()
 logger = logging.getLogger(__name__)
 
 
@@ -342,11 +340,12 @@ def _proxqp(h, g, rows, lower, upper):
     Its sparse backend when h is a sparse matrix (its upper triangle: a long mission's H is banded and each
     row touches one or two segments, a few per cent of the entries), the dense one for arrays.
     """
+    proxqp = proxsuite_module().proxqp  # the portable build (fpr.model.qp): plans repeat bit for bit
     if not sparse.issparse(h):
         rows = rows.toarray() if sparse.issparse(rows) else rows
-        return proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
-    return proxsuite.proxqp.sparse.solve(sparse.csc_matrix(h), g, None, None, sparse.csc_matrix(rows),
-                                         lower, upper, eps_abs=1e-9, max_iter=300)
+        return proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
+    return proxqp.sparse.solve(sparse.csc_matrix(h), g, None, None, sparse.csc_matrix(rows),
+                               lower, upper, eps_abs=1e-9, max_iter=300)
 
 
 def _shift(hess) -> float:
@@ -417,7 +416,8 @@ def _composite_qp_step(ev, radius: float, penalty: float, hessian):
     rows[m_c + 2 * q:] = np.eye(size)
     lower = np.concatenate([-c_k, pv_k, -pv_k, np.full(n, -radius), np.full(q, -np.inf), np.zeros(p)])
     upper = np.concatenate([np.full(m_c + 2 * q, np.inf), np.full(n, radius), np.full(q + p, np.inf)])
-    res = proxsuite.proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
+    proxqp = proxsuite_module().proxqp  # the portable build (fpr.model.qp)
+    res = proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
     d = np.clip(np.asarray(res.x)[:n], -radius, radius)
     z = np.asarray(res.z)
     model = g_phi @ d + 0.5 * d @ hessian @ d + pw @ (_smooth_abs(pv + pj @ d) - _smooth_abs(pv))

@@ -99,7 +99,7 @@ def cached_evaluation(evaluate):
 
 
 class NodeDerivatives:
-    """The grid nodes' quantities and their complex-step sensitivities, segment by segment, of the last
+    """The grid nodes' quantities and their sensitivities, segment by segment, of the last
     evaluation with derivatives of each :class:`MotionProblem` given this store
     (:meth:`MotionProblem.share_node_derivatives`), for the problems of one plan to share
     (:mod:`planners.methods.two_step`: one store per attempt, its travels and its polish).

@@ -291,7 +291,7 @@ class MotionProblem:
     #: independent reference the tests hold the dual numbers to). Measured on seeded families of random missions
     #: of both robots (32 way points, whole plans), the complex step paid nowhere: dual numbers were as fast on the
     #: single travels of step 2 (tens of nodes) and faster on the whole missions (0.6x per evaluation of the FPR's,
-    #: 0.85x of the prototype's).
+    #: 0.85x of the prototype's; documentation: guides/planning-internals).
     derivatives = "dual"
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,

@@ -63,7 +63,7 @@ class MotionReport:
         t: sample times (N,) [s].
         motion: s and derivatives 0..4, (5, N, n_s).
         inputs: thrusts, rolls, torques, rotor speeds (:class:`fpr.model.inverse_dynamics.MotionInputs`).
-        J_e: energy index (3.24, exact |.|) [J].
+        J_e: energy index (3.24, exact ``|.|``) [J].
         J_phi: perturbation index (3.25) [rad^2/s].
         constraints: name -> :class:`ConstraintReport`.
     """

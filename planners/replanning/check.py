@@ -4,8 +4,8 @@ A replan ends with the value of J and the constraints at the final point on the 
 last ratio test) and the check of that motion on the dense grid (:func:`planners.problem.disturbance.dense_check`).
 Both are the inverse dynamics (:func:`fpr.model.inverse_dynamics.inverse_dynamics`) of the same motion at
 two sets of samples, and on the replanner's sizes (14-28 grid nodes, 70-500 dense samples) a call costs
-mostly its fixed overhead (about 13 ms for 28 samples against 41 ms for 600 on the shared machine,
-``python -m fpr.bench --section replan`` prints the phases): :func:`evaluate_and_check` makes one call of
+mostly its fixed overhead (28 samples cost about a third of 600; ``python -m fpr.bench --section replan``
+prints the phases): :func:`evaluate_and_check` makes one call of
 the grid nodes and the dense samples together and splits the result, so that the final evaluation is the
 problem's own (:meth:`planners.problem.motion.MotionProblem.evaluate`, values only) and the check is
 :func:`~planners.problem.disturbance.dense_check`'s (same samples, rows, tolerances and verdict).

@@ -12,7 +12,7 @@ basis h_{b,k}, h_{e,k} (begin / end side, derivative order k = 0..4)::
 which is linear in the boundary points, so exact gradients are available (`Segment.basis`).
 The basis is derived once in exact rational arithmetic (confluent Vandermonde system). It is
 stored twice: expanded around tau = 0 (`HERMITE_BASIS`, used for tau <= 1/2) and around tau = 1
-(used for tau > 1/2), so both boundaries are reproduced to rounding and |x| <= 1/2 keeps the
+(used for tau > 1/2), so both boundaries are reproduced to rounding and ``|x| <= 1/2`` keeps the
 power sums well conditioned. Evaluation is vectorised: one matrix product per (segment, half).
 """
 from __future__ import annotations

@@ -38,6 +38,7 @@ from fpr.cli.bench.planning import planning_table, run_planning
 from fpr.cli.bench.replan import replan_table, run_replan
 from fpr.cli.bench.scaling import run_scaling, scaling_table
 from fpr.cli.bench.timing import Bench, fmt
+from fpr.tuning import tune_process
 
 
 def parser() -> contract.Parser:
@@ -67,6 +68,7 @@ def main(argv=None) -> int:
     Returns:
         The exit code: 0, or 2 (a bad option), 3 (a bug), 130 (Ctrl-C).
     """
+    tune_process()  # one BLAS thread, freed memory kept in glibc's heap (fpr.tuning)
     return contract.command(parser(), argv, _run)
 
 
@@ -126,7 +128,7 @@ def _run(args, argv) -> int:
         print()
         print(scaling_table(scaling))
     if goals:
-        print("\ngoals (issue 13)")
+        print("\ngoals")
         for g in goals:
             print(f"  [{g['section']}] {g['target']}: {g['value']:.4g} -> {g['verdict']}")
     return 0

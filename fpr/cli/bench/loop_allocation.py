@@ -13,8 +13,8 @@ call is warm from the previous tick, as in the loop), timing every whole ``Alloc
 (``time.perf_counter`` around it: the closed form or the QP's build, update and solve, and the result),
 garbage collector off; ``passes`` replays, and each tick keeps its least time (the machine's noise only adds).
 The ticks are split by the route the allocator took (closed form: no bound active; QP: a bound active, the
-active-set method or ProxQP). The default path is measured (the compiled tick, ``controllers/_alloc.c``, when
-it is built; the lines say which) and, when it is the compiled one, the Python path too, interleaved pass by
+active-set method or ProxQP). The default path is measured (the native tick, ``fpr/_native/alloc.c``, when
+it is built; the lines say which) and, when it is the native one, the Python path too, interleaved pass by
 pass (their ratio: an A/B in one run); the goals are the default path's.
 """
 
@@ -26,6 +26,7 @@ import time
 import numpy as np
 
 from controllers.allocation import Allocator
+from fpr import _native as native
 from fpr.sim.closed_loop import SimulationSettings, simulate
 
 #: the goal of the whole call, with or without an active bound [s]
@@ -55,17 +56,18 @@ def record_allocations(result, settings: SimulationSettings) -> tuple[list[tuple
 
 def path_name(allocator) -> str:
     """Which path an allocator's ``solve`` runs."""
-    return "compiled (C)" if allocator.compiled else "Python"
+    return "native (C)" if allocator.compiled else "Python"
 
 
 def replay(robot, calls: list[tuple], passes: int, compiled: bool | None = None) -> dict:
     """Time every call of a recorded sequence through fresh allocators (module docstring).
 
     Args:
-        compiled: the allocator's ``compiled`` (None: the compiled tick when it is built).
+        compiled: :mod:`fpr._native`'s part ``allocation`` switched on (True) or off (False) for the replay's
+            allocators; None: as the switch is.
 
     Returns:
-        the path measured ("compiled (C)" or "Python"), ticks, their routes, and per route (and over all
+        the path measured ("native (C)" or "Python"), ticks, their routes, and per route (and over all
         ticks) the median, mean, 90th percentile and largest time per call [s].
     """
     return replay_paths(robot, calls, passes, (compiled,))[0]
@@ -79,7 +81,8 @@ def replay_paths(robot, calls: list[tuple], passes: int, paths) -> list[dict]:
     names = []
     for p in range(passes):
         for m, compiled in enumerate(paths):
-            allocator = Allocator(robot, compiled=compiled)
+            with native.switched(**({} if compiled is None else {"allocation": compiled})):
+                allocator = Allocator(robot)
             if p == 0:
                 names.append(path_name(allocator))
             counts = allocator.routes
@@ -147,7 +150,7 @@ def allocation_lines(loops: dict, fmt) -> list[str]:
                 s = path[route]
                 if s:
                     name = route.replace("_", " ")
-                    ratio = (f", Python / compiled {s['median_s'] / seq[route]['median_s']:.2f}"
+                    ratio = (f", Python / native {s['median_s'] / seq[route]['median_s']:.2f}"
                              if path is not seq else "")
                     lines.append(f"    {name:<12} {path['path']:<12} {s['ticks']:5d} ticks: median "
                                  f"{fmt(s['median_s'])}, mean {fmt(s['mean_s'])}, p90 {fmt(s['p90_s'])}, "

@@ -111,7 +111,7 @@ def run_timings(bench: Bench) -> None:
             bench.time(f"{robot.name} closed {name}", cycling(fn, args), ref=(f"{robot.name} r.forward_dynamics",))
 
 
-#: goal of the FPR mass matrix M(q) in thesis coordinates, one call (issue 13) [s]
+#: goal of the FPR mass matrix M(q) in thesis coordinates, one call [s]
 MASS_MATRIX_GOAL_S = 5e-6
 
 

@@ -1,4 +1,4 @@
-"""How close the planners get to the optimum (issue 17), part of ``python -m fpr.bench --section planning``.
+"""How close the planners get to the optimum, part of ``python -m fpr.bench --section planning``.
 
 For each built-in mission of :data:`MISSIONS` and each planner of :data:`PLANNERS`, one run: the dense-grid
 J, the best J known for that mission (:data:`BEST_J`) and the gap to it, the KKT residual the solver
@@ -21,8 +21,8 @@ from planners.options import PlanOptions
 from planners.optimisation.solving import Grid, kkt_with_best_multipliers
 
 #: The best J known per mission: peer solvers (scipy's SLSQP with the planner's exact derivatives, tight
-#: tolerances, several starts; IPOPT confirming a KKT point), every result feasible on the 500 Hz grid
-#: (issue 17).
+#: tolerances, several starts; IPOPT confirming a KKT point), every result feasible on the 500 Hz
+#: grid.
 BEST_J = {"square": 0.5037, "prototype-tour": 0.6895, "study, n_vp = 3": 0.6654}
 
 #: (name in the table, mission name, mission changes).
@@ -70,7 +70,7 @@ def run_optimality(quick: bool, progress: bool) -> list[dict]:
 
 def optimality_table(rows: list[dict]) -> str:
     """The rows as text."""
-    lines = ["optimality (issue 17): J against the best known, KKT residuals (solver's last stage; the "
+    lines = ["optimality: J against the best known, KKT residuals (solver's last stage; the "
              "result as a point of the 1-step NLP)",
              f"{'mission':<16} {'planner':<30} {'J':>7} {'best J':>7} {'gap':>7} {'KKT stage':>9} "
              f"{'KKT 1-step':>10} {'iter':>5} {'time':>8}  feasible"]

@@ -16,8 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
+from fpr.robustness.spec import unit
 from fpr.robustness.summary import wilson_interval
-from fpr.views.figures.style import STYLE, _finish, _limit, _new_figure, _save_to_file
+from fpr.views.figures.style import STYLE, _finish, _limit, _new_figure, _save_to_file, _styled
+
+#: Most major ticks on an x axis: the panels are narrow, and a sampled quantity's ticks are long (-0.025).
+X_TICKS = 5
 
 HISTOGRAMS = ("least_clearance_m", "saturated_ticks", "peak_rotor_speed_rad_s")
 """Outcome columns drawn as histograms (after the ``max_error_<coordinate>`` ones)."""
@@ -36,11 +40,31 @@ def _binned(x: np.ndarray, ok: np.ndarray, bins: int):
         rates.append(k / n)
         low.append(k / n - lo)
         high.append(hi - k / n)
-    return np.array(centres), np.array(rates), np.array([low, high])
+    # the Wilson bounds of 0 or n successes equal the rate only to round-off: matplotlib refuses a bar of -1e-17
+    return np.array(centres), np.array(rates), np.maximum(np.array([low, high]), 0.0)
+
+
+def _label(name: str) -> str:
+    """An axis label: the column's name and its unit (:func:`fpr.robustness.spec.unit`)."""
+    found = unit(name)
+    return f"{name} [{found}]" if found else name
+
+
+def _x_axis(ax, name: str) -> None:
+    """The column's label with its unit, at most :data:`X_TICKS` ticks."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.set_xlabel(_label(name))
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=X_TICKS))
 
 
 def success_figure(rows: list[dict], varied: list[str], title: str = ""):
     """Success against each varied column (see the module docstring); a Figure."""
+    with _styled():
+        return _success_figure(rows, varied, title)
+
+
+def _success_figure(rows: list[dict], varied: list[str], title: str):
     n = max(len(varied), 1)
     cols = 2 if n > 1 else 1
     fig, axes = _new_figure(math.ceil(n / cols), cols, sharex=False, width=STYLE["width"] * 1.25)
@@ -54,7 +78,7 @@ def success_figure(rows: list[dict], varied: list[str], title: str = ""):
             centres, rates, bars = _binned(x, ok, bins)
             ax.errorbar(centres, rates, yerr=bars, color=STYLE["plan_color"], marker="o", capsize=2,
                         label="success rate (95 % Wilson)")
-        ax.set_xlabel(name)
+        _x_axis(ax, name)
         ax.set_ylim(-0.1, 1.1)
         ax.set_ylabel("success")
     for ax in axes[len(varied):]:
@@ -67,6 +91,13 @@ def success_figure(rows: list[dict], varied: list[str], title: str = ""):
 
 def outcomes_figure(rows: list[dict], chain: list[str], max_speed: float | None = None, title: str = ""):
     """Histograms of the numeric outcomes, successes and failures stacked; a Figure."""
+    with _styled():
+        return _outcomes_figure(rows, chain, max_speed, title)
+
+
+def _outcomes_figure(rows: list[dict], chain: list[str], max_speed: float | None, title: str):
+    from matplotlib.ticker import MaxNLocator
+
     names = [f"max_error_{c}" for c in chain] + list(HISTOGRAMS)
     cols = 2
     fig, axes = _new_figure(math.ceil(len(names) / cols), cols, sharex=False, width=STYLE["width"] * 1.25)
@@ -78,8 +109,9 @@ def outcomes_figure(rows: list[dict], chain: list[str], max_speed: float | None 
             ax.hist(values, bins=20, stacked=True, color=["tab:green", "tab:red"], label=["success", "failure"])
         if name == "peak_rotor_speed_rad_s" and max_speed is not None:
             _limit(ax, max_speed, vertical=True)
-        ax.set_xlabel(name)
+        _x_axis(ax, name)
         ax.set_ylabel("runs")
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     for ax in axes[len(names):]:
         ax.set_visible(False)
     return _finish(fig, title or f"outcomes of {len(good)} runs", axes[cols - 1:cols])  # see success_figure

@@ -102,8 +102,14 @@ def _direction_marks(ax, t: np.ndarray, path: np.ndarray, way: np.ndarray, way_t
     for (y, z), time in zip(way, way_times, strict=True):
         key = (round(float(y), 3), round(float(z), 3))
         seen[key] = seen.get(key, ()) + (time,)
+    centre = np.mean(list(seen), axis=0) if seen else np.zeros(2)
     for (y, z), times in seen.items():
-        ax.annotate(", ".join(f"{x:g} s" for x in times), (y, z), textcoords="offset points", xytext=(5, -10),
+        # outside the way points' polygon, away from the reference's lines between them: on the side of the
+        # point away from the way points' centre, the text extending away from it
+        away = np.array([y, z]) - centre
+        sy, sz = (1.0 if away[0] >= 0 else -1.0), (1.0 if away[1] >= 0 else -1.0)
+        ax.annotate(", ".join(f"{x:g} s" for x in times), (y, z), textcoords="offset points",
+                    xytext=(6 * sy, 6 * sz), ha="left" if sy > 0 else "right", va="bottom" if sz > 0 else "top",
                     fontsize=STYLE["legend_size"], color="0.25", gid="time mark")
 
 
@@ -168,14 +174,16 @@ def _per_drone_figure(robot, traces: list[_Trace], which: str, ylabel: Callable[
                     ax.plot(tr.t, v, label=tr.label, **tr.line)
                     continue
                 for k in range(v.shape[1]):
-                    kw = dict(tr.line)
-                    if tr.is_reference:
-                        kw["linewidth"] = STYLE["thin_width"]
+                    kw = dict(tr.line, color=STYLE["rotor_colors"][k % len(STYLE["rotor_colors"])])
+                    if tr.is_reference:  # thin, dashed and faded, in its rotor's colour: each finds its rotor
+                        kw.update(linewidth=STYLE["thin_width"], alpha=STYLE["reference_alpha"])
+                        ax.plot(tr.t, v[:, k], gid=f"{tr.label}: rotor {k + 1}", **kw)
                     else:
-                        kw["color"] = STYLE["rotor_colors"][k % len(STYLE["rotor_colors"])]
                         kw["linestyle"] = ROTOR_STYLES[k % len(ROTOR_STYLES)]  # visible where rotors coincide
-                    label = tr.label if tr.is_reference else f"rotor {k + 1}"
-                    ax.plot(tr.t, v[:, k], label=label, **kw)
+                        ax.plot(tr.t, v[:, k], label=f"rotor {k + 1}", gid=f"rotor {k + 1}", **kw)
+                if tr.is_reference:  # one legend entry for the four
+                    ax.plot([], [], color=STYLE["reference_color"], linestyle=STYLE["reference_style"],
+                            linewidth=STYLE["thin_width"], label=tr.label)
             for b in limits:
                 _limit(ax, b)
             ax.set_ylabel(ylabel(i))
@@ -247,8 +255,8 @@ def plan_figures(out_dir: str | Path, robot, plan: SampledPlan,
     * path: ground z = -L and the margin z = -L + m_gd (3.27; 3.44), for the prototype also the
       fixed point and y = m_gd (3.44);
     * coordinates: pi + m_ga <= phi <= 2 pi - m_ga, m_ga <= q21 <= pi - m_ga (3.28-3.29), or
-      |q1| <= pi/2 - m_ga, m_ga <= q2 <= pi - m_ga (3.44, 3.46);
-    * roll: |phi_i| <= pi/2 - m_ga (3.33, 3.45); rotor speeds: 0 <= w_ij <= w_max - m_gr (3.48);
+      ``|q1| <= pi/2 - m_ga``, m_ga <= q2 <= pi - m_ga (3.44, 3.46);
+    * roll: ``|phi_i| <= pi/2 - m_ga`` (3.33, 3.45); rotor speeds: 0 <= w_ij <= w_max - m_gr (3.48);
       rotor forces: 0 <= c_T w_ij^2 <= c_T (w_max - m_gr)^2.
 
     Args:

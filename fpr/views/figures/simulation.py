@@ -284,10 +284,12 @@ def _sim_rotors(robot, log, plan: SampledPlan | None, which: str) -> Figure:
     with _styled():
         fig, axes = _new_figure(n_d)
         for i, ax in enumerate(axes):
-            if trace is not None:
+            if trace is not None:  # each rotor's plan thin, dashed and faded in its colour; one legend entry
                 for k in range(4):
-                    ax.plot(trace.t, value(trace.rotor_speed[:, i, k]), label="planned", gid="planned",
-                            **_planned_line(STYLE["thin_width"]))
+                    ax.plot(trace.t, value(trace.rotor_speed[:, i, k]), gid="planned",
+                            **dict(_planned_line(STYLE["thin_width"]), color=STYLE["rotor_colors"][k],
+                                   alpha=STYLE["reference_alpha"]))
+                ax.plot([], [], label="planned", **_planned_line(STYLE["thin_width"]))
             for k in range(4):
                 ax.plot(sim.t, value(sim.speed[:, i, k]), label=f"rotor {k + 1}", gid="simulated",
                         color=STYLE["rotor_colors"][k], linestyle=ROTOR_STYLES[k], linewidth=STYLE["thin_width"] * 1.25,
@@ -380,7 +382,7 @@ def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None
     * ``sim_coordinates.png``: planning coordinates with their bounds, and the tracking errors
       (Fig. 3.21-3.22, 3.25-3.26 / 3.43-3.45);
     * ``sim_out_of_plane.png``: x (FPR), pitch, yaw (Fig. 3.20, 3.23-3.24);
-    * ``sim_roll.png``: rolls planned, desired, simulated, |phi_i| <= pi/2 - m_ga (Fig. 3.27-3.28 / 3.48);
+    * ``sim_roll.png``: rolls planned, desired, simulated, ``|phi_i| <= pi/2 - m_ga`` (Fig. 3.27-3.28 / 3.48);
     * ``sim_heights.png``: drone joint / joint 2 and 3 heights and the drones' centres of mass, with
       z >= -L + m_gd (Fig. 3.29-3.30 / 3.46-3.47);
     * ``sim_rotor_speeds.png`` and ``sim_rotor_forces.png``: the plant's rotors against 0 and

@@ -36,6 +36,7 @@ STYLE = MappingProxyType({
     "plan_color": "tab:blue",
     "reference_color": "0.45",
     "reference_style": "--",
+    "reference_alpha": 0.6,  # the reference's per-rotor curves, drawn in the rotors' colours
     "limit_color": "tab:red",
     "limit_style": ":",
     "limit_width": 1.3,
@@ -105,7 +106,7 @@ def _finish(fig: Figure, title: str, axes: Sequence[Axes], legend_below: bool = 
         axes: the axes that get a legend (one entry per distinct label).
         legend_below: put the legends under their axes instead of inside them.
     """
-    fig.suptitle(title)
+    fig.suptitle(title, wrap=True)  # a long title (a crossing's) wraps inside the canvas
     for ax in axes:
         handles, labels = ax.get_legend_handles_labels()
         if not handles:
@@ -118,8 +119,10 @@ def _finish(fig: Figure, title: str, axes: Sequence[Axes], legend_below: bool = 
         else:  # beside the axes: never over the data or the limit lines
             ax.legend(unique.values(), unique.keys(), loc="upper left", bbox_to_anchor=(1.01, 1.0), ncol=1,
                       borderaxespad=0.0)
-    fig.tight_layout()
-    fig.set_layout_engine(None)  # laid out once here; savefig then draws only once
+    # laid out again at every draw (savefig's included, inside the style): the tick labels, which the axes' sizes
+    # choose, are then the ones drawn; laid out once here only, a y label could end up off the canvas
+    fig.set_layout_engine("tight")
+    fig.get_layout_engine().execute(fig)
     return fig
 
 

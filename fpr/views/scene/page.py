@@ -135,6 +135,11 @@ class SceneView:
         logger.info("wrote %s", path)
         return path
 
+    def __repr__(self) -> str:
+        """A short summary (the commands hold the meshes: the generated repr ran to megabytes in a notebook)."""
+        animation = "a still robot" if self.duration is None else f"{self.duration:g} s at {self.fps:g} fps"
+        return f"SceneView({self.title!r}, {len(self.commands)} commands, {len(self.paths)} nodes, {animation})"
+
     def _repr_html_(self) -> str:
         """Jupyter: the page in an ``<iframe srcdoc>``; needs no server, stays in saved notebooks."""
         return (f'<iframe srcdoc="{html_lib.escape(self.html, quote=True)}" '

@@ -1,4 +1,4 @@
-/* The numpy part of fpr/model/robot.py's Robot.attitude_model in C (issue 13): the same quantities as its
+/* The numpy part of fpr/model/robot.py's Robot.attitude_model in C: the same quantities as its
  * Python reference (Robot._attitude_python) from the same Pinocchio outputs, without numpy's per-call costs
  * (about a microsecond per small-array call; the Python path makes a dozen).
  *
@@ -20,7 +20,7 @@
 #include <numpy/arrayobject.h>
 #include <math.h>
 
-#include "fpr/model/_dense.h"  /* View, view, AT, cholesky, cholesky_solve */
+#include "dense.h"  /* View, view, AT, cholesky, cholesky_solve */
 
 #define MAX_V 64     /* coordinates */
 #define MAX_D 16     /* drones */
@@ -51,6 +51,7 @@ static PyObject *new_array(int rows, int cols, double **data)
 
 static PyObject *post(PyObject *self, PyObject *args)
 {
+    (void)self;
     PyObject *o_m, *o_c, *o_j, *o_k;
     if (!PyArg_UnpackTuple(args, "post", 4, 4, &o_m, &o_c, &o_j, &o_k)) return NULL;
     npy_intp k_len = 0;
@@ -143,8 +144,9 @@ static PyMethodDef methods[] = {
     {"post", post, METH_VARARGS, "The attitude model from Pinocchio's outputs (see the module's C source)."},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr.model._attitude",
-                                    "Robot.attitude_model's numpy part in C (fpr.model.robot).", -1, methods};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr._native._attitude",
+                                    "Robot.attitude_model's numpy part in C (fpr.model.robot).",
+                                    -1, methods, NULL, NULL, NULL, NULL};
 
 PyMODINIT_FUNC PyInit__attitude(void)
 {

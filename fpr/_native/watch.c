@@ -1,4 +1,4 @@
-/* The watch's screen (fpr/sim/watch.py, Watch._may_be_lost_python) in C (issue 13): the same comparisons on
+/* The watch's screen (fpr/sim/watch.py, Watch._may_be_lost_python) in C: the same comparisons on
  * the same numbers, without the interpreter's cost of a few dozen float operations at every inner-loop tick.
  *
  * may_be_lost(qc, vc, q, v, positions, closure_error, planned, constants) -> bool
@@ -16,7 +16,7 @@
 #include <numpy/arrayobject.h>
 #include <math.h>
 
-#include "fpr/model/_dense.h"  /* constants_of */
+#include "dense.h"  /* constants_of */
 
 #define HEADER 8
 
@@ -91,6 +91,7 @@ static int screen(PyArrayObject *qa, PyArrayObject *va, PyArrayObject *qm, PyArr
 
 static PyObject *may_be_lost(PyObject *self, PyObject *args)
 {
+    (void)self;
     PyObject *o[8];
     double closure_error;
     if (!PyArg_ParseTuple(args, "OOOOOdOO", &o[0], &o[1], &o[2], &o[3], &o[4], &closure_error, &o[5], &o[6]))
@@ -116,8 +117,9 @@ static PyMethodDef methods[] = {
     {"may_be_lost", may_be_lost, METH_VARARGS, "The watch's screen (see the module's C source): a bool."},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr.sim._watch",
-                                    "The closed loop's watch screen in C (fpr.sim.watch).", -1, methods};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr._native._watch",
+                                    "The closed loop's watch screen in C (fpr.sim.watch).",
+                                    -1, methods, NULL, NULL, NULL, NULL};
 
 PyMODINIT_FUNC PyInit__watch(void)
 {

@@ -1,4 +1,4 @@
-/* Jet products of fpr/model/jets.py in C (issue 13): the Leibniz sums of products of time-derivative jets, and
+/* Jet products of fpr/model/jets.py in C: the Leibniz sums of products of time-derivative jets, and
  * the recurrence of a jet's linear solve, one loop over every sample instead of numpy's per-order, per-term
  * passes over small matrices (numpy spends about 40 ns per 4 x 4 matrix-vector product of a batch; the
  * planner's complex-step batches hold thousands).
@@ -188,6 +188,7 @@ static int batch_ok(npy_intp S, npy_intp part)
 
 static PyObject *py_product(PyObject *self, PyObject *args)
 {
+    (void)self;
     PyObject *oa, *ob, *oo;
     Py_ssize_t S, Sa, Sb, n, m, k;
     if (!PyArg_ParseTuple(args, "OOOnnnnnn", &oa, &ob, &oo, &S, &Sa, &Sb, &n, &m, &k)) return NULL;
@@ -216,6 +217,7 @@ static PyObject *py_product(PyObject *self, PyObject *args)
 
 static PyObject *py_solve(PyObject *self, PyObject *args)
 {
+    (void)self;
     PyObject *oi, *oa, *ob, *oo;
     Py_ssize_t S, Si, Sa, Sb, n, k;
     if (!PyArg_ParseTuple(args, "OOOOnnnnnn", &oi, &oa, &ob, &oo, &S, &Si, &Sa, &Sb, &n, &k)) return NULL;
@@ -246,6 +248,7 @@ static PyObject *py_solve(PyObject *self, PyObject *args)
 
 static PyObject *py_gauss_jordan(PyObject *self, PyObject *args)
 {
+    (void)self;
     PyObject *oa, *ob, *oo;
     Py_ssize_t S, n, k;
     if (!PyArg_ParseTuple(args, "OOOnnn", &oa, &ob, &oo, &S, &n, &k)) return NULL;
@@ -275,8 +278,9 @@ static PyMethodDef methods[] = {
     {NULL, NULL, 0, NULL},
 };
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr.model._jets",
-                                    "Jet products and solves of fpr/model/jets.py in C.", -1, methods};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr._native._jets",
+                                    "Jet products and solves of fpr/model/jets.py in C.",
+                                    -1, methods, NULL, NULL, NULL, NULL};
 
 PyMODINIT_FUNC PyInit__jets(void)
 {

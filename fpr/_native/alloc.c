@@ -1,4 +1,4 @@
-/* The allocation tick of controllers/allocation.py's Allocator in C (issue 13): the same computation as its
+/* The allocation tick of controllers/allocation.py's Allocator in C: the same computation as its
  * Python reference (Allocator._solve_python, controllers/box_qp.py's solve_box_qp_state), without the
  * interpreter's and numpy's per-call costs (about a microsecond per small-array call there).
  *
@@ -33,7 +33,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "fpr/model/_dense.h"  /* View, view, AT, cholesky, cholesky_solve */
+#include "dense.h"  /* View, view, AT, cholesky, cholesky_solve */
 
 #define MAX_N 32    /* rotor variables (8 drones) */
 #define MAX_A 24    /* attitude rows */
@@ -117,6 +117,7 @@ static PyObject *new_array(int rows, int cols, const double *values, double fact
 
 static PyObject *tick(PyObject *self, PyObject *args)
 {
+    (void)self;
     PyObject *o_m, *o_jf, *o_at, *o_c, *o_f, *o_u, *o_k, *o_state;
     if (!PyArg_UnpackTuple(args, "tick", 8, 8, &o_m, &o_jf, &o_at, &o_c, &o_f, &o_u, &o_k, &o_state))
         return NULL;
@@ -304,6 +305,7 @@ bad_constants:
 
 static PyObject *box_qp(PyObject *self, PyObject *args)
 {
+    (void)self;
     PyObject *o_h, *o_g, *o_state;
     int max_iterations = 12;
     double tolerance = 1e-12;
@@ -366,6 +368,7 @@ static double (*volatile libm_pow)(double, double) = pow;
 
 static PyObject *inner(PyObject *self, PyObject *args)
 {
+    (void)self;
     PyObject *o[5], *o_k;
     if (!PyArg_UnpackTuple(args, "inner", 6, 6, &o[0], &o[1], &o[2], &o[3], &o[4], &o_k)) return NULL;
     npy_intp k_len = 0;
@@ -450,9 +453,9 @@ static PyMethodDef methods[] = {
                                    "when a result is not finite (the Python reference then decides)."},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "controllers._alloc",
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr._native._alloc",
                                     "The rotor allocation's tick in C (controllers.allocation.Allocator).", -1,
-                                    methods};
+                                    methods, NULL, NULL, NULL, NULL};
 
 PyMODINIT_FUNC PyInit__alloc(void)
 {

@@ -1,0 +1,748 @@
+// fpr._native._pinocchio: the closed loop's calls of Pinocchio's C++ library, as two Python types.
+//
+// Plant(model, data, constraints, constraint_datas, settings, force_map_t, frames): the plant on a closed-chain
+//   model (plant.cpp), `data` and `constraint_datas` its own (initialised by pin.initConstraintDynamics)
+//   steps(q, v, w, w_command, w_max, decay, dt, steps, wind=None) -> (q, v, w, done, status)
+//   dynamics(q, v, tau) -> a
+//   points(q) -> (positions (frames, 3), closure error), or None when a closure is not a 3D point closure
+// Minimal(model, data, T, frames, constant_rows, freeflyer_rows, hinges): the minimal model's terms
+//   (minimal.cpp), `data` its own
+//   frame_terms(q, v) -> (M, nle, (J per frame))
+//   velocity(q, vc) -> v, or None when K^T K is not positive definite
+// Measure(model, data, minimal, nqp, closed_q, source, sign, eulers, angles, T_inv, angular): the measurement
+//   (measure.cpp) on the closed chain's model and data; eulers: (joint, A 4x4, B 4x4, (x, y, z qp indices or
+//   -1), (psi, theta, phi qp indices), (their thesis indices)) tuples; angles: (joint, P 4x4, other, qp index)
+//   measure(qc, vc, reference) -> (q, v), or None when the velocity's normal equations are not positive definite
+//
+// The CPython API with METH_FASTCALL: the tick calls these a few times per inner-loop tick, where every
+// microsecond of call overhead counts; pinocchio's objects are found once, at construction (bridge.cpp).
+#define PY_SSIZE_T_CLEAN
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include "native.hpp"
+
+#include <numpy/arrayobject.h>
+
+#include <algorithm>
+#include <exception>
+#include <string>
+#include <vector>
+
+namespace
+{
+  using namespace fpr_native;
+
+  // A float64 C-contiguous array of obj with `size` entries (a new reference: obj itself when it is one), or
+  // nullptr with a ValueError naming `what`.
+  PyArrayObject * input(PyObject * obj, npy_intp size, const char * what)
+  {
+    PyArrayObject * a = reinterpret_cast<PyArrayObject *>(
+      PyArray_FROMANY(obj, NPY_DOUBLE, 0, 0, NPY_ARRAY_IN_ARRAY));
+    if (a != nullptr && size >= 0 && PyArray_SIZE(a) != size)
+    {
+      PyErr_Format(PyExc_ValueError, "%s: expected %zd values, got %zd", what, (Py_ssize_t)size,
+                   (Py_ssize_t)PyArray_SIZE(a));
+      Py_CLEAR(a);
+    }
+    return a;
+  }
+
+  // A new float64 array of the given shape (a copy of `from` when given), or nullptr.
+  PyArrayObject * output(int ndim, const npy_intp * dims, const double * from = nullptr)
+  {
+    PyArrayObject * a = reinterpret_cast<PyArrayObject *>(PyArray_SimpleNew(ndim, dims, NPY_DOUBLE));
+    if (a != nullptr && from != nullptr)
+      std::copy(from, from + PyArray_SIZE(a), static_cast<double *>(PyArray_DATA(a)));
+    return a;
+  }
+
+  double * data(PyArrayObject * a)
+  {
+    return static_cast<double *>(PyArray_DATA(a));
+  }
+
+  // A list of ints from a sequence, or false with an exception set.
+  bool int_list(PyObject * sequence, std::vector<int> & out, const char * what)
+  {
+    PyObject * fast = PySequence_Fast(sequence, what);
+    if (fast == nullptr)
+      return false;
+    const Py_ssize_t n = PySequence_Fast_GET_SIZE(fast);
+    for (Py_ssize_t k = 0; k < n; ++k)
+    {
+      const long value = PyLong_AsLong(PySequence_Fast_GET_ITEM(fast, k));
+      if (value == -1 && PyErr_Occurred())
+      {
+        Py_DECREF(fast);
+        return false;
+      }
+      out.push_back((int)value);
+    }
+    Py_DECREF(fast);
+    return true;
+  }
+
+  bool check_arguments(const char * name, Py_ssize_t nargs, Py_ssize_t least, Py_ssize_t most)
+  {
+    if (nargs < least || nargs > most)
+    {
+      PyErr_Format(PyExc_TypeError, "%s takes %zd to %zd arguments (%zd given)", name, least, most, nargs);
+      return false;
+    }
+    return true;
+  }
+
+  // ------------------------------------------------------------------ Plant
+  struct PlantObject
+  {
+    PyObject_HEAD Plant * plant;
+    PyObject * keep; // the Python objects whose C++ objects the plant uses (kept alive)
+  };
+
+  void plant_dealloc(PyObject * self)
+  {
+    auto * p = reinterpret_cast<PlantObject *>(self);
+    plant_delete(p->plant);
+    Py_XDECREF(p->keep);
+    Py_TYPE(self)->tp_free(self);
+  }
+
+  int plant_init(PyObject * self, PyObject * args, PyObject * kwargs)
+  {
+    auto * p = reinterpret_cast<PlantObject *>(self);
+    static const char * names[] = {"model",    "data",        "constraints", "constraint_datas",
+                                   "settings", "force_map_t", "frames",      nullptr};
+    PyObject *model, *data_obj, *constraints, *datas, *settings, *map, *frames_obj;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOO", const_cast<char **>(names), &model, &data_obj,
+                                     &constraints, &datas, &settings, &map, &frames_obj))
+      return -1;
+    try
+    {
+      Objects objects;
+      std::string error;
+      if (!extract(model, data_obj, constraints, datas, settings, objects, error))
+      {
+        PyErr_SetString(PyExc_TypeError, error.c_str());
+        return -1;
+      }
+      std::vector<int> frames;
+      if (!int_list(frames_obj, frames, "frames: expected a sequence of frame indices"))
+        return -1;
+      PyArrayObject * g = input(map, -1, "force_map_t");
+      if (g == nullptr)
+        return -1;
+      if (PyArray_NDIM(g) != 2)
+      {
+        Py_DECREF(g);
+        PyErr_SetString(PyExc_ValueError, "force_map_t: expected a 2D array (rotor speeds, nv)");
+        return -1;
+      }
+      Plant * plant = nullptr;
+      if (PyArray_DIM(g, 1) != model_nv(objects))
+        error = "force_map_t: expected the model's nv columns";
+      else
+        plant = plant_new(objects, data(g), (int)PyArray_DIM(g, 0), frames, error);
+      Py_DECREF(g);
+      if (plant == nullptr)
+      {
+        PyErr_SetString(PyExc_ValueError, error.c_str());
+        return -1;
+      }
+      plant_delete(p->plant);
+      p->plant = plant;
+      Py_XDECREF(p->keep);
+      p->keep = PyTuple_Pack(5, model, data_obj, constraints, datas, settings);
+      return p->keep == nullptr ? -1 : 0;
+    }
+    catch (const std::exception & e)
+    {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
+      return -1;
+    }
+  }
+
+  Plant * plant_of(PyObject * self)
+  {
+    Plant * plant = reinterpret_cast<PlantObject *>(self)->plant;
+    if (plant == nullptr)
+      PyErr_SetString(PyExc_RuntimeError, "Plant: not initialised");
+    return plant;
+  }
+
+  PyObject * plant_steps_py(PyObject * self, PyObject * const * args, Py_ssize_t nargs)
+  {
+    Plant * plant = plant_of(self);
+    if (plant == nullptr || !check_arguments("steps", nargs, 8, 9))
+      return nullptr;
+    const double w_max = PyFloat_AsDouble(args[4]), dt = PyFloat_AsDouble(args[6]);
+    const long steps = PyLong_AsLong(args[7]);
+    if (PyErr_Occurred())
+      return nullptr;
+    if (!(dt > 0) || steps < 0)
+    {
+      PyErr_SetString(PyExc_ValueError, "steps: dt must be > 0 and steps >= 0");
+      return nullptr;
+    }
+    const int nq = plant_nq(plant), nv = plant_nv(plant), frames = plant_frames(plant);
+    PyArrayObject *q = nullptr, *v = nullptr, *w = nullptr, *wc = nullptr, *decay = nullptr, *wind = nullptr;
+    PyObject * result = nullptr;
+    npy_intp nw = 0;
+    long done = 0;
+    StepStatus status = STEPS_DONE;
+    if ((q = input(args[0], nq, "q")) == nullptr || (v = input(args[1], nv, "v")) == nullptr
+        || (w = input(args[2], plant_nw(plant), "w")) == nullptr)
+      goto end;
+    nw = PyArray_SIZE(w);
+    if ((wc = input(args[3], nw, "w_command")) == nullptr || (decay = input(args[5], 3, "decay")) == nullptr)
+      goto end;
+    if (!PyArray_SAMESHAPE(w, wc))
+    {
+      PyErr_SetString(PyExc_ValueError, "steps: w_command must have w's shape");
+      goto end;
+    }
+    if (nargs == 9 && args[8] != Py_None && (wind = input(args[8], 3 * (npy_intp)frames, "wind")) == nullptr)
+      goto end;
+    {
+      npy_intp q_dims[1] = {nq}, v_dims[1] = {nv};
+      PyArrayObject *q_out = output(1, q_dims, data(q)), *v_out = output(1, v_dims, data(v)),
+                    *w_out = output(PyArray_NDIM(w), PyArray_DIMS(w), data(w)),
+                    *command = output(PyArray_NDIM(w), PyArray_DIMS(w), data(wc));
+      if (q_out != nullptr && v_out != nullptr && w_out != nullptr && command != nullptr)
+      {
+        double * c = data(command);
+        for (npy_intp r = 0; r < nw; ++r) // saturated to [0, w_max] as Plant.saturate (NaN stays NaN)
+        {
+          if (c[r] < 0.0)
+            c[r] = 0.0;
+          if (c[r] > w_max)
+            c[r] = w_max;
+        }
+        try
+        {
+          status = plant_steps(plant, data(q_out), data(v_out), data(w_out), c, data(decay), dt, steps,
+                               wind == nullptr ? nullptr : data(wind), done);
+          result = Py_BuildValue("OOOli", q_out, v_out, w_out, done, (int)status);
+        }
+        catch (const std::exception & e)
+        {
+          PyErr_SetString(PyExc_RuntimeError, e.what());
+        }
+      }
+      Py_XDECREF(q_out);
+      Py_XDECREF(v_out);
+      Py_XDECREF(w_out);
+      Py_XDECREF(command);
+    }
+  end:
+    Py_XDECREF(q);
+    Py_XDECREF(v);
+    Py_XDECREF(w);
+    Py_XDECREF(wc);
+    Py_XDECREF(decay);
+    Py_XDECREF(wind);
+    return result;
+  }
+
+  PyObject * plant_dynamics_py(PyObject * self, PyObject * const * args, Py_ssize_t nargs)
+  {
+    Plant * plant = plant_of(self);
+    if (plant == nullptr || !check_arguments("dynamics", nargs, 3, 3))
+      return nullptr;
+    const int nq = plant_nq(plant), nv = plant_nv(plant);
+    PyArrayObject *q = input(args[0], nq, "q"), *v = q ? input(args[1], nv, "v") : nullptr,
+                  *tau = v ? input(args[2], nv, "tau") : nullptr, *a = nullptr;
+    if (tau != nullptr)
+    {
+      npy_intp dims[1] = {nv};
+      if ((a = output(1, dims)) != nullptr)
+      {
+        try
+        {
+          plant_dynamics(plant, data(q), data(v), data(tau), data(a));
+        }
+        catch (const std::exception & e)
+        {
+          PyErr_SetString(PyExc_RuntimeError, e.what());
+          Py_CLEAR(a);
+        }
+      }
+    }
+    Py_XDECREF(q);
+    Py_XDECREF(v);
+    Py_XDECREF(tau);
+    return reinterpret_cast<PyObject *>(a);
+  }
+
+  PyObject * plant_points_py(PyObject * self, PyObject * const * args, Py_ssize_t nargs)
+  {
+    Plant * plant = plant_of(self);
+    if (plant == nullptr || !check_arguments("points", nargs, 1, 1))
+      return nullptr;
+    PyArrayObject * q = input(args[0], plant_nq(plant), "q");
+    if (q == nullptr)
+      return nullptr;
+    npy_intp dims[2] = {plant_frames(plant), 3};
+    PyArrayObject * positions = output(2, dims);
+    PyObject * result = nullptr;
+    if (positions != nullptr)
+    {
+      double closure = 0.0;
+      try
+      {
+        if (plant_points(plant, data(q), data(positions), closure))
+          result = Py_BuildValue("Od", positions, closure);
+        else
+          result = Py_NewRef(Py_None);
+      }
+      catch (const std::exception & e)
+      {
+        PyErr_SetString(PyExc_RuntimeError, e.what());
+      }
+    }
+    Py_XDECREF(positions);
+    Py_DECREF(q);
+    return result;
+  }
+
+  PyMethodDef plant_methods[] = {
+    {"steps", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)()>(plant_steps_py)), METH_FASTCALL,
+     "RKMK4 steps: (q, v, w, w_command, w_max, decay, dt, steps, wind=None) -> (q, v, w, done, status)."},
+    {"dynamics", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)()>(plant_dynamics_py)), METH_FASTCALL,
+     "pinocchio::constraintDynamics at (q, v) under tau."},
+    {"points", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)()>(plant_points_py)), METH_FASTCALL,
+     "(frame positions, closure error) at q, or None when a closure is not a 3D point closure."},
+    {nullptr, nullptr, 0, nullptr}};
+
+  PyType_Slot plant_slots[] = {
+    {Py_tp_doc,
+     const_cast<char *>("The plant's steps on Pinocchio's constraint dynamics (fpr/_native/cpp/module.cpp).")},
+    {Py_tp_new, reinterpret_cast<void *>(PyType_GenericNew)},
+    {Py_tp_init, reinterpret_cast<void *>(plant_init)},
+    {Py_tp_dealloc, reinterpret_cast<void *>(plant_dealloc)},
+    {Py_tp_methods, plant_methods},
+    {0, nullptr}};
+
+  PyType_Spec plant_spec = {"fpr._native._pinocchio.Plant", sizeof(PlantObject), 0, Py_TPFLAGS_DEFAULT,
+                            plant_slots};
+
+  // ------------------------------------------------------------------ Minimal
+  struct MinimalObject
+  {
+    PyObject_HEAD Minimal * minimal;
+    PyObject * keep;
+  };
+
+  void minimal_dealloc(PyObject * self)
+  {
+    auto * p = reinterpret_cast<MinimalObject *>(self);
+    minimal_delete(p->minimal);
+    Py_XDECREF(p->keep);
+    Py_TYPE(self)->tp_free(self);
+  }
+
+  int minimal_init(PyObject * self, PyObject * args, PyObject * kwargs)
+  {
+    auto * p = reinterpret_cast<MinimalObject *>(self);
+    static const char * names[] = {"model", "data", "T", "frames", "constant_rows", "freeflyer_rows", "hinges",
+                                   nullptr};
+    PyObject *model, *data_obj, *t_obj, *frames_obj, *rows_obj, *ff_obj, *hinges_obj;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOO", const_cast<char **>(names), &model, &data_obj, &t_obj,
+                                     &frames_obj, &rows_obj, &ff_obj, &hinges_obj))
+      return -1;
+    try
+    {
+      Objects objects;
+      std::string error;
+      if (!extract(model, data_obj, Py_None, Py_None, Py_None, objects, error))
+      {
+        PyErr_SetString(PyExc_TypeError, error.c_str());
+        return -1;
+      }
+      std::vector<int> frames, freeflyer_rows, hinges;
+      if (!int_list(frames_obj, frames, "frames: expected a sequence of frame indices")
+          || !int_list(ff_obj, freeflyer_rows, "freeflyer_rows: expected a sequence of rows")
+          || !int_list(hinges_obj, hinges, "hinges: expected a sequence of joint indices"))
+        return -1;
+      PyArrayObject *T = input(t_obj, -1, "T"), *rows = T ? input(rows_obj, -1, "constant_rows") : nullptr;
+      Minimal * minimal = nullptr;
+      if (rows != nullptr)
+      {
+        if (PyArray_NDIM(T) != 2 || PyArray_NDIM(rows) != 2 || PyArray_DIM(rows, 1) != PyArray_DIM(T, 1)
+            || PyArray_DIM(T, 0) != model_nq(objects))
+          error = "T must be (the model's nq, n) and constant_rows (rows, n)";
+        else
+          minimal = minimal_new(objects, data(T), (int)PyArray_DIM(T, 1), frames, data(rows),
+                                (int)PyArray_DIM(rows, 0), freeflyer_rows, hinges, error);
+        if (minimal == nullptr)
+          PyErr_SetString(PyExc_ValueError, error.c_str());
+      }
+      Py_XDECREF(T);
+      Py_XDECREF(rows);
+      if (minimal == nullptr)
+        return -1;
+      minimal_delete(p->minimal);
+      p->minimal = minimal;
+      Py_XDECREF(p->keep);
+      p->keep = PyTuple_Pack(2, model, data_obj);
+      if (p->keep == nullptr)
+        return -1;
+      return 0;
+    }
+    catch (const std::exception & e)
+    {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
+      return -1;
+    }
+  }
+
+  Minimal * minimal_of(PyObject * self)
+  {
+    Minimal * minimal = reinterpret_cast<MinimalObject *>(self)->minimal;
+    if (minimal == nullptr)
+      PyErr_SetString(PyExc_RuntimeError, "Minimal: not initialised");
+    return minimal;
+  }
+
+  PyObject * minimal_frame_terms_py(PyObject * self, PyObject * const * args, Py_ssize_t nargs)
+  {
+    Minimal * minimal = minimal_of(self);
+    if (minimal == nullptr || !check_arguments("frame_terms", nargs, 2, 2))
+      return nullptr;
+    const int n = minimal_n(minimal), nv = minimal_nv(minimal), count = minimal_frames(minimal);
+    PyArrayObject *q = input(args[0], n, "q"), *v = q ? input(args[1], n, "v") : nullptr;
+    PyObject * result = nullptr;
+    if (v != nullptr)
+    {
+      npy_intp m_dims[2] = {nv, nv}, j_dims[3] = {count, 6, nv};
+      PyArrayObject *m = output(2, m_dims), *nle = output(1, m_dims), *jac = output(3, j_dims);
+      PyObject * jacobians = PyTuple_New(count);
+      if (m != nullptr && nle != nullptr && jac != nullptr && jacobians != nullptr)
+      {
+        try
+        {
+          minimal_frame_terms(minimal, data(q), data(v), data(m), data(nle), data(jac));
+          bool ok = true;
+          for (int f = 0; f < count && ok; ++f)
+          {
+            PyObject * item = PySequence_GetItem(reinterpret_cast<PyObject *>(jac), f);
+            ok = item != nullptr;
+            if (ok)
+              PyTuple_SET_ITEM(jacobians, f, item);
+          }
+          if (ok)
+            result = Py_BuildValue("OOO", m, nle, jacobians);
+        }
+        catch (const std::exception & e)
+        {
+          PyErr_SetString(PyExc_RuntimeError, e.what());
+        }
+      }
+      Py_XDECREF(m);
+      Py_XDECREF(nle);
+      Py_XDECREF(jac);
+      Py_XDECREF(jacobians);
+    }
+    Py_XDECREF(q);
+    Py_XDECREF(v);
+    return result;
+  }
+
+  PyObject * minimal_velocity_py(PyObject * self, PyObject * const * args, Py_ssize_t nargs)
+  {
+    Minimal * minimal = minimal_of(self);
+    if (minimal == nullptr || !check_arguments("velocity", nargs, 2, 2))
+      return nullptr;
+    const int n = minimal_n(minimal);
+    PyArrayObject *q = input(args[0], n, "q"), *vc = q ? input(args[1], minimal_rows(minimal), "vc") : nullptr;
+    PyObject * result = nullptr;
+    if (vc != nullptr)
+    {
+      npy_intp dims[1] = {n};
+      PyArrayObject * v = output(1, dims);
+      if (v != nullptr)
+      {
+        try
+        {
+          result = minimal_velocity(minimal, data(q), data(vc), data(v)) ? Py_NewRef(reinterpret_cast<PyObject *>(v))
+                                                                         : Py_NewRef(Py_None);
+        }
+        catch (const std::exception & e)
+        {
+          PyErr_SetString(PyExc_RuntimeError, e.what());
+        }
+        Py_DECREF(v);
+      }
+    }
+    Py_XDECREF(q);
+    Py_XDECREF(vc);
+    return result;
+  }
+
+  PyMethodDef minimal_methods[] = {
+    {"frame_terms", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)()>(minimal_frame_terms_py)),
+     METH_FASTCALL, "(M, nle, frame Jacobians (LOCAL)) at (T q, T v)."},
+    {"velocity", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)()>(minimal_velocity_py)), METH_FASTCALL,
+     "Least-squares v of K(q) v = vc, or None when K^T K is not positive definite."},
+    {nullptr, nullptr, 0, nullptr}};
+
+  PyType_Slot minimal_slots[] = {
+    {Py_tp_doc,
+     const_cast<char *>("The minimal model's terms by Pinocchio's algorithms (fpr/_native/cpp/module.cpp).")},
+    {Py_tp_new, reinterpret_cast<void *>(PyType_GenericNew)},
+    {Py_tp_init, reinterpret_cast<void *>(minimal_init)},
+    {Py_tp_dealloc, reinterpret_cast<void *>(minimal_dealloc)},
+    {Py_tp_methods, minimal_methods},
+    {0, nullptr}};
+
+  PyType_Spec minimal_spec = {"fpr._native._pinocchio.Minimal", sizeof(MinimalObject), 0, Py_TPFLAGS_DEFAULT,
+                              minimal_slots};
+
+  // ------------------------------------------------------------------ Measure
+  struct MeasureObject
+  {
+    PyObject_HEAD Measure * measure;
+    PyObject * keep;
+  };
+
+  void measure_dealloc(PyObject * self)
+  {
+    auto * p = reinterpret_cast<MeasureObject *>(self);
+    measure_delete(p->measure);
+    Py_XDECREF(p->keep);
+    Py_TYPE(self)->tp_free(self);
+  }
+
+  bool homogeneous(PyObject * obj, double * out, const char * what)
+  {
+    PyArrayObject * a = input(obj, 16, what);
+    if (a == nullptr)
+      return false;
+    std::copy(data(a), data(a) + 16, out);
+    Py_DECREF(a);
+    return true;
+  }
+
+  bool euler_reads(PyObject * sequence, std::vector<EulerRead> & out)
+  {
+    PyObject * fast = PySequence_Fast(sequence, "eulers: expected a sequence of tuples");
+    if (fast == nullptr)
+      return false;
+    bool ok = true;
+    for (Py_ssize_t k = 0; ok && k < PySequence_Fast_GET_SIZE(fast); ++k)
+    {
+      EulerRead e;
+      PyObject *a, *b;
+      ok = PyArg_ParseTuple(PySequence_Fast_GET_ITEM(fast, k), "iOO(iii)(iii)(iii)", &e.joint, &a, &b,
+                            &e.translation[0], &e.translation[1], &e.translation[2], &e.euler[0], &e.euler[1],
+                            &e.euler[2], &e.reference[0], &e.reference[1], &e.reference[2])
+           && homogeneous(a, e.A, "eulers: A") && homogeneous(b, e.B, "eulers: B");
+      if (ok)
+        out.push_back(e);
+    }
+    Py_DECREF(fast);
+    return ok;
+  }
+
+  bool angle_reads(PyObject * sequence, std::vector<AngleRead> & out)
+  {
+    PyObject * fast = PySequence_Fast(sequence, "angles: expected a sequence of tuples");
+    if (fast == nullptr)
+      return false;
+    bool ok = true;
+    for (Py_ssize_t k = 0; ok && k < PySequence_Fast_GET_SIZE(fast); ++k)
+    {
+      AngleRead a;
+      PyObject * p;
+      ok = PyArg_ParseTuple(PySequence_Fast_GET_ITEM(fast, k), "iOii", &a.joint, &p, &a.other, &a.index)
+           && homogeneous(p, a.P, "angles: P");
+      if (ok)
+        out.push_back(a);
+    }
+    Py_DECREF(fast);
+    return ok;
+  }
+
+  bool double_list(PyObject * sequence, std::vector<double> & out, const char * what)
+  {
+    PyArrayObject * a = input(sequence, -1, what);
+    if (a == nullptr)
+      return false;
+    out.assign(data(a), data(a) + PyArray_SIZE(a));
+    Py_DECREF(a);
+    return true;
+  }
+
+  int measure_init(PyObject * self, PyObject * args, PyObject * kwargs)
+  {
+    auto * p = reinterpret_cast<MeasureObject *>(self);
+    static const char * names[] = {"model",  "data",   "minimal", "nqp",   "closed_q", "source", "sign",
+                                   "eulers", "angles", "T_inv",   "angular", nullptr};
+    PyObject *model, *data_obj, *minimal_obj, *closed_obj, *source_obj, *sign_obj, *eulers_obj, *angles_obj,
+      *t_obj, *angular_obj;
+    int nqp = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOiOOOOOOO", const_cast<char **>(names), &model, &data_obj,
+                                     &minimal_obj, &nqp, &closed_obj, &source_obj, &sign_obj, &eulers_obj,
+                                     &angles_obj, &t_obj, &angular_obj))
+      return -1;
+    PyObject * module = PyImport_ImportModule("fpr._native._pinocchio");
+    if (module == nullptr)
+      return -1;
+    PyObject * minimal_type = PyObject_GetAttrString(module, "Minimal");
+    Py_DECREF(module);
+    if (minimal_type == nullptr)
+      return -1;
+    const int is_minimal = PyObject_IsInstance(minimal_obj, minimal_type);
+    Py_DECREF(minimal_type);
+    if (is_minimal != 1)
+    {
+      if (is_minimal == 0)
+        PyErr_SetString(PyExc_TypeError, "minimal: expected a fpr._native._pinocchio.Minimal");
+      return -1;
+    }
+    Minimal * minimal = reinterpret_cast<MinimalObject *>(minimal_obj)->minimal;
+    if (minimal == nullptr)
+    {
+      PyErr_SetString(PyExc_RuntimeError, "minimal: not initialised");
+      return -1;
+    }
+    try
+    {
+      Objects objects;
+      std::string error;
+      if (!extract(model, data_obj, Py_None, Py_None, Py_None, objects, error))
+      {
+        PyErr_SetString(PyExc_TypeError, error.c_str());
+        return -1;
+      }
+      std::vector<int> closed_q, source, angular;
+      std::vector<double> sign;
+      std::vector<EulerRead> eulers;
+      std::vector<AngleRead> angles;
+      if (!int_list(closed_obj, closed_q, "closed_q: expected a sequence of indices")
+          || !int_list(source_obj, source, "source: expected a sequence of indices")
+          || !double_list(sign_obj, sign, "sign") || !euler_reads(eulers_obj, eulers)
+          || !angle_reads(angles_obj, angles) || !int_list(angular_obj, angular, "angular: expected indices"))
+        return -1;
+      PyArrayObject * T = input(t_obj, -1, "T_inv");
+      if (T == nullptr)
+        return -1;
+      Measure * measure = nullptr;
+      if (PyArray_NDIM(T) != 2 || PyArray_DIM(T, 1) != nqp)
+        error = "T_inv must be (n, nqp)";
+      else
+        measure = measure_new(objects, minimal, nqp, closed_q, source, sign, eulers, angles, data(T),
+                              (int)PyArray_DIM(T, 0), angular, error);
+      Py_DECREF(T);
+      if (measure == nullptr)
+      {
+        PyErr_SetString(PyExc_ValueError, error.c_str());
+        return -1;
+      }
+      measure_delete(p->measure);
+      p->measure = measure;
+      Py_XDECREF(p->keep);
+      p->keep = PyTuple_Pack(3, model, data_obj, minimal_obj);
+      return p->keep == nullptr ? -1 : 0;
+    }
+    catch (const std::exception & e)
+    {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
+      return -1;
+    }
+  }
+
+  PyObject * measure_py(PyObject * self, PyObject * const * args, Py_ssize_t nargs)
+  {
+    Measure * m = reinterpret_cast<MeasureObject *>(self)->measure;
+    if (m == nullptr)
+    {
+      PyErr_SetString(PyExc_RuntimeError, "Measure: not initialised");
+      return nullptr;
+    }
+    if (!check_arguments("measure", nargs, 3, 3))
+      return nullptr;
+    const int n = measure_n(m);
+    PyArrayObject *qc = input(args[0], measure_nq(m), "qc"), *vc = qc ? input(args[1], measure_nv(m), "vc") : nullptr,
+                  *ref = vc ? input(args[2], n, "reference") : nullptr;
+    PyObject * result = nullptr;
+    if (ref != nullptr)
+    {
+      npy_intp dims[1] = {n};
+      PyArrayObject *q = output(1, dims), *v = output(1, dims);
+      if (q != nullptr && v != nullptr)
+      {
+        try
+        {
+          result = measure(m, data(qc), data(vc), data(ref), data(q), data(v)) ? Py_BuildValue("OO", q, v)
+                                                                                : Py_NewRef(Py_None);
+        }
+        catch (const std::exception & e)
+        {
+          PyErr_SetString(PyExc_RuntimeError, e.what());
+        }
+      }
+      Py_XDECREF(q);
+      Py_XDECREF(v);
+    }
+    Py_XDECREF(qc);
+    Py_XDECREF(vc);
+    Py_XDECREF(ref);
+    return result;
+  }
+
+  PyMethodDef measure_methods[] = {
+    {"measure", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)()>(measure_py)), METH_FASTCALL,
+     "(q, v) in thesis coordinates at (qc, vc), angles within pi of the reference; None: the Python path decides."},
+    {nullptr, nullptr, 0, nullptr}};
+
+  PyType_Slot measure_slots[] = {
+    {Py_tp_doc, const_cast<char *>("The closed loop's measurement (fpr/_native/cpp/module.cpp).")},
+    {Py_tp_new, reinterpret_cast<void *>(PyType_GenericNew)},
+    {Py_tp_init, reinterpret_cast<void *>(measure_init)},
+    {Py_tp_dealloc, reinterpret_cast<void *>(measure_dealloc)},
+    {Py_tp_methods, measure_methods},
+    {0, nullptr}};
+
+  PyType_Spec measure_spec = {"fpr._native._pinocchio.Measure", sizeof(MeasureObject), 0, Py_TPFLAGS_DEFAULT,
+                              measure_slots};
+
+  PyModuleDef module_def = {PyModuleDef_HEAD_INIT, "fpr._native._pinocchio",
+                            "The closed loop's calls of Pinocchio's C++ library (fpr/_native/cpp).", -1, nullptr,
+                            nullptr, nullptr, nullptr, nullptr};
+
+} // namespace
+
+PyMODINIT_FUNC PyInit__pinocchio(void)
+{
+  import_array();
+  PyObject * module = PyModule_Create(&module_def);
+  if (module == nullptr)
+    return nullptr;
+  PyObject * plant = PyType_FromSpec(&plant_spec);
+  PyObject * minimal = plant ? PyType_FromSpec(&minimal_spec) : nullptr;
+  if (minimal == nullptr || PyModule_AddObject(module, "Plant", plant) < 0)
+  {
+    Py_XDECREF(plant);
+    Py_XDECREF(minimal);
+    Py_DECREF(module);
+    return nullptr;
+  }
+  if (PyModule_AddObject(module, "Minimal", minimal) < 0)
+  {
+    Py_DECREF(minimal);
+    Py_DECREF(module);
+    return nullptr;
+  }
+  PyObject * measure = PyType_FromSpec(&measure_spec);
+  if (measure == nullptr || PyModule_AddObject(module, "Measure", measure) < 0)
+  {
+    Py_XDECREF(measure);
+    Py_DECREF(module);
+    return nullptr;
+  }
+  if (PyModule_AddStringConstant(module, "PINOCCHIO_VERSION", fpr_native::pinocchio_version()) < 0)
+  {
+    Py_DECREF(module);
+    return nullptr;
+  }
+  return module;
+}
