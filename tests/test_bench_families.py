@@ -1,6 +1,7 @@
 """Planning families of missions (fpr.bench.families) and the bench's planning and scaling sections built on
 them (fpr.cli.bench.families, fpr.cli.bench.scaling): statistics, the comparison with the unpolished two-step,
-the goals and the tables."""
+the goals and the tables.
+"""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from fpr.bench.families import FamilyRow, plan_family, unpolished_comparison
 from fpr.bench.missions import MissionFamily
 from fpr.bench.tables import families_markdown, main, scaling_markdown
 from fpr.cli.bench.cli import parser
-from fpr.cli.bench.families import family_seeds, families_table
+from fpr.cli.bench.families import families_table, family_seeds
 from fpr.cli.bench.scaling import EXPONENT_GOAL, _by_robot, _targets, growth_exponent, scaling_table
 from planners.optimize import plan
 
@@ -25,7 +26,8 @@ def rows():
 
 def test_a_family_is_planned_seed_by_seed_by_both_methods(rows):
     """One row per method, one entry per seed; feasible plans, J below the stop motion's (1), the statistics
-    from the times, and a J no worse than the unpolished two-step's on its grid (the polish keeps the better)."""
+    from the times, and a J no worse than the unpolished two-step's on its grid (the polish keeps the better).
+    """
     assert [r.method for r in rows] == ["two-step", "one-step"]
     for r in rows:
         assert r.seeds == [0, 1] and len(r.times_s) == len(r.J) == len(r.J_grid) == 2
@@ -70,7 +72,7 @@ def test_scaling_rows_goals_and_table():
     rows = []
     for count in (4, 8, 16):
         for method, power in (("two-step", 1.0), ("one-step", 1.5)):
-            for space in ("task", "joint"):
+            for _space in ("task", "joint"):
                 rows.append(dict(robot="prototype", way_points=count, method=method, times_s=[0.01 * count**power],
                                  J=[0.5], failures=0))
     summary = _by_robot(rows)
@@ -114,7 +116,8 @@ def test_documentation_tables_come_from_the_json(rows, tmp_path, capsys):
     scaling = dict(members=2, yardstick=families["yardstick"], load_average_before=[1.0], load_average_after=[1.0],
                    robots=[dict(robot="fpr", way_points=8, method=m, median_s=0.5, p95_s=0.7, failures=0)
                            for m in ("two-step", "one-step")],
-                   loop=[dict(way_points=8, method=m, wall_time_s=0.2, feasible=True) for m in ("two-step", "one-step")],
+                   loop=[dict(way_points=8, method=m, wall_time_s=0.2, feasible=True)
+                         for m in ("two-step", "one-step")],
                    exponents=[dict(robot="fpr", method="two-step", exponent=1.01)])
     assert "| fpr | 8 | 500 ms (700 ms) | 500 ms (700 ms) | 0 |" in scaling_markdown(scaling)
     path = tmp_path / "bench.json"

@@ -1,6 +1,7 @@
 """Seeded families of random missions (fpr.bench.missions): reproducible, inside the robot's region and
 workspace, travel times derived from the stop motion's feasibility (checked on the 500 Hz grid), and open to a
-robot of one's own."""
+robot of one's own.
+"""
 
 from __future__ import annotations
 
@@ -9,8 +10,14 @@ import pytest
 from robots.unequal_fpr.robot import UnequalFpr
 
 import fpr.robots
-from fpr.bench.missions import (MissionFamily, MissionRegionError, _stop_feasible, builtin_families,
-                                least_stop_times, random_mission)
+from fpr.bench.missions import (
+    MissionFamily,
+    MissionRegionError,
+    _stop_feasible,
+    builtin_families,
+    least_stop_times,
+    random_mission,
+)
 from fpr.model.errors import PlannerArgumentError
 from planners.missions.mission import Mission
 from planners.problem.report import evaluate_motion
@@ -33,7 +40,8 @@ def test_builtin_families_cover_each_robots_spaces_and_modes():
 def test_a_familys_mission_is_reproducible_valid_and_feasible_to_stop(loaded, index):
     """Same seed, same mission; another seed, another; every way point in the region and the workspace (the
     mission's own check), via points in range, and the stop-at-way-points motion feasible on the 500 Hz grid with
-    its travel times at least 1.1 times the least feasible ones."""
+    its travel times at least 1.1 times the least feasible ones.
+    """
     family = builtin_families(7)[index]
     robot = loaded[family.robot]
     mission = family.mission(3, robot)
@@ -51,7 +59,8 @@ def test_a_familys_mission_is_reproducible_valid_and_feasible_to_stop(loaded, in
 
 def test_least_stop_time_is_the_feasibility_border(loaded):
     """The least feasible time of each travel: its stop motion holds every constraint there (on the search grid)
-    and not 2 % faster (the search's precision is 1 %)."""
+    and not 2 % faster (the search's precision is 1 %).
+    """
     robot = loaded["fpr"]
     poses = builtin_families(5)[0].mission(1, robot).positions(robot)
     least = least_stop_times(robot, poses)
@@ -79,7 +88,8 @@ def test_settings_are_checked_and_a_region_is_needed():
 
 def test_a_robot_of_ones_own_gets_families():
     """A registered robot kind with a mission region (here inherited from the FPR's) gets random missions of
-    its own, feasible to stop at every way point with its own links."""
+    its own, feasible to stop at every way point with its own links.
+    """
     fpr.robots.register(UnequalFpr)
     try:
         robot = fpr.robots.load("unequal_fpr")

@@ -1,6 +1,7 @@
 """What happens between the optimisation grid's nodes: the dynamic rows' parabola vertices
 (planners.problem.motion.between_node_minima) with their exact derivatives, and the two-step method's
-refinement of a plan that fails the dense check by its polish alone."""
+refinement of a plan that fails the dense check by its polish alone.
+"""
 
 from __future__ import annotations
 
@@ -17,7 +18,8 @@ from planners.problem.motion import between_node_minima
 
 def test_a_quadratic_dip_between_nodes_is_found_exactly():
     """A row that is a parabola of time with its vertex between two nodes: the node that owns the vertex takes
-    the vertex's value and offset; rows that do not dip, and the skipped columns, are left as they are."""
+    the vertex's value and offset; rows that do not dip, and the skipped columns, are left as they are.
+    """
     k = 9
     t = np.arange(k, dtype=float)
     dip = 0.3 * (t - 3.4) ** 2 - 0.1  # vertex at 3.4 spacings: node 3 owns it (tau = 0.4)
@@ -36,7 +38,8 @@ def test_a_quadratic_dip_between_nodes_is_found_exactly():
 
 def test_rows_between_nodes_have_exact_derivatives():
     """The constraints' Jacobian (the Lagrange weights at each vertex times its nodes' derivatives) against
-    central finite differences, on a fast random mission where rows dip between nodes."""
+    central finite differences, on a fast random mission where rows dip between nodes.
+    """
     mission = MissionFamily("prototype", 4, via_points=(1, 1), time_range=(1.1, 1.1)).mission(1)
     problem = one_step_problem(WayPointTask.of(mission, mission.load_robot()), Grid())
     rng = np.random.default_rng(0)
@@ -58,7 +61,8 @@ def test_rows_between_nodes_have_exact_derivatives():
 
 def test_a_two_step_plan_that_fails_the_dense_check_is_refined_by_its_polish():
     """A random prototype mission whose rotor speeds peak between the nodes: the refined attempt is the polish
-    alone on the grid twice as fine (not both steps again), and the plan holds on the 500 Hz grid."""
+    alone on the grid twice as fine (not both steps again), and the plan holds on the 500 Hz grid.
+    """
     mission = MissionFamily("prototype", 32, space="joint", arm="down").mission(1)
     result = plan(mission, "two-step")
     refined = [st.name for st in result.stages if "refined" in st.name]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planners.methods.way_points import WayPointTask
 from fpr.bench.missions import LOOP_RADIUS, loop_mission, loop_way_points
+from planners.methods.way_points import WayPointTask
 from planners.problem.report import evaluate_motion
 
 
@@ -14,7 +14,8 @@ from planners.problem.report import evaluate_motion
 @pytest.mark.parametrize("count", [2, 5, 13])
 def test_loop_missions_are_valid_and_alike_travel_by_travel(count):
     """Every way point on the circle, every travel a 0.5 m chord in 1.5 s (the square's 3 s per metre),
-    the robot reaches every way point, and the stop-at-every-way-point motion holds every constraint."""
+    the robot reaches every way point, and the stop-at-every-way-point motion holds every constraint.
+    """
     mission = loop_mission(count, via_points=2)
     robot = mission.load_robot()
     s = mission.positions(robot)  # raises on an unreachable or singular way point

@@ -1,5 +1,6 @@
 """The SQP's step QP: banded matrices (planners.problem.banded), the active set (planners.optimisation.active_set)
-and the interior-point route (planners.optimisation.interior_point), each against an independent solver."""
+and the interior-point route (planners.optimisation.interior_point), each against an independent solver.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +9,6 @@ import dataclasses
 import numpy as np
 import pytest
 from scipy import sparse
-from scipy.optimize import minimize
 
 from fpr.bench.missions import loop_mission
 from fpr.model.qp import proxsuite_module
@@ -101,7 +101,7 @@ def test_banded_scatter_sums_at_the_flat_indices():
     values = np.array([1.0, 2.0, 3.0, 4.0, 5.0])
     m = np.asarray(Banded.scatter(values, Banded.flat_index(rows, cols, n, b), n, b))
     expected = np.zeros((n, n))
-    for r, c, v in zip(rows, cols, values):
+    for r, c, v in zip(rows, cols, values, strict=True):
         expected[r, c] += v
         if r != c:
             expected[c, r] += v
@@ -112,7 +112,8 @@ def test_banded_scatter_sums_at_the_flat_indices():
 @pytest.fixture(scope="module")
 def long_evaluation():
     """The 1-step NLP of 10 way points (1 via point a travel: 308 variables) and its evaluation with
-    derivatives at a point near its start."""
+    derivatives at a point near its start.
+    """
     mission = loop_mission(10, 1)
     task = WayPointTask.of(mission, mission.load_robot())
     problem = one_step_problem(task, Grid())
@@ -123,7 +124,8 @@ def long_evaluation():
 
 def test_the_problems_band_holds_its_whole_hessian(long_evaluation):
     """The powers' Gauss-Newton sum assembled segment by segment into the band is the one from the powers'
-    Jacobian (an independent product); the band's width does not depend on the mission's length."""
+    Jacobian (an independent product); the band's width does not depend on the mission's length.
+    """
     problem, ev = long_evaluation
     assert isinstance(ev.hessian, Banded) and ev.hessian.bandwidth < 40  # two points' 20 entries
     weight = np.random.default_rng(2).random(ev.power.size)
@@ -140,7 +142,8 @@ def test_the_problems_band_holds_its_whole_hessian(long_evaluation):
 @pytest.mark.parametrize("seed", range(4))
 def test_active_set_banded_and_dense_routes_give_the_optimum(seed):
     """Banded H with CSR rows, and the arrays: the same step, multipliers and active set, at ProxQP's
-    optimum; the step holds every row, and the multipliers satisfy the KKT conditions."""
+    optimum; the step holds every row, and the multipliers satisfy the KKT conditions.
+    """
     h, g, rows, lower = _banded_qp(seed=seed)
     radius = 0.5
     banded = solve_step_qp(Banded.from_dense(h), g, sparse.csr_matrix(rows), lower, radius)
@@ -175,7 +178,8 @@ def test_active_set_warm_start_and_shift():
 @pytest.mark.parametrize("seed", range(12))
 def test_elastic_rows_are_an_l1_penalty(seed):
     """Rows violated at d = 0 with a cap: the minimiser of the QP plus cap * violation (ProxQP with explicit
-    slacks), by the active set or, where it gives up, the interior point; rows without a cap hold."""
+    slacks), by the active set or, where it gives up, the interior point; rows without a cap hold.
+    """
     rng = np.random.default_rng(seed)
     n, m = int(rng.integers(3, 10)), int(rng.integers(2, 10))
     q = rng.normal(size=(n, n))
@@ -229,7 +233,8 @@ def test_interior_point_banded_and_dense_routes_give_the_optimum(seed):
 @pytest.fixture(scope="module")
 def long_qp(long_evaluation):
     """The step QP of the 1-step NLP of 10 way points at a point near its start, as the SQP builds it (rows
-    that can become active, scaled to unit infinity norm), its model's H banded."""
+    that can become active, scaled to unit infinity norm), its model's H banded.
+    """
     _, ev = long_evaluation
     hess = smoothed_hessian(ev)
     radius = 0.5
@@ -242,7 +247,8 @@ def long_qp(long_evaluation):
 
 def test_both_routes_on_a_long_missions_qp_reach_the_optimum(long_qp):
     """On a real long mission's QP (hundreds of bounds can bind) both routes answer, hold every row and end at
-    ProxQP's optimum (dense backend, tight tolerance)."""
+    ProxQP's optimum (dense backend, tight tolerance).
+    """
     hess, g, rows, lower, radius = long_qp
     shift = 1e-9 * hess.trace() / hess.n
     dense = np.asarray(hess) + shift * np.eye(hess.n)
@@ -260,7 +266,8 @@ def test_sqp_step_on_a_long_mission(long_evaluation, violated, radius):
     """The SQP's step QP on a long mission, at a feasible point and with ``violated`` constraints violated
     (their slacks elastic): a step, the multipliers >= 0, the violated rows' multipliers at most the penalty,
     the KKT residual of the QP's multipliers computable from the sparse Jacobian; the same from the start of
-    its own active set."""
+    its own active set.
+    """
     _, ev = long_evaluation
     if violated:
         c = ev.constraints.copy()

@@ -84,8 +84,8 @@ class FamilyRow:
     @property
     def worse_than_unpolished(self) -> int:
         """Plans whose grid J exceeds the unpolished two-step motion's by more than :data:`SAME_J_RTOL`."""
-        return int(sum(j > u * (1.0 + SAME_J_RTOL) for j, u in zip(self.J_grid, self.J_unpolished_grid)
-                       if np.isfinite(j) and np.isfinite(u)))
+        pairs = zip(self.J_grid, self.J_unpolished_grid, strict=True)
+        return int(sum(j > u * (1.0 + SAME_J_RTOL) for j, u in pairs if np.isfinite(j) and np.isfinite(u)))
 
     def summary(self) -> dict:
         """The row as plain types, with its statistics (for JSON)."""

@@ -73,7 +73,8 @@ class _RowGroups:
     def _groups(rows, starts, lengths) -> list[tuple[np.ndarray, list[int]]]:
         """(columns, rows) of each set of rows with the same columns. Rows are first sorted by (first column,
         last column, count), then each candidate group is checked entry by entry (a planning NLP's rows of one
-        segment share its columns); a group that fails the check is split row by row."""
+        segment share its columns); a group that fails the check is split row by row.
+        """
         m = rows.shape[0]
         if m == 0:
             return []
@@ -110,7 +111,8 @@ class _RowGroups:
 @dataclass
 class _Iterate:
     """The interior point's variables: d, the rows' slacks s and multipliers z, the elastic rows' violations e and
-    the multipliers y = c - z of e >= 0, the box's slacks t (d + Delta, Delta - d) and their multipliers u."""
+    the multipliers y = c - z of e >= 0, the box's slacks t (d + Delta, Delta - d) and their multipliers u.
+    """
 
     d: np.ndarray
     s: np.ndarray
@@ -154,7 +156,8 @@ def _longest(pairs) -> float:
 
 def _direction(point: _Iterate, residuals: tuple, weights, solve, rows, elastic, targets) -> _Iterate:
     """The Newton step of the KKT conditions with complementarity targets ``targets`` = (s z, e y, t_l u_l,
-    t_h u_h): the reduced system for d (module docstring), then every other variable row by row."""
+    t_h u_h): the reduced system for d (module docstring), then every other variable row by row.
+    """
     r_dual, r_primal, r_elastic, r_low, r_high = residuals
     row_weight = weights
     p = point

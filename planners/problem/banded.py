@@ -42,7 +42,8 @@ class Banded:
     @classmethod
     def from_dense(cls, matrix, bandwidth: int | None = None) -> Banded:
         """The band of a symmetric ``matrix`` (its upper triangle is read); ``bandwidth`` default: the largest
-        offset of a non-zero."""
+        offset of a non-zero.
+        """
         a = np.asarray(matrix, dtype=float)
         n = a.shape[0]
         if bandwidth is None:
@@ -57,7 +58,8 @@ class Banded:
     @staticmethod
     def flat_index(rows, cols, n: int, bandwidth: int) -> np.ndarray:
         """Where entry (rows, cols) of an n x n matrix sits in the flat band of ``bandwidth`` (rows <= cols,
-        cols - rows <= bandwidth): what :meth:`scatter` adds at."""
+        cols - rows <= bandwidth): what :meth:`scatter` adds at.
+        """
         rows, cols = np.asarray(rows), np.asarray(cols)
         return (bandwidth - (cols - rows)) * n + cols
 

@@ -1,6 +1,7 @@
 """What an evaluation of the planning NLP gives (:class:`Evaluation`), the cache of the last one
 (:func:`cached_evaluation`), and the store through which the problems of one plan share their grid nodes'
-derivatives (:class:`NodeDerivatives`); the NLP itself is :class:`planners.problem.motion.MotionProblem`."""
+derivatives (:class:`NodeDerivatives`); the NLP itself is :class:`planners.problem.motion.MotionProblem`.
+"""
 
 from __future__ import annotations
 
@@ -132,7 +133,8 @@ class NodeDerivatives:
 
     def get(self, points, durations, k: int) -> list | None:
         """The data of every segment of a motion (``points``, ``durations``, ``k`` nodes per segment), or
-        None when one of them is not in the store."""
+        None when one of them is not in the store.
+        """
         found = []
         for i, d in enumerate(durations):
             ends = points[i:i + 2]

@@ -119,7 +119,8 @@ def run_families(quick: bool, progress: bool) -> dict:
 
 def families_table(families: dict) -> str:
     """The families part as text: one line per family and method, the robots' lines, the loop, the yardstick (the
-    goals are the planning section's, printed with its other goals)."""
+    goals are the planning section's, printed with its other goals).
+    """
     lines = [f"planning families: random missions of {families['way_points']} way points, "
              f"{families['seeds_per_robot']} a robot (fpr.bench.missions); yardstick {families['yardstick']['name']} "
              f"{families['yardstick']['median_s'] * 1e6:.2f} us",
