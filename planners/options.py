@@ -13,7 +13,7 @@ from typing import Protocol
 
 from fpr.model.errors import PlannerArgumentError
 from planners.result import PlanResult
-from planners.optimisation.solving import Grid
+from planners.optimisation.solving import GRID_FEASIBILITY, Grid
 from planners.optimisation.sqp import SqpOptions
 
 #: The starts of the one-step method (``PlanOptions.one_step_start``).
@@ -91,10 +91,19 @@ class PlanOptions:
 
     @property
     def sqp_options(self) -> SqpOptions:
-        """The :class:`~planners.optimisation.sqp.SqpOptions` of these options."""
+        """The :class:`~planners.optimisation.sqp.SqpOptions` of these options.
+
+        A stage's accepted violation is the planner's grid feasibility
+        (:data:`planners.optimisation.solving.GRID_FEASIBILITY`, what the methods and the grid refinement count as
+        holding the grid; the dense check decides the plan's feasibility): along curved active rows the accepted
+        steps of a converging SQP leave violations of a few 1e-7 (their linearisation's second-order error), and
+        a stricter threshold kept the SQP crawling at a radius of 1e-4 for tens of iterations without changing J
+        in its fourth digit.
+        """
         return SqpOptions(max_iterations=self.max_iterations, tolerance=self.tolerance, stop=self.stop,
                           kkt_tolerance=self.kkt_tolerance, curvature=self.curvature,
-                          second_order=self.stop == "kkt" or self.curvature == "composite")
+                          second_order=self.stop == "kkt" or self.curvature == "composite",
+                          feasibility=GRID_FEASIBILITY)
 
 
 class PlanningMethod(Protocol):

@@ -32,7 +32,7 @@ print(json.dumps({
     "points": [float(v).hex() for v in trajectory.points.reshape(-1)],
     "durations": [float(v).hex() for v in trajectory.durations],
     "J": [float(outcome.report.J_e).hex(), float(outcome.report.J_phi).hex()],
-    "deterministic_qp": qp.DETERMINISTIC,
+    "deterministic_qp": qp.DETERMINISTIC or "proxsuite" not in sys.modules,  # ProxQP portable, or not needed
 }))
 """
 

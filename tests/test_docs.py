@@ -99,9 +99,13 @@ def test_committed_run_renders_every_part(bench_tables, committed_run):
         rendered = bench_tables.render(committed_run, part)
         assert rendered and all(isinstance(t, bench_tables.Table) and t.rows for t in rendered), part
         assert "Not measured" not in _text(rendered), part
-    # numbers come from the file: the scaling table shows each row's J as the JSON has it
+    # numbers come from the file: the scaling table shows each robot's and length's median time, the families
+    # table each family's p95, as the JSON has them
     scaling = _text(bench_tables.render(committed_run, "scaling"))
-    assert all(f"{row['J']:.4g}" in scaling for row in committed_run["scaling"]["rows"])
+    assert all(bench_tables.fmt_time(row["median_s"]) in scaling for row in committed_run["scaling"]["robots"])
+    families = _text(bench_tables.render(committed_run, "families"))
+    assert all(bench_tables.fmt_time(row["p95_s"]) in families
+               for row in committed_run["planning"]["families"]["rows"])
 
 
 def test_missing_or_reshaped_parts_say_not_measured(bench_tables, committed_run):
@@ -112,6 +116,9 @@ def test_missing_or_reshaped_parts_say_not_measured(bench_tables, committed_run)
     reshaped = copy.deepcopy(committed_run)
     reshaped["control"]["simulation"] = [1, 2, 3]  # a schema change under the renderer
     assert "Not measured" in _text(bench_tables.render(reshaped, "simulation"))
+    older = copy.deepcopy(committed_run)
+    del older["planning"]["families"]  # a run made before the planning section had its families
+    assert "Not measured" in _text(bench_tables.render(older, "families"))
     # the parts still present render as before
     assert "Not measured" not in _text(bench_tables.render(partial, "planning"))
 

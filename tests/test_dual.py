@@ -32,8 +32,9 @@ def _both(problem, x):
 
 def _assert_same(reference, dual):
     raw, rows, sens_raw, sens_rows = reference
-    np.testing.assert_allclose(dual[0], raw, rtol=1e-15, atol=1e-15 * np.abs(raw).max())
-    np.testing.assert_allclose(dual[1], rows, rtol=1e-15, atol=1e-15 * np.abs(rows).max())
+    # the values to round-off (the complex step's come through complex inversions and products)
+    np.testing.assert_allclose(dual[0], raw, rtol=1e-13, atol=1e-14 * np.abs(raw).max())
+    np.testing.assert_allclose(dual[1], rows, rtol=1e-13, atol=1e-14 * np.abs(rows).max())
     for ref, got in ((sens_raw, dual[2]), (sens_rows, dual[3])):
         assert got.shape == ref.shape
         scale = np.abs(ref).max(axis=(-2, -1), keepdims=True)  # each quantity's sensitivities' size
@@ -175,31 +176,39 @@ def test_directions_carried_and_widened():
     assert cat.shape == (8,) and (cat.lo, cat.hi) == (0, 5)
 
 
-def test_auto_takes_dual_numbers_on_large_problems_only(square):
-    """"auto" (the default): dual numbers from DUAL_FROM on (where they are faster), complex step below, and
-    always for a complex motion (a caller's own complex step) whatever the setting."""
-    from planners.problem.motion import DUAL_FROM
-
+def test_dual_numbers_everywhere_but_for_a_complex_motion(square):
+    """Dual numbers by default, on every problem (a single travel, the whole mission); the complex step for a
+    complex motion (a caller's own complex step through the problem) whatever the setting, and on request."""
     grid = Grid()
     big = one_step_problem(square, grid)
     points, durations, is_way = square.via_layout
     way = np.flatnonzero(is_way)
     small = travel_problem(square, points.copy(), durations, way[0], way[1], square.normalisation(grid), grid)
     motion = {p: p.motion(p.points) for p in (big, small)}
-    assert MotionProblem.derivatives == "auto" and small.t.size < DUAL_FROM[1] <= big.t.size
-    assert big._dual_derivatives(motion[big]) and not small._dual_derivatives(motion[small])
-    small.derivatives = "dual"
-    assert small._dual_derivatives(motion[small]) and not small._dual_derivatives(motion[small] + 0j)
+    assert MotionProblem.derivatives == "dual"
+    assert big._dual_derivatives(motion[big]) and small._dual_derivatives(motion[small])
+    assert not small._dual_derivatives(motion[small] + 0j)
+    small.derivatives = "complex"
+    assert not small._dual_derivatives(motion[small])
 
 
-def test_an_unknown_derivatives_setting_is_refused(square):
-    """A misspelt setting ("Dual") is not taken for "auto": one error naming the field and the choices."""
-    from fpr.model.errors import PlannerArgumentError
+def test_crossing_nlp_dual_equals_complex_step():
+    """The prototype crossing its singularity (motion derivatives 0..6, the crossing's side rows): dual numbers
+    equal the complex step there too."""
+    from planners.crossing.problem import crossing_layout
+    from planners.crossing.solve import first_guess
 
-    problem = one_step_problem(square, Grid())
-    problem.derivatives = "Dual"
-    with pytest.raises(PlannerArgumentError, match="derivatives = 'Dual': give 'auto', 'dual' or 'complex'"):
-        problem.evaluate(problem.x_of(problem.points), True)
+    m = load_mission("cross-singularity")
+    robot = m.load_robot()
+    poses = m.positions(robot)
+    n_via = tuple(int(n) for n in m.via_points)
+    guess = first_guess(robot, poses[0], poses[-1], float(np.sum(m.times)), n_via)
+    crossing, _ = crossing_layout(n_via)
+    free = np.ones(guess.points.shape, dtype=bool)
+    free[[0, -1]] = False
+    problem = MotionProblem(robot, guess.points, guess.durations, free, 0.5, (1.0, 1.0), crossing=crossing)
+    x = problem.x_of(problem.points)
+    _assert_same(*_both(problem, x + 1e-3 * np.random.default_rng(4).standard_normal(x.size)))
 
 
 def test_trimmed_drops_the_directions_a_dual_does_not_depend_on():

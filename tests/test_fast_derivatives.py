@@ -1,4 +1,4 @@
-"""The shortcuts of the planner's complex-step derivative evaluation give the same bits as the plain code."""
+"""The shortcuts of the complex-step evaluation (the planner's reference derivatives) give the same bits as the plain code."""
 
 import numpy as np
 import pytest
@@ -80,47 +80,3 @@ def test_signed_rotor_speeds_carry_a_complex_step_derivative_and_keep_their_real
     np.testing.assert_allclose(signed_speeds(z).imag / h, plain.imag / h, rtol=1e-14, atol=0)
 
 
-def _copies(rng, count, batch, n):
-    """count complex-step copies (copy-major) of one batch of well-conditioned real matrices."""
-    real = rng.uniform(-1.0, 1.0, (batch, n, n)) + n * np.eye(n)
-    return np.broadcast_to(real, (count, batch, n, n)).reshape(-1, n, n) \
-        + 1j * 1e-30 * rng.standard_normal((count * batch, n, n))
-
-
-def test_complex_step_copies_are_inverted_once_with_numpys_values_and_derivatives():
-    rng = np.random.default_rng(5)
-    a = _copies(rng, 20, 30, 4)
-    b = rng.uniform(-1.0, 1.0, (600, 4, 2)) + 1j * 1e-30 * rng.standard_normal((600, 4, 2))
-    b.real = np.broadcast_to(b.real[:30], (20, 30, 4, 2)).reshape(600, 4, 2)
-    with jets.complex_step_copies(20):
-        inv, x = jets.inverse(a), jets.solve_matrices(a, b)
-    for fast, plain in ((inv, np.linalg.inv(a)), (x, np.linalg.solve(a, b))):
-        np.testing.assert_allclose(fast.real, plain.real, rtol=0, atol=1e-14)
-        np.testing.assert_allclose(fast.imag / 1e-30, plain.imag / 1e-30, rtol=0, atol=1e-13)
-    # the derivative against central finite differences of the real inverse along Im(a) / h
-    r, da = a.real, a.imag / 1e-30
-    fd = (np.linalg.inv(r + 1e-6 * da) - np.linalg.inv(r - 1e-6 * da)) / 2e-6
-    np.testing.assert_allclose(inv.imag / 1e-30, fd, rtol=0, atol=1e-8)
-
-
-def test_batches_that_are_not_copies_take_numpys_route():
-    rng = np.random.default_rng(6)
-    a = _copies(rng, 4, 5, 3)
-    a.real[7] += 0.5  # one copy's real part differs
-    with jets.complex_step_copies(4):
-        assert jets._shared_real(a) is None and jets._shared_real(a[:-1]) is None
-        assert jets.inverse(a).tobytes() == np.linalg.inv(a).tobytes()
-    assert jets._shared_real(_copies(rng, 4, 5, 3)) is None  # outside the block
-
-
-def test_sine_and_cosine_of_complex_step_copies_come_from_one_copy_with_the_same_bits():
-    rng = np.random.default_rng(8)
-    real = rng.uniform(-4.0, 4.0, (30, 3))
-    z = np.broadcast_to(real, (20, 30, 3)).reshape(600, 3) + 1j * 1e-30 * rng.standard_normal((600, 3))
-    plain = jets.sin_cos_value(z)
-    with jets.complex_step_copies(20):
-        shared = jets.sin_cos_value(z)
-        other = z.copy()
-        other.real[599, 2] += 1.0  # not copies: computed as they are
-        assert all(a.tobytes() == b.tobytes() for a, b in zip(jets.sin_cos_value(other), (np.sin(other), np.cos(other))))
-    assert all(a.tobytes() == b.tobytes() for a, b in zip(shared, plain))

@@ -163,7 +163,7 @@ def test_hessian_is_the_gauss_newton_matrix(nlp, alpha):
     docstring promises (the curvature of the quadratic majorising |P|_eps at P)."""
     build, x = nlp
     problem = build(alpha)
-    hess = problem.evaluate(x, derivatives=True).hessian
+    hess = np.asarray(problem.evaluate(x, derivatives=True).hessian)  # the banded matrix as an array
     scale = np.abs(hess).max()
     np.testing.assert_allclose(hess, hess.T, rtol=0, atol=1e-13 * scale)
     assert np.linalg.eigvalsh(hess).min() >= -1e-10 * scale

@@ -48,10 +48,11 @@ def test_active_set_qp_matches_an_independent_solver_and_its_kkt_conditions(seed
     radius = 0.8
     out = solve_step_qp(h, g, a, b, radius)
     assert out is not None
-    d, lam, working = out
+    d, lam, active = out
     np.testing.assert_allclose(d, _reference_qp(h, g, a, b, radius), atol=1e-6)
     assert np.all(a @ d - b >= -1e-10) and np.abs(d).max() <= radius + 1e-12
-    assert np.all(lam >= 0) and set(np.flatnonzero(lam > 0)) <= set(working)
+    assert np.all(lam >= 0) and set(np.flatnonzero(lam > 0)) <= set(active.rows)
+    assert np.array_equal(np.abs(d) == radius, active.bounds != 0)  # the bounds it holds are where d is
     # stationarity with the box's multipliers: H d + g - A^T lam = mu on the bound coordinates only
     residual = h @ d + g - a.T @ lam
     free = np.abs(d) < radius - 1e-9
@@ -60,9 +61,14 @@ def test_active_set_qp_matches_an_independent_solver_and_its_kkt_conditions(seed
     assert np.allclose(lam * (a @ d - b), 0.0, atol=1e-9)  # complementarity
 
 
-def test_active_set_qp_declines_a_singular_model():
-    # no curvature at all: its range-space steps would lose everything to cancellation; ProxQP takes it
+def test_active_set_qp_solves_a_model_without_curvature_on_the_box_and_declines_a_cancelling_solve():
+    # no curvature: every variable goes to the box, where the box's multipliers hold it: the exact answer
     rows, lower = np.array([[-1.0, 0.0]]), np.array([-1.0])
+    d, lam, active = solve_step_qp(1e-21 * np.eye(2), np.ones(2), rows, lower, 1.0)
+    assert np.array_equal(d, [-1.0, -1.0]) and np.array_equal(active.bounds, [-1, -1]) and lam[0] == 0.0
+    # a row that holds a free variable of no curvature: its range-space step (H^-1 g ~ 1e21, cancelled by
+    # H^-1 A^T lambda) would lose everything to cancellation: declined (the SQP's ProxQP takes it)
+    rows, lower = np.array([[1.4 / 2.4, 1.0]]), np.array([-0.03])
     assert solve_step_qp(1e-21 * np.eye(2), np.ones(2), rows, lower, 1.0) is None
 
 
@@ -93,7 +99,8 @@ def test_smoothed_hessian_with_the_whole_majoriser_is_the_problems_gauss_newton_
     x = whole.x_of(whole.points) + 0.02 * np.sin(np.arange(whole.n_x))
     ev = whole.evaluate(x, True)
     model = smoothed_hessian(ev, width=1e-12, share=1.0)
-    np.testing.assert_allclose(model, ev.hessian, atol=1e-12 * np.abs(ev.hessian).max())
+    dense = np.asarray(ev.hessian)
+    np.testing.assert_allclose(np.asarray(model), dense, atol=1e-12 * np.abs(dense).max())
 
 
 def test_workspace_rows_hold_half_a_node_spacing_after_each_node(square):

@@ -175,18 +175,71 @@ def part_sensitivities(doc: dict) -> list[Table]:
     return list_table(["grid nodes", "dual numbers", "complex step", "ratio"], rows)
 
 
+def _family_label(row: dict, arms: set) -> str:
+    """A family's name: robot and space, and the assembly mode when the robot's families have more than one."""
+    label = f"{row.get('robot', '?')} {row.get('space', '?')}"
+    return label + (f" {row['arm']}" if len(arms) > 1 and row.get("arm") else "")
+
+
+def part_families(doc: dict) -> list[Table]:
+    """The planning section's families of random missions: per family and method, per robot, and the loop."""
+    families = need(doc, "planning", "families")
+    rows = need(families, "rows")
+    arms = {robot: {r.get("arm") for r in rows if r.get("robot") == robot} for robot in {r.get("robot") for r in rows}}
+    table = [[_family_label(r, arms[r.get("robot")]), r.get("method", ""), fmt_num(len(r.get("seeds", []))),
+              fmt_time(r.get("median_s")), fmt_time(r.get("p95_s")), fmt_time(r.get("max_s")),
+              fmt_num(r.get("failures")), fmt_num(r.get("worse_than_unpolished")), fmt_num(r.get("J_median"))]
+             for r in rows]
+    table += [[f"{r.get('robot', '?')}, all families", r.get("method", ""), fmt_num(r.get("missions")),
+               fmt_time(r.get("median_s")), fmt_time(r.get("p95_s")), fmt_time(r.get("max_s")),
+               fmt_num(r.get("failures")), fmt_num(r.get("worse_than_unpolished")), fmt_num(r.get("J_median"))]
+              for r in need(families, "robots")]
+    loop = families.get("loop")
+    if isinstance(loop, dict):
+        table += [[f"{r.get('mission', 'the loop')} (the loop)", method, fmt_num(len(r.get("times_s", []))),
+                   fmt_time(r.get("median_s")), "", "", fmt_num(0 if r.get("feasible") else 1), "", fmt_num(r.get("J"))]
+                  for method, r in loop.items() if isinstance(r, dict)]
+    header = [f"family ({fmt_num(families.get('way_points'))} way points)", "method", "missions", "median", "p95",
+              "largest", "failures", "J above the unpolished two-step's", "J (median)"]
+    lines = list_table(header, table)
+    stick = families.get("yardstick")
+    if isinstance(stick, dict):
+        lines += list_table(["the machine's pace (yardstick, same run)", "median per call"],
+                            [[stick.get("name", "?"), fmt_time(stick.get("median_s"))]])
+    return lines
+
+
 def part_scaling(doc: dict) -> list[Table]:
-    """Planning time against the mission's length."""
+    """Planning time against the mission's length: per robot (its families' missions together), length and
+    method, and the loop; the growth exponents.
+    """
     scaling = need(doc, "scaling")
-    rows = [[fmt_num(r.get("way_points")), fmt_num(r.get("via_points")), r.get("method", ""),
-             fmt_num(r.get("variables")), fmt_time(r.get("wall_time_s")), fmt_num(r.get("J")),
-             fmt_num(r.get("iterations")), fmt_num(r.get("feasible"))] for r in need(scaling, "rows")]
-    lines = list_table(["way points", "via points per travel", "method", "variables", "time", "J", "iterations",
-                        "feasible"], rows)
+    robots = need(scaling, "robots")
+    methods = list(dict.fromkeys(r["method"] for r in robots))
+    rows = []
+    for robot, count in dict.fromkeys((r["robot"], r["way_points"]) for r in robots):
+        mine = {r["method"]: r for r in robots if (r["robot"], r["way_points"]) == (robot, count)}
+        if not set(methods) <= set(mine):
+            raise NotMeasured(f"scaling: {robot}, {count} way points lacks a method")
+        cells = [c for m in methods for c in (fmt_time(mine[m].get("median_s")), fmt_time(mine[m].get("p95_s")))]
+        rows.append([robot, fmt_num(count), fmt_num(mine[methods[0]].get("missions")), *cells,
+                     fmt_num(sum(r.get("failures", 0) for r in mine.values())),
+                     " / ".join(fmt_num(mine[m].get("J_median")) for m in methods)])
+    loop = scaling.get("loop")
+    for count in dict.fromkeys(r["way_points"] for r in loop) if isinstance(loop, list) else ():
+        mine = {r["method"]: r for r in loop if r["way_points"] == count}
+        if set(methods) <= set(mine):
+            rows.append(["the loop", fmt_num(count), "1",
+                         *(c for m in methods for c in (fmt_time(mine[m].get("wall_time_s")), "")),
+                         fmt_num(sum(not r.get("feasible") for r in mine.values())),
+                         " / ".join(fmt_num(mine[m].get("J")) for m in methods)])
+    header = ["robot", "way points", "missions", *(c for m in methods for c in (f"{m} median", f"{m} p95")),
+              "failures", "J (median), " + " / ".join(methods)]
+    lines = list_table(header, rows)
     exponents = scaling.get("exponents")
     if isinstance(exponents, list) and exponents:
-        lines += list_table(["via points per travel", "method", "growth exponent of the time in the way points"],
-                            [[fmt_num(e.get("via_points")), e.get("method", ""), fmt_num(e.get("exponent"), 3)]
+        lines += list_table(["robot", "method", "growth exponent of the median time in the way points"],
+                            [[e.get("robot", ""), e.get("method", ""), fmt_num(e.get("exponent"), 3)]
                              for e in exponents])
     return lines
 
@@ -284,8 +337,12 @@ def part_replan_phases(doc: dict) -> list[Table]:
     """One replan taken apart into its phases (least CPU time of the repeats)."""
     phases = need(doc, "replan", "phases")
     cpu = need(phases, "cpu_s")
-    title = (f"phase ({fmt_num(phases.get('nodes'))} grid nodes, {fmt_num(phases.get('copies'))} perturbed copies, "
-             f"{fmt_num(phases.get('dense_samples'))} dense samples)")
+    # "directions": the dual directions per node (a run of the dual-number planner); "copies": the complex step's
+    # perturbed copies (an older run)
+    sizes = (f"{fmt_num(phases['directions'])} dual directions a node" if "directions" in phases
+             else f"{fmt_num(phases.get('copies'))} perturbed copies")
+    title = f"phase ({fmt_num(phases.get('nodes'))} grid nodes, {sizes}, " \
+            f"{fmt_num(phases.get('dense_samples'))} dense samples)"
     return list_table([title, "CPU time"], [[name.strip(), fmt_time(t)] for name, t in cpu.items()])
 
 
@@ -310,7 +367,8 @@ def part_work_cost(doc: dict) -> list[Table]:
 PARTS = {
     "run": part_run, "goals": part_goals, "model": part_model, "residuals": part_residuals,
     "planning": part_planning, "optimality": part_optimality, "sensitivities": part_sensitivities,
-    "scaling": part_scaling, "allocation": part_allocation, "allocation-loops": part_allocation_loops,
+    "families": part_families, "scaling": part_scaling, "allocation": part_allocation,
+    "allocation-loops": part_allocation_loops,
     "simulation": part_simulation, "native": part_native, "replan": part_replan, "replan-phases": part_replan_phases,
     "work-cost": part_work_cost,
 }

@@ -114,8 +114,8 @@ def parser() -> argparse.ArgumentParser:
                         "(seed ch. 4; a singularity-crossing mission gets it whatever is asked, and its first "
                         "guess with none)")
     p.add_argument("--solver", default="sqp", choices=["sqp", "slsqp"],
-                   help="NLP solver: our trust-region SQP (smoothed curvature, active-set QP steps, ProxQP fallback) "
-                        "or scipy SLSQP, both with exact gradients")
+                   help="NLP solver: our trust-region SQP (smoothed curvature, active-set QP steps, interior-point and "
+                        "ProxQP fallbacks) or scipy SLSQP, both with exact gradients")
     p.add_argument("--optimal", action="store_true",
                    help="the SQP with the composite curvature and the KKT stopping rule: a KKT point to 1e-5, "
                         "2-20x slower (the default ends within 0.3 %% of the best J known on the built-in "

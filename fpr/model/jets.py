@@ -19,9 +19,6 @@ import math
 import numpy as np
 
 from fpr import _native as native
-from fpr.model.complex_step import complex_step_copies  # noqa: F401 (jets.complex_step_copies, as before)
-from fpr.model.complex_step import shared_real as _shared_real
-from fpr.model.complex_step import shared_sin_cos as _shared_sin_cos
 from fpr.model.dual import Dual, empty, gather, jet_batch, jet_chain, jet_leibniz
 from fpr.model.errors import ModelArgumentError
 
@@ -153,45 +150,18 @@ def _small_solve(a, b=None):
 
 
 def inverse(a):
-    """``np.linalg.inv`` of a batch of matrices (..., n, n).
-
-    Complex-step copies with one real part R (:func:`complex_step_copies`) are inverted from R^-1 once:
-    (R + i h I)^-1 = R^-1 - i h R^-1 I R^-1 (the h^2 terms vanish in floating point, as in the complex
-    arithmetic itself).
-    """
-    if isinstance(a, Dual):  # d(A^-1) = -A^-1 dA A^-1
+    """``np.linalg.inv`` of a batch of matrices (..., n, n) (Duals: d(A^-1) = -A^-1 dA A^-1)."""
+    if isinstance(a, Dual):
         r = _small_solve(a.value)
         return Dual(r, -small_matmul(small_matmul(r, a.tangents), r), a.lo)
-    shared = _shared_real(a)
-    if shared is None:
-        return _small_solve(a)
-    count, re, im = shared
-    r = _small_solve(re)
-    out = np.empty(im.shape, a.dtype)
-    out.real = r
-    out.imag = -small_matmul(small_matmul(r, im), r)
-    return out.reshape(a.shape)
+    return _small_solve(a)
 
 
 def solve_matrices(a, b):
-    """``np.linalg.solve(a, b)`` for a batch of matrices a (..., n, n) and right-hand sides b (..., n, k).
-
-    With complex-step copies (:func:`complex_step_copies`, a's real part R shared): x = R^-1 Re b
-    + i R^-1 (Im b - Im a R^-1 Re b), from one inversion per copy's batch (as :func:`inverse`).
-    """
+    """``np.linalg.solve(a, b)`` for a batch of matrices a (..., n, n) and right-hand sides b (..., n, k)."""
     if isinstance(a, Dual) or isinstance(b, Dual):
         return _dual_solve_matrices(a, b)
-    shared = _shared_real(a)
-    if shared is None:
-        return _small_solve(a, b) if np.ndim(b) == np.ndim(a) else np.linalg.solve(a, b)
-    count, re, im = shared
-    r = _small_solve(re)
-    b = np.broadcast_to(b, a.shape[:-1] + b.shape[-1:]).reshape(im.shape[:-1] + b.shape[-1:])
-    x_re = small_matmul(r, np.ascontiguousarray(b.real))
-    out = np.empty(x_re.shape, np.result_type(a, b))
-    out.real = x_re
-    out.imag = small_matmul(r, b.imag - small_matmul(im, x_re))
-    return out.reshape(a.shape[:-1] + b.shape[-1:])
+    return _small_solve(a, b) if np.ndim(b) == np.ndim(a) else np.linalg.solve(a, b)
 
 
 def _atan2_value(y, x):
@@ -214,7 +184,7 @@ def sin_cos_value(a):
     if not np.iscomplexobj(a):
         return np.sin(a), np.cos(a)
     x, b = a.real, a.imag
-    s, c = _shared_sin_cos(x)
+    s, c = np.sin(x), np.cos(x)
     sin, cos = np.empty(a.shape, a.dtype), np.empty(a.shape, a.dtype)
     sin.real, sin.imag = s, c * b
     cos.real, cos.imag = c, -(s * b)

@@ -14,9 +14,10 @@ proxsuite (0.8) has no public way to choose its build: its ``__init__`` asks its
 process can hold one build only (nanobind refuses to load a second). :func:`proxsuite_module` therefore
 imports proxsuite with a stand-in for ``proxsuite.instructionset`` that reports no vector extension,
 for the duration of that import only. Nothing happens when fpr is imported: the SQP and the allocator
-call :func:`proxsuite_module` when they first need ProxQP (an infeasible point's step QP, the
-allocation's fallback route), so a process that never needs it never imports proxsuite. (Importing
-proxsuite sets ``KMP_DUPLICATE_LIB_OK`` in the environment: proxsuite's own doing, at that first use.)
+call :func:`proxsuite_module` when they first need ProxQP (a step QP that neither the active set nor the
+interior point solved, the composite curvature's QPs, the allocation's fallback route), so a process that
+never needs it never imports proxsuite. (Importing proxsuite sets ``KMP_DUPLICATE_LIB_OK`` in the environment:
+proxsuite's own doing, at that first use.)
 Solvers that need no such choice were tried in ProxQP's place and fell short on the step QPs of the
 singularity crossing (nearly dependent rows, next to no curvature): quadprog's dual method called some of
 them inconsistent and lost others to round-off (with proximal steps added, the crossing's J grew), DAQP

@@ -21,7 +21,7 @@ with constant Y. The mass matrix and the bias of the bodies are then quadratic f
 K, L and L^g (gravity's) summed over the bodies once (the bodies' rotational inertia I_b a_b a_b^T is in
 K_00; only the products of features that meet a body are formed). A batch of samples is then one sine-cosine
 table and a few matrix products (BLAS) instead of a loop over bodies and angles: what the planner's
-complex-step derivatives (thousands of copies of every sample) spend their time on. Along a motion
+derivatives (every sample with its tangents) spend their time on. Along a motion
 (:mod:`fpr.model.jets`) the same products take jets.
 
 The per-point formulation (:class:`~fpr.model.planar.PlanarPoint`) stays as the reference; the tests hold
@@ -38,13 +38,11 @@ from fpr.model.jets import Jet
 
 
 class _Linear:
-    """x -> x @ K + k0 on the last axis for a constant K (and constant k0). Takes arrays and Jets (k0 on the
-    value). Complex x (complex-step copies) is read as real pairs (re, im) and multiplies K (x) I_2, a real matrix
-    (one real BLAS call: K is real, so no complex products, each of whose four real ones would meet a zero)."""
+    """x -> x @ K + k0 on the last axis for a constant K (and constant k0). Takes arrays, Duals and Jets (k0 on
+    the value)."""
 
     def __init__(self, k, k0=None):
         self.k = np.ascontiguousarray(k, dtype=float)
-        self.k_pairs = np.kron(self.k, np.eye(2))
         self.k0 = np.zeros(self.k.shape[1]) if k0 is None else np.asarray(k0, dtype=float).reshape(-1)
         self.size = self.k.shape[1]
 
@@ -54,9 +52,6 @@ class _Linear:
             t = d.tangents
             tangents = (t.reshape(-1, t.shape[-1]) @ self.k).reshape(t.shape[:-1] + (-1,))
             out = Dual(d.value @ self.k, tangents, d.lo)
-        elif np.iscomplexobj(d):
-            d = np.ascontiguousarray(d, dtype=complex)
-            out = (d.view(float) @ self.k_pairs).view(complex)
         else:
             out = d @ self.k
         value = out.value if isinstance(out, Dual) else out  # (a constant added: the tangents as they are)
@@ -170,7 +165,7 @@ class StackedPoints:
 
 def _take(x, index):
     """``x[..., index]`` for an integer array ``index`` (array or Jet): np.take, about 3 times faster than
-    fancy indexing on the last axis of the planner's large complex-step batches (the same values)."""
+    fancy indexing on the last axis of large batches (the same values)."""
     return Jet(np.take(x.d, index, axis=-1)) if isinstance(x, Jet) else np.take(x, index, axis=-1)
 
 

@@ -15,7 +15,7 @@ The members come in two groups, in the manner of Pink's ``Task`` or Crocoddyl's 
 * **methods** of the bound instance, which read the robot's geometry from its model: link lengths and
   ground, kinematics (``drone_joints``, ``drone_joint_velocities``, ``chain_jacobian``,
   ``task_points``; for figures ``joint_legends``, ``height_panels``), workspace and assembly modes (``workspace_margins``, ``crossing_margins``,
-  ``planning_pose``, ``check_pose``, ``assembly_mode``, ``coordinate_axes``), thrust from motion
+  ``planning_pose``, ``check_pose``, ``assembly_mode``, ``coordinate_axes``, ``mission_region``), thrust from motion
   (``thrust_vectors``, ``needs_high_derivatives``), the closure of the plant (``closed_chain``,
   ``closure_reader``) and the controller's outer-loop solve (``outer_loop_forces``).
 
@@ -234,6 +234,15 @@ class RobotKind:
             raise ModelArgumentError("space", space, f"{what}: the {self.name} has no inverse kinematics "
                                                      "for task-space way points: write them in joint space")
         return np.array(point, dtype=float)
+
+    def mission_region(self, space: str, mode: str | None) -> tuple[np.ndarray, np.ndarray] | None:
+        """(lower, upper) corners of the box of way points a random mission of this robot may visit, in
+        ``space`` coordinates ("task" or "joint"; in ``mode``, one of ``assembly_modes`` or None), for
+        :func:`fpr.bench.missions.random_mission`. Its way points are drawn inside it and kept only where
+        :meth:`check_pose` holds, so the box may overlap the workspace's borders. Default: None (no
+        region: give one to the generator).
+        """
+        return None
 
     def coordinate_axes(self) -> list[tuple[str, tuple[float, float] | None]]:
         """(axis label, (lower, upper) bound or None) of each planning coordinate, for figures [m, rad].

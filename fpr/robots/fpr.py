@@ -291,6 +291,12 @@ class Fpr(RobotKind):
         """:func:`fpr_workspace_margins` (one assembly mode: ``mode`` is ignored)."""
         return fpr_workspace_margins(s, self.link_lengths, self.robot.margins)
 
+    def mission_region(self, space: str, mode: str | None) -> tuple[np.ndarray, np.ndarray]:
+        """The square mission's 1 m x 1 m square for the end-effector (task and joint space alike), phi and
+        q21 within 0.3 rad of the reference pose's 5 pi/4 and pi/2 [m, m, rad, rad]."""
+        centre = np.array(self.reference_chain[2:])
+        return np.concatenate([[0.0, 0.0], centre - 0.3]), np.concatenate([[1.0, 1.0], centre + 0.3])
+
     def coordinate_axes(self) -> list[tuple[str, tuple[float, float] | None]]:
         """y, z (unbounded), phi in [pi + m_ga, 2 pi - m_ga], q21 in [m_ga, pi - m_ga] (seed 3.28-3.29)."""
         m = self.robot.margins.angle

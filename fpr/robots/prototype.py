@@ -315,6 +315,16 @@ class Prototype(RobotKind):
                 f"point is between {near:.4g} m and {far:.4g} m",
             ) from error
 
+    def mission_region(self, space: str, mode: str | None) -> tuple[np.ndarray, np.ndarray]:
+        """Task space: the drone joint within the tour's box, y in [0.3, 1.4] m, z in [-0.5, 1.2] m. Joint
+        space: q1 within its bounds (3.44), q2 within those of ``mode`` (3.46; "down" by default) [rad]."""
+        if space == "task":
+            return np.array([0.3, -0.5]), np.array([1.4, 1.2])
+        m = self.robot.margins.angle
+        q1, q2 = np.pi / 2 - m, np.array([m, np.pi - m])
+        q2 = -q2[::-1] if mode == "up" else q2
+        return np.array([-q1, q2[0]]), np.array([q1, q2[1]])
+
     def coordinate_axes(self) -> list[tuple[str, tuple[float, float] | None]]:
         """q1 in [-(pi/2 - m_ga), pi/2 - m_ga], q2 in [m_ga, pi - m_ga] (seed 3.44, 3.46; arm down)."""
         m = self.robot.margins.angle

@@ -24,8 +24,8 @@ from 0 (a simple crossing), and (``smooth_crossing``) the 5th derivative continu
 there F is one derivative less smooth than the motion, and a C4 knot would step the roll acceleration.
 The methods that solve it are in :mod:`planners.crossing.solve`.
 
-Derivatives: the motion entries by complex step (:class:`planners.problem.motion.MotionProblem`), the
-crossing acceleration's dependence on (q1_s, xi_s', mu) by complex step too, the travel times by
+Derivatives: the motion entries by dual numbers (:class:`planners.problem.motion.MotionProblem`), the
+crossing acceleration's dependence on (q1_s, xi_s', mu) by complex step, the travel times by
 central differences (each needs a new grid).
 """
 
@@ -233,7 +233,7 @@ class CrossingProblem:
         return MotionProblem(self.robot, points, segment_durations(times, self.n_via), self.mask, self.alpha,
                              self.normalisation, samples_per_segment=self.samples,
                              windows_per_segment=self.windows, crossing=self.index,
-                             min_thrust=min_thrust(self.robot))
+                             min_thrust=min_thrust(self.robot), dips=True)
 
     def _extra_rows(self, points, times) -> tuple[np.ndarray, list[str]]:
         """Rows beside the motion's (scaled, >= 0): travel-time bounds, the crossing speed, and the

@@ -5,8 +5,9 @@ the way points only (:func:`step1_problem`); step 2 then optimises, travel by tr
 (S_d2, 3.22) between the way points fixed by step 1 (:func:`travel_problem`). Each step-2 problem
 starts from the step-1 motion itself (its value and derivatives at the via times), so step 2 never
 ends worse than step 1. The first and last way points keep zero derivatives (the robot starts and
-ends at rest). A motion that fails the dense check but holds on the grid is solved again, both
-steps, on a finer grid (:func:`planners.optimisation.solving.solve_refining`).
+ends at rest). A motion that fails the dense check but holds on the grid is solved again on a finer grid
+(:func:`planners.optimisation.solving.solve_refining`): by the polish alone, from that motion, when there is
+one (below), else both steps.
 
 With ``PlanOptions.polish`` (the default), when steps 1 and 2 hold the grid's constraints, there is
 more than one travel (with one, step 2 is the 1-step NLP already) and there are via points (without,
@@ -55,8 +56,15 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
     reference = evaluate_motion(robot, task.stop, options.dense_rate)
     is_way = task.via_layout[2]
 
+    # one travel: step 2 is the 1-step NLP already; no via points: step 1 is
+    whole_differs = len(task.way_times) > 1 and task.n_via.sum() > 0
+
     def attempt(grid: Grid, previous: PiecewisePolynomial | None):
         normalisation = task.normalisation(grid)
+        if previous is not None and options.polish and whole_differs:  # a refinement: the polish alone
+            stages = []
+            points = _polish(task, grid, previous.points, stages, options, normalisation, refining=True)
+            return PiecewisePolynomial(points, task.via_layout[1]), stages
         shared = NodeDerivatives()  # the travels' last evaluations, where the polish starts
         step1 = step1_problem(task, grid, normalisation)
         start = task.stop.points if previous is None else previous.points[_way_mask(task, previous)]
@@ -76,8 +84,6 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
                                    **options.solve_arguments)
             stages.append(stage)
             points[a:b + 1] = travel.points_of(x)
-        # one travel: step 2 was the 1-step NLP already; no via points: step 1 was
-        whole_differs = len(task.way_times) > 1 and task.n_via.sum() > 0
         if options.polish and whole_differs and all(st.violation_end <= GRID_FEASIBILITY for st in stages):
             points = _polish(task, grid, points, stages, options, normalisation, shared)
         return PiecewisePolynomial(points, durations), stages
@@ -89,12 +95,14 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
 
 
 def _polish(task: WayPointTask, grid: Grid, points, stages: list, options: PlanOptions, normalisation,
-            shared: NodeDerivatives | None = None):
+            shared: NodeDerivatives | None = None, refining: bool = False):
     """The 1-step NLP solved from the 2-step ``points`` (appends its stage); the better points.
 
     ``normalisation``: the steps' (J_e0, J_phi0) on ``grid`` (:meth:`WayPointTask.normalisation`, not
     computed again); ``shared``: the travels' :class:`~planners.problem.motion.NodeDerivatives` (its first evaluation
-    with derivatives, at the points where the travels ended, takes their numbers), or None."""
+    with derivatives, at the points where the travels ended, takes their numbers), or None. ``refining``: the
+    points are a finished plan that failed the dense check, solved again on a finer grid: the result is kept
+    when it holds this grid's constraints, whatever its J."""
     whole = one_step_problem(task, grid, normalisation)
     if shared is not None:
         whole.share_node_derivatives(shared)
@@ -102,6 +110,8 @@ def _polish(task: WayPointTask, grid: Grid, points, stages: list, options: PlanO
     before = whole.evaluate(x0)
     x, stage = solve_stage(whole, x0, "polish (one-step)" + grid.suffix, **options.solve_arguments)
     stages.append(stage)
+    if refining and stage.violation_end <= GRID_FEASIBILITY < before.violation:
+        return whole.points_of(x)
     if stage.J_end <= before.J and stage.violation_end <= max(before.violation, GRID_FEASIBILITY):
         return whole.points_of(x)
     return points

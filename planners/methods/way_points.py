@@ -70,7 +70,7 @@ class WayPointTask:
         """The NLP of the motion through ``points`` (mask ``free`` of the unknown entries) on ``grid``."""
         return MotionProblem(self.robot, points, durations, free, self.alpha, normalisation,
                              samples_per_segment=grid.samples_per_segment,
-                             windows_per_segment=grid.windows_per_segment)
+                             windows_per_segment=grid.windows_per_segment, dips=True)
 
     def normalisation(self, grid: Grid) -> tuple[float, float]:
         """(J_e0, J_phi0) of the stop motion on ``grid`` (smoothed |.|, as the optimiser sees them, 3.26), each at

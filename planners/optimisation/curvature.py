@@ -28,9 +28,8 @@ step on the exact merit, so a model that is too bold is corrected by shorter ste
 from __future__ import annotations
 
 import numpy as np
-from scipy import sparse
 
-from planners.problem.motion import POWER_CURVATURE_FLOOR, POWER_SMOOTHING, SPARSE_FROM
+from planners.problem.motion import POWER_CURVATURE_FLOOR, POWER_SMOOTHING
 
 #: mu of the model's smoothing of |P| [W] (module docstring).
 POWER_WIDTH = 0.1
@@ -45,24 +44,18 @@ def power_curvature(power, width: float = POWER_WIDTH, share: float = MAJORISER_
     return width**2 / (p * p + width**2) ** 1.5 + share / np.maximum(smooth, POWER_CURVATURE_FLOOR)
 
 
-def smoothed_hessian(ev, width: float = POWER_WIDTH, share: float = MAJORISER_SHARE) -> np.ndarray:
+def smoothed_hessian(ev, width: float = POWER_WIDTH, share: float = MAJORISER_SHARE):
     """The model's Hessian at an Evaluation with the power fields (``power_model``; module docstring).
 
     J_phi's Gauss-Newton matrix (``rate_hessian``) plus sum_k pw_k h''(P_k) grad P_k grad P_k^T, in the
-    problem's scaled variables. Without the power fields: the problem's Gauss-Newton matrix.
+    problem's scaled variables: banded (:class:`~planners.problem.banded.Banded`) when the evaluation assembles
+    the powers' sum itself (``power_gram``: :class:`~planners.problem.motion.MotionProblem`, segment by segment),
+    else from ``power_jacobian``. Without the power fields: the problem's Gauss-Newton matrix.
     """
     if getattr(ev, "power", None) is None:
         return ev.hessian
     weight = ev.power_weight * power_curvature(ev.power, width, share)
-    # a long mission (planners.problem.motion.SPARSE_FROM variables or more, where the evaluation's Jacobian is
-    # sparse too): each P_k depends on one segment's entries only, so the sum over the powers is a sparse
-    # product (the same sum to round-off; below, the dense product the planner's figures were measured with)
-    pj = getattr(ev, "power_jacobian_sparse", None)  # the evaluation's own CSR copy (no dense array made)
-    if pj is None:
-        pj = ev.power_jacobian
-    if sparse.issparse(pj) or pj.shape[1] >= SPARSE_FROM:
-        pj = sparse.csr_matrix(pj)  # (a CSR matrix is kept as it is)
-        weighted = pj.copy()
-        weighted.data *= np.repeat(weight, np.diff(pj.indptr))  # row k times its weight
-        return ev.rate_hessian + (pj.T @ weighted).toarray()
-    return ev.rate_hessian + pj.T @ (weight[:, None] * pj)
+    if getattr(ev, "power_gram", None) is not None:
+        return ev.rate_hessian + ev.power_gram(weight)
+    pj = ev.power_jacobian
+    return np.asarray(ev.rate_hessian) + pj.T @ (weight[:, None] * pj)

@@ -1,9 +1,10 @@
 """A small trust-region SQP for the planning NLP: elastic QPs, the KKT residual.
 
 Gauss-Newton curvature, the "smoothed" model of J_e's absolute values (:mod:`planners.optimisation.curvature`, the
-planner's default), or a composite model of them with a damped BFGS correction. At a feasible point the
-step QP is solved exactly by a short active-set sequence (:mod:`planners.optimisation.active_set`); ProxQP takes the
-rest (infeasible points, ill-conditioned models).
+planner's default), or a composite model of them with a damped BFGS correction. The step QP is solved exactly by
+an active set that pivots the trust region's bounds in blocks (:mod:`planners.optimisation.active_set`,
+warm-started from the last step's), or where it gives up by a banded interior point
+(:mod:`planners.optimisation.interior_point`); ProxQP is the last resort.
 
 The planning objective is a weighted sum of integrals of squares (J_phi) and of absolute values
 (J_e) of per-sample quantities whose exact Jacobians :class:`planners.problem.motion.MotionProblem`
@@ -62,6 +63,7 @@ timings were set with): an accepted step that decreases the merit by less than `
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass
 
@@ -70,9 +72,13 @@ from scipy import sparse
 
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
-from planners.optimisation.active_set import BANDED_MIN_SIZE, shifted, solve_step_qp
+from planners.optimisation.active_set import ActiveSet, shifted, solve_step_qp
 from planners.optimisation.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
+from planners.optimisation.interior_point import solve_interior_point
+from planners.problem.banded import Banded
 from planners.problem.motion import POWER_SMOOTHING
+
+logger = logging.getLogger(__name__)
 
 
 #: The curvature models of :class:`SqpOptions` (see the module docstring).
@@ -240,47 +246,67 @@ def _jacobian(ev):
     return ev.jacobian if sparse_copy is None else sparse_copy
 
 
-def _qp_step(ev, radius: float, penalty: float, hessian=None):
-    """Solve the elastic step QP; returns (d, predicted merit decrease, linearised violation, multipliers).
+def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet | None = None,
+             interior_first: bool = False):
+    """Solve the elastic step QP; returns (d, predicted merit decrease, linearised violation, multipliers,
+    the active set at the solution or None, whether the active set gave up (or was not tried)).
 
     Only the constraints violated at x get a slack (the others hold at d = 0, so the QP is always
-    feasible). Rows are scaled to unit infinity norm and the objective to O(1): near a vanishing
-    thrust the roll rows reach 1e7 and the QP would crawl; the minimiser is unchanged. ProxQP's work
-    is bounded: an inexact step is judged by the merit ratio anyway. ``hessian`` is the model's
-    curvature (default the problem's Gauss-Newton matrix); the multipliers (m,) are >= 0, in the units
-    of the constraints, 0 for the rows left out. With the Jacobian's sparse copy (a long mission: a few
-    per cent of its entries are non-zero) the kept rows stay a CSR matrix from the selection to the
-    solvers (the active set's row products, ProxQP's sparse backend): the same numbers as the dense rows,
-    without a dense copy of thousands of rows.
+    feasible; in the active set a violated constraint is an elastic row, its multiplier capped at the
+    penalty). Rows are scaled to unit infinity norm (and, for ProxQP, the objective to O(1)): near a vanishing
+    thrust the roll rows reach 1e7 and the QP would crawl; the minimiser is unchanged. The QP is solved
+    exactly by :func:`planners.optimisation.active_set.solve_step_qp`, from ``start`` (an
+    :class:`~planners.optimisation.active_set.ActiveSet` whose rows are indices of the constraints, e.g. the
+    last step's); where it gives up, by the interior point
+    (:func:`planners.optimisation.interior_point.solve_interior_point`); where that fails too, by ProxQP, whose
+    work is bounded: an inexact step is judged by the merit ratio anyway. ``hessian`` is the model's curvature
+    (default the problem's Gauss-Newton matrix; banded or an array); the multipliers (m,) are >= 0, in the
+    units of the constraints, 0 for the rows left out. ``interior_first``: go to the interior point directly
+    (the SQP's choice after the active set gave up twice in a row). The Jacobian's CSR copy (each row touches one segment:
+    a few per cent of its entries are non-zero on a long mission) stays a CSR matrix from the selection to the
+    solvers.
     """
     hess = ev.hessian if hessian is None else hessian
     n = ev.gradient.size
     c, a = ev.constraints, _jacobian(ev)
-    if sparse.issparse(a):  # a long mission's (planners.problem.motion.SPARSE_FROM): the same rows, fewer operations
-        keep = np.flatnonzero(c - abs(a).sum(axis=1).A1 * radius <= 0.0)
-        a_keep = a[keep]
-    else:
-        keep = np.flatnonzero(c - np.abs(a).sum(axis=1) * radius <= 0.0)
-        a_keep = a[keep]
+    keep = np.flatnonzero(c - np.asarray(abs(a).sum(axis=1)).ravel() * radius <= 0.0)
+    a_keep = a[keep]
     norms = row_norms(a_keep)
     c_k, a_k = c[keep] / norms, _rows_divided(a_keep, norms)
     soft = np.flatnonzero(c_k < 0.0)
     p = soft.size
-    if p == 0:  # a feasible x: the exact active-set solution when it ends (planners.optimisation.active_set)
-        exact = solve_step_qp(hess, ev.gradient, a_k, -c_k, radius, shift=_shift(hess))
-        if exact is not None:
-            d, lam = exact[0], np.zeros(c.size)
-            lam[keep] = exact[1] / norms
-            return d, -(ev.gradient @ d + 0.5 * d @ hess @ d), _violation(c + a @ d), lam
-    scale = 1.0 / max(1.0, np.abs(hess).max())
-    h = np.zeros((n + p, n + p))
-    h[:n, :n] = _regularised(hess) * scale
+    if start is not None:  # its rows as indices of the kept rows
+        position = {int(k): i for i, k in enumerate(keep)}
+        start = ActiveSet(start.bounds, tuple(position[k] for k in start.rows if k in position))
+    caps = np.full(keep.size, np.inf)
+    caps[soft] = penalty * norms[soft]  # a violated row's penalty, in row-scaled units (elastic rows)
+    caps = caps if p else None
+    solved = None if interior_first else \
+        solve_step_qp(hess, ev.gradient, a_k, -c_k, radius, start=start, shift=_shift(hess), caps=caps)
+    gave_up = solved is None
+    if solved is None:  # the active set gave up: the interior-point route (planners.optimisation.interior_point)
+        inner = solve_interior_point(hess, ev.gradient, a_k, -c_k, radius, shift=_shift(hess), caps=caps)
+        if inner is not None:
+            solved = inner[0], inner[1], ActiveSet(inner[2], inner[3])
+    if solved is not None:
+        d, lam, active = solved
+        multipliers = np.zeros(c.size)
+        multipliers[keep] = lam / norms
+        linear = _violation(c + a @ d)
+        model = ev.gradient @ d + 0.5 * d @ (hess @ d)
+        return (d, penalty * (_violation(c) - linear) - model, linear, multipliers,
+                ActiveSet(active.bounds, tuple(int(keep[k]) for k in active.rows)), gave_up)
+    scale = 1.0 / max(1.0, _abs_max(hess))
     g = np.concatenate([ev.gradient * scale, penalty * norms[soft] * scale])  # slack in row-scaled units
-    if sparse.issparse(a_k):  # the rows as they are: the sparse backend takes them (_proxqp), no dense copy
+    if isinstance(hess, Banded) or sparse.issparse(a_k):  # the sparse backend (_proxqp): no dense copies
+        h = sparse.block_diag([_upper(_regularised(hess)) * scale, sparse.csc_matrix((p, p))], format="csc")
         slack = sparse.csr_matrix((np.ones(p), (soft, np.arange(p))), shape=(keep.size, p))
-        rows = sparse.vstack([sparse.hstack([a_k, slack]), sparse.identity(n + p)], format="csc")
+        rows = sparse.vstack([sparse.hstack([sparse.csr_matrix(a_k), slack]), sparse.identity(n + p)],
+                             format="csc")
         rows.eliminate_zeros()
     else:
+        h = np.zeros((n + p, n + p))
+        h[:n, :n] = _regularised(hess) * scale
         slack = np.zeros((keep.size, p))
         slack[soft, np.arange(p)] = 1.0
         rows = np.vstack([np.hstack([a_k, slack]), np.eye(n + p)])
@@ -288,35 +314,44 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None):
     upper = np.concatenate([np.full(keep.size, np.inf), np.full(n, radius), np.full(p, np.inf)])
     res = _proxqp(h, g, rows, lower, upper)
     d = np.clip(np.asarray(res.x)[:n], -radius, radius)
-    model = ev.gradient @ d + 0.5 * d @ hess @ d
+    model = ev.gradient @ d + 0.5 * d @ (hess @ d)
     linear = _violation(c + a @ d)  # the pruned constraints stay satisfied inside the region
     predicted = penalty * (_violation(c) - linear) - model
     # multipliers of the constraint rows, back in the units of c (ProxQP: z < 0 on an active lower bound)
     multipliers = np.zeros(c.size)
     if keep.size:
         multipliers[keep] = np.maximum(-np.asarray(res.z)[:keep.size], 0.0) / (norms * scale)
-    return d, predicted, linear, multipliers
+    return d, predicted, linear, multipliers, None, True
+
+
+def _abs_max(hess) -> float:
+    """max |H_ij| of an array or a :class:`~planners.problem.banded.Banded` matrix."""
+    return hess.abs_max() if isinstance(hess, Banded) else float(np.abs(hess).max())
+
+
+def _upper(hess) -> sparse.csc_matrix:
+    """The upper triangle of H (banded or an array) as a CSC matrix."""
+    return hess.to_sparse_upper() if isinstance(hess, Banded) else sparse.csc_matrix(np.triu(hess))
 
 
 def _proxqp(h, g, rows, lower, upper):
     """ProxQP on min 1/2 y^T h y + g^T y s.t. lower <= rows y <= upper (capped at 300 iterations).
 
-    Its sparse backend on large QPs (:data:`planners.optimisation.active_set.BANDED_MIN_SIZE` variables or more: a long
-    mission's H is banded and each row touches one or two segments, a few per cent of the entries);
-    the dense one on small ones, where it is as fast (and gives the results the planner's figures were
-    measured with).
+    Its sparse backend when h is a sparse matrix (its upper triangle: a long mission's H is banded and each
+    row touches one or two segments, a few per cent of the entries), the dense one for arrays.
     """
     proxqp = proxsuite_module().proxqp  # the portable build (fpr.model.qp): plans repeat bit for bit
-    if h.shape[0] < BANDED_MIN_SIZE:
+    if not sparse.issparse(h):
         rows = rows.toarray() if sparse.issparse(rows) else rows
         return proxqp.dense.solve(h, g, None, None, rows, lower, upper, eps_abs=1e-9, max_iter=300)
-    return proxqp.sparse.solve(sparse.csc_matrix(np.triu(h)), g, None, None, sparse.csc_matrix(rows),
+    return proxqp.sparse.solve(sparse.csc_matrix(h), g, None, None, sparse.csc_matrix(rows),
                                lower, upper, eps_abs=1e-9, max_iter=300)
 
 
 def _shift(hess) -> float:
     """1e-9 mean(diag H) (at least 1e-21): what the step QP adds to H's diagonal to make it positive definite."""
-    return 1e-9 * max(np.trace(hess) / hess.shape[0], 1e-12)
+    trace = hess.trace() if isinstance(hess, Banded) else np.trace(hess)
+    return 1e-9 * max(trace / hess.shape[0], 1e-12)
 
 
 def _regularised(hess):
@@ -489,6 +524,11 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
     kkt = multipliers = xi = None
     composite = False
     known = None  # the evaluation with derivatives at x, when one is at hand (x unchanged, or a trial's)
+    active_set = None  # the active set of the last step QP solved exactly (bounds and rows)
+    # how many step QPs in a row the active set gave up on: from two on, the interior point goes first (the
+    # active set's give-ups come in runs of tens where the model's H is far from diagonally dominant, and a
+    # failed attempt costs about half an interior-point solve; an isolated one leaves it tried again)
+    give_ups = 0
     trial_derivatives = opt.trial_derivatives
     for it in range(1, opt.max_iterations + 1):
         if known is None:
@@ -498,7 +538,7 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
         composite = opt.curvature == "composite" and getattr(ev, "power", None) is not None
         hessian = None
         if opt.curvature == "composite":
-            base = ev.rate_hessian if composite else ev.hessian
+            base = np.asarray(ev.rate_hessian if composite else ev.hessian)
             model = _floored(base + (correction if correction is not None else 0.0))
             if pending is not None:
                 step, before, lam, xi = pending
@@ -510,11 +550,13 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
 
         def solve_qp(rho, ev=ev, hessian=hessian, composite=composite, radius=radius):
             if composite:
-                return _composite_qp_step(ev, radius, rho, hessian)
-            return (*_qp_step(ev, radius, rho, hessian), None)
+                return (*_composite_qp_step(ev, radius, rho, hessian), None)
+            d, predicted, linear, multipliers, active, gave_up = _qp_step(
+                ev, radius, rho, hessian, start=active_set, interior_first=give_ups >= 2)
+            return d, predicted, linear, multipliers, None, (active, gave_up)
 
         merit = ev.J + penalty * _violation(ev.constraints)
-        d, predicted, linear, multipliers, xi = solve_qp(penalty)
+        d, predicted, linear, multipliers, xi, active = solve_qp(penalty)
         # the l1 merit is exact only with rho above the multipliers; and while the linearised constraints
         # cannot be met, weigh feasibility more
         top = float(multipliers.max()) if multipliers.size else 0.0
@@ -522,7 +564,11 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
         if wanted > penalty and penalty < 1e6:
             penalty = min(wanted, 1e6)
             merit = ev.J + penalty * _violation(ev.constraints)
-            d, predicted, linear, multipliers, xi = solve_qp(penalty)
+            d, predicted, linear, multipliers, xi, active = solve_qp(penalty)
+        if active is not None:  # (the composite QP's is None)
+            active, gave_up = active
+            active_set = active if active is not None else active_set  # where the next step QP starts
+            give_ups = give_ups + 1 if gave_up else 0
         objective_gradient = _model_gradient(ev, xi, composite)
         kkt = kkt_residual(objective_gradient, ev.constraints, _jacobian(ev), multipliers)
         if opt.stop == "kkt" and kkt.residual <= opt.kkt_tolerance and ev.violation <= opt.feasibility:
@@ -551,6 +597,8 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
                     ratio = actual / predicted
         accepted = ratio > 0.1
         step_size = float(np.abs(d).max())  # the trust-region step's, before any extrapolation past it
+        logger.debug("%s iteration %d: radius %.3g, step %.3g, predicted %.3g, ratio %.3g, J %.6g, violation %.2g",
+                     name, it, radius, step_size, predicted, ratio, trial.J, trial.violation)
         if accepted and opt.extrapolate and ratio > 1.25:
             # the model was pessimistic along d (J_e is close to linear there): try 2 d, then 4 d
             for _ in range(2):

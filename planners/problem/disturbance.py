@@ -136,7 +136,8 @@ class DisturbedProblem(MotionProblem):
     def _external(self, n_samples: int):
         if self.external is None:
             return None
-        # the perturbed copies of the nodes (complex-step derivatives) each get their node's force
+        # one force a node; with the complex step (MotionProblem.derivatives "complex"), each of a node's
+        # perturbed copies gets its node's force
         return Jet(np.tile(self.external, (1, n_samples // self.external.shape[1], 1)))
 
     def _inputs(self, motion):

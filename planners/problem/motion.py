@@ -14,13 +14,11 @@ everything the planner looks at is a function of the motion at that instant only
 The per-sample quantities come from :func:`fpr.model.inverse_dynamics.inverse_dynamics` (planning model:
 point-mass drones for the thrusts and rolls, the exact rigid drones for the torques). Their
 partial derivatives with respect to the 5 n entries of the local motion jet are exact, by forward-mode dual
-numbers (:mod:`fpr.model.dual`, the value once and 5 n real tangents) or by *complex-step differentiation*
-(the reference, :attr:`MotionProblem.derivatives`): every function on that path is analytic and carries a
-complex perturbation, so Im(f(X + i h e)) / h is the derivative to machine precision (h = 1e-30). The chain
-rule through W then gives exact gradients with respect to P. The complex step's 5 n copies of all samples
-go through one batched call; their real parts are equal, so the 4 x 4 inverses and solves and the sines and
-cosines are computed once per node (:func:`fpr.model.jets.complex_step_copies`). Problems of one plan can
-share their nodes' derivatives (:class:`NodeDerivatives`: the 2-step polish starts where its travels ended).
+numbers (:mod:`fpr.model.dual`: the value once and the 5 n directions as real tangents, each quantity carrying
+only the directions it depends on). The chain rule through W then gives exact gradients with respect to P. The
+complex step (Im(f(X + i h e)) / h, h = 1e-30: every function on that path is analytic) is the independent
+reference the tests hold them to (:attr:`MotionProblem.derivatives`). Problems of one plan can share their nodes'
+derivatives (:class:`NodeDerivatives`: the 2-step polish starts where its travels ended).
 
 Integrals use Simpson's rule on K equally spaced nodes per segment (the optimisation grid).
 Constraints are enforced on the same nodes, aggregated as the minimum over short windows
@@ -36,32 +34,29 @@ reported J_e uses the exact absolute value.
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
 
-from fpr.model import jets
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
+from planners.problem.banded import Banded
+from planners.problem.evaluation import Evaluation, NodeDerivatives, cached_evaluation
 from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
 from planners.problem.sensitivities import by_complex_step, by_dual_numbers
 
+#: The step h of the complex step (:attr:`MotionProblem.derivatives` "complex", the reference).
 COMPLEX_STEP = 1e-30
-#: (directions, nodes) from which :attr:`MotionProblem.derivatives` "auto" takes dual numbers.
-DUAL_FROM = (20, 60)
+#: The settings of :attr:`MotionProblem.derivatives`.
+DERIVATIVES = ("dual", "complex")
 POWER_SMOOTHING = 1e-2  # [W]
 POWER_CURVATURE_FLOOR = 1e-2  # [W]
 # The optimiser asks every (scaled) margin to be at least this on its grid, so that what happens
 # between grid nodes (a rotor-speed peak a few milliseconds off a node) stays within the limits:
 # 1e-3 is 1 mm, 1 mrad, or about 0.4 rad/s at the rotor-speed limit.
 CONSTRAINT_BACKOFF = 1e-3
-#: From this many variables on, an evaluation also gives its constraints' Jacobian as a sparse matrix
-#: (``Evaluation.jacobian_sparse``): each row touches one segment's two points, and the SQP's per-row
-#: work on the dense array grows as the square of the mission's length.
-SPARSE_FROM = 200
 
 
 @dataclass(frozen=True)
@@ -99,6 +94,10 @@ CONSTRAINT_KINDS = {
     "thrust_low": ("N", "thrust f_i >= f_min: the controller steers the thrust's direction, which a small "
                         "thrust makes ill-conditioned (singularity crossings, planners.crossing.solve)"),
 }
+
+
+#: The constraint kinds of the robot's workspace margins (a function of the motion's positions alone).
+WORKSPACE_KINDS = ("ground", "fixed_point", "phi", "q21", "q1", "q2", "crossing")
 
 
 def constraint_kind(name: str) -> str:
@@ -165,6 +164,43 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
     return np.stack(cols, axis=-1), names, details
 
 
+def between_node_minima(rows, per_segment: int, skip: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Each node's row values lowered to where they dip between the grid nodes, and where (in node spacings).
+
+    A row (a constraint margin along the motion) may dip between two nodes below both: the rotor speeds of a
+    fast travel peak a few milliseconds off a node. The parabola through a node's and its two neighbours'
+    values (equally spaced, one segment) has its vertex at tau = -a1 / a2 spacings from the node
+    (a1 = (c+ - c-) / 2, a2 = c- - 2 c + c+); where it curves upwards (a2 > 0) and its vertex is nearer this
+    node than the neighbours (|tau| <= 1/2; up to 1 for the segment's second and second-last node, which
+    cover the intervals at its ends), the node's value becomes the vertex's, c + a1 tau + a2 tau^2 / 2. The
+    estimate is exact for quadratics, derived from the nodes alone; the rows' derivatives follow by the
+    Lagrange weights at tau (:meth:`MotionProblem._row_derivatives`).
+
+    Args:
+        rows: the rows at the nodes, (m * per_segment, R), segment by segment.
+        per_segment: nodes per segment (>= 3).
+        skip: how many of the first columns are left as they are (rows with their own between-node rule).
+
+    Returns:
+        (the rows lowered (m * per_segment, R), tau (m * per_segment, R), 0 where not lowered).
+    """
+    n, r = rows.shape
+    c = rows.reshape(-1, per_segment, r)
+    before, node, after = c[:, :-2], c[:, 1:-1], c[:, 2:]
+    a1, a2 = 0.5 * (after - before), before - 2.0 * node + after
+    reach = np.full((per_segment - 2, 1), 0.5)
+    low, high = -reach.copy(), reach.copy()
+    low[0], high[-1] = -1.0, 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = np.where(a2 > 0.0, -a1 / np.where(a2 > 0.0, a2, 1.0), 0.0)
+    tau = np.where((tau >= low) & (tau <= high), tau, 0.0)
+    tau[..., :skip] = 0.0
+    out, where = c.copy(), np.zeros_like(c)
+    out[:, 1:-1] = node + tau * (a1 + 0.5 * a2 * tau)
+    where[:, 1:-1] = tau
+    return out.reshape(n, r), where.reshape(n, r)
+
+
 def _chain_basis(sensitivities, basis_by_node) -> np.ndarray:
     """d q / d (the entries of a node's segment's two points) from d q / d (the node's motion jet).
 
@@ -222,135 +258,6 @@ def simpson_weights(count: int, duration: float) -> np.ndarray:
     return w * duration / (3.0 * (count - 1))
 
 
-@dataclass(frozen=True)
-class Evaluation:
-    """Objective and constraints of one motion on the optimisation grid.
-
-    Attributes:
-        J: weighted, normalised objective (3.26).
-        terms: [J_e, J_phi] on the grid (J_e with the smoothed |.|) [J, rad^2/s].
-        constraints: windowed minima of the scaled constraint rows, shape (n_windows * R,).
-        gradient: dJ/dx, shape (n_x,), or None.
-        jacobian: d constraints / dx, shape (n_windows * R, n_x), or None (a property: the array given
-            as ``dense_jacobian``, or made from ``jacobian_sparse`` on first use when only that was given).
-        hessian: Gauss-Newton approximation of d^2 J / dx^2 (positive semi-definite), or None.
-        power, power_weight, power_jacobian: the drone powers P_k = F_i . r_i' at every node (K = N n_d,
-            [W]), their weights a_e w_k in J (J = sum_k a_e w_k |P_k|_eps + a_phi J_phi) and their
-            derivatives (K, n_x): the SQP models the sum of |P_k| piecewise linearly (or None;
-            ``power_jacobian`` is a property like ``jacobian``: ``dense_power_jacobian`` or made from
-            ``power_jacobian_sparse``).
-        rate_hessian: the Gauss-Newton matrix of the a_phi J_phi part alone (or None).
-        jacobian_sparse: ``jacobian`` as a scipy CSR matrix (same numbers), for problems of
-            :data:`SPARSE_FROM` variables or more (else None). :class:`MotionProblem` gives those problems
-            the CSR matrix alone (the SQP's default route works on it; a dense copy of a long mission's
-            thousands of rows cost more than the rest of the derivatives' assembly), and ``jacobian`` makes
-            the dense array when asked for.
-        power_jacobian_sparse: ``power_jacobian`` likewise (CSR from :data:`SPARSE_FROM` variables, else None).
-    """
-
-    J: float
-    terms: np.ndarray
-    constraints: np.ndarray
-    gradient: np.ndarray | None = None
-    dense_jacobian: np.ndarray | None = None
-    hessian: np.ndarray | None = None
-    power: np.ndarray | None = None
-    power_weight: np.ndarray | None = None
-    dense_power_jacobian: np.ndarray | None = None
-    rate_hessian: np.ndarray | None = None
-    jacobian_sparse: object | None = None
-    power_jacobian_sparse: object | None = None
-
-    @property
-    def jacobian(self) -> np.ndarray | None:
-        """d constraints / dx as an array (from ``jacobian_sparse`` on first use when only that was given)."""
-        return self._dense("dense_jacobian", "jacobian_sparse")
-
-    @property
-    def power_jacobian(self) -> np.ndarray | None:
-        """d P_k / dx as an array (from ``power_jacobian_sparse`` on first use when only that was given)."""
-        return self._dense("dense_power_jacobian", "power_jacobian_sparse")
-
-    def _dense(self, name: str, sparse_name: str):
-        dense = getattr(self, name)
-        if dense is None and getattr(self, sparse_name) is not None:
-            dense = getattr(self, sparse_name).toarray()
-            object.__setattr__(self, name, dense)  # kept: the same array on every access
-        return dense
-
-    @property
-    def violation(self) -> float:
-        """Largest constraint violation (0 when every constraint holds) [scaled units]."""
-        return float(max(0.0, -self.constraints.min()))
-
-
-def cached_evaluation(evaluate):
-    """Keep the last result of an NLP's ``evaluate(self, x, derivatives=False) -> Evaluation``.
-
-    The solvers ask for J, the constraints and their derivatives at one x in separate calls: the
-    decorated method computes once per x (a result with derivatives also serves a call without
-    them). The last result is kept in ``self._cache``; x reaches ``evaluate`` as a float array.
-    """
-    @functools.wraps(evaluate)
-    def cached(self, x, derivatives: bool = False) -> Evaluation:
-        x = np.asarray(x, dtype=float)
-        key = x.tobytes()
-        last = getattr(self, "_cache", None)
-        if last is not None and last[0] == key and (last[1] or not derivatives):
-            return last[2]
-        result = evaluate(self, x, derivatives)
-        self._cache = (key, derivatives, result)
-        return result
-
-    return cached
-
-
-class NodeDerivatives:
-    """The grid nodes' quantities and their complex-step sensitivities, segment by segment, of the last
-    evaluation with derivatives of each :class:`MotionProblem` given this store
-    (:meth:`MotionProblem.share_node_derivatives`), for the problems of one plan to share
-    (:mod:`planners.methods.two_step`: one store per attempt, its travels and its polish).
-
-    A node's quantities and their derivatives with respect to its motion jet depend on its segment's two
-    points, its duration and the grid alone, not on the problem (its free entries, scaling, weights): a
-    problem whose every segment is one that another problem's last evaluation with derivatives had (the
-    2-step polish starts where the travels of step 2 ended, :mod:`planners.methods.two_step`) takes their
-    numbers instead of computing them again. Points match when each entry is within 4 ulp of the stored one
-    (a way through x and back, ``points_of(x_of(p))``, may change the last bit).
-    """
-
-    def __init__(self):
-        self._segments: dict = {}  # (samples per segment, duration's bytes) -> [(owner, points (2, 5, n), data)]
-        self._owned: dict = {}  # owner -> its keys in _segments
-        self._owners = itertools.count()
-
-    def owner(self) -> int:
-        """A new owner's number (a problem's; not its id(), which a later problem may get again)."""
-        return next(self._owners)
-
-    def put(self, owner: int, points, durations, k: int, data: list) -> None:
-        """Keep ``owner``'s evaluation (``data[i]`` for segment i), replacing its earlier one."""
-        for key in self._owned.pop(owner, ()):
-            self._segments[key] = [e for e in self._segments[key] if e[0] != owner]
-        keys = [(k, d.tobytes()) for d in durations]
-        for i, key in enumerate(keys):
-            self._segments.setdefault(key, []).append((owner, points[i:i + 2], data[i]))
-        self._owned[owner] = set(keys)
-
-    def get(self, points, durations, k: int) -> list | None:
-        """The data of every segment of a motion (``points``, ``durations``, ``k`` nodes per segment), or
-        None when one of them is not in the store."""
-        found = []
-        for i, d in enumerate(durations):
-            ends = points[i:i + 2]
-            hit = next((data for _, stored, data in self._segments.get((k, d.tobytes()), ())
-                        if np.all(np.abs(stored - ends) <= 4 * np.finfo(float).eps * np.abs(ends))), None)
-            if hit is None:
-                return None
-            found.append(hit)
-        return found
-
-
 class MotionProblem:
     """J and the constraints of a piecewise motion as functions of its free point entries.
 
@@ -373,18 +280,23 @@ class MotionProblem:
             0..6 (:data:`fpr.model.inverse_dynamics.MOTION_ORDER`) and the assembly-mode bounds become the
             crossing's side constraints.
         min_thrust: a lower bound f_min [N] on every drone's thrust (``thrust_low``), or None.
+        dips: the dynamic rows (rotor speeds, rolls, thrust) take their dips between the nodes
+            (:func:`between_node_minima`): the way-point methods' and the crossing's NLPs, on grids fine enough
+            for a parabola through three nodes to follow a row (the replanner's coarse grids keep the nodes'
+            values). The workspace rows take their values half a spacing after each node either way.
     """
 
     #: How :meth:`_node_derivatives` differentiates: "dual" (forward-mode dual numbers, :mod:`fpr.model.dual`:
-    #: the value once, the directions as real tangents), "complex" (the complex step, the reference) or
-    #: "auto": dual numbers from :data:`DUAL_FROM` (directions, nodes) on, the complex step below. The dual
-    #: pass costs less per node and more per evaluation (on the FPR faster from about 68 nodes; on the
-    #: prototype, 10 directions, at par from about 240 nodes; documentation: guides/planning-internals).
-    derivatives = "auto"
+    #: the value once, the directions as real tangents; every plan) or "complex" (the complex step, the
+    #: independent reference the tests hold the dual numbers to). Measured on seeded families of random missions
+    #: of both robots (32 way points, whole plans), the complex step paid nowhere: dual numbers were as fast on the
+    #: single travels of step 2 (tens of nodes) and faster on the whole missions (0.6x per evaluation of the FPR's,
+    #: 0.85x of the prototype's; documentation: guides/planning-internals).
+    derivatives = "dual"
 
     def __init__(self, robot, points, durations, free, alpha: float, normalisation,
                  samples_per_segment: int = 17, windows_per_segment: int = 4, crossing: int | None = None,
-                 min_thrust: float | None = None):
+                 min_thrust: float | None = None, dips: bool = False):
         self.robot = robot
         self.node_store: NodeDerivatives | None = None  # (share_node_derivatives)
         self._store_owner = None
@@ -415,6 +327,7 @@ class MotionProblem:
         self.basis = w
         self.crossing_sign = None
         self.min_thrust = min_thrust
+        self.dips = bool(dips)
         if crossing is not None:
             if not 0 < int(crossing) < m:
                 raise PlannerArgumentError("crossing", crossing,
@@ -478,6 +391,16 @@ class MotionProblem:
         """The inverse-dynamics inputs of ``motion`` (5, N, n): the hook a problem with external forces
         overrides (:class:`planners.problem.disturbance.DisturbedProblem`); here the free flight."""
         return inverse_dynamics(self.robot, motion)
+
+    @property
+    def _half_step_columns(self) -> int:
+        """How many of the rows' first columns (the workspace margins) hold their value half a spacing after
+        each node already (:meth:`_between_nodes`; none for a crossing)."""
+        if self.crossing_sign is not None:
+            return 0
+        if self._rows_names is None:
+            self.evaluate(self.x_of(self.points))
+        return sum(1 for name in self._rows_names if constraint_kind(name) in WORKSPACE_KINDS)
 
     def _quantities(self, motion):
         """Raw per-drone integrand pieces (N, 2 n_d): [F_i . r_i' ..., phi_i' ...], and the rows."""
@@ -561,12 +484,19 @@ class MotionProblem:
                 rate_hess = self._assemble((2 * a_phi * self.weights)[:, None] * np.ones(rate_local.shape[1]),
                                            rate_local)
                 # the powers' derivatives with respect to x: (N n_d, n_x)
-                p_jac, p_sparse = self._scatter(np.repeat(index, n_d, axis=0),
-                                                local[:, :n_d].reshape(n_s * n_d, -1), True)
+                power_local = local[:, :n_d]
+                p_sparse = self._scatter(np.repeat(index, n_d, axis=0), power_local.reshape(n_s * n_d, -1))
                 p_weight = np.repeat(a_e * self.weights, n_d)
+
+                def power_gram(weight, power_local=power_local):
+                    return self._assemble(np.asarray(weight, dtype=float).reshape(n_s, n_d), power_local)
         n_d = raw.shape[1] // 2
         terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
+        if self.dips:
+            rows, tau = between_node_minima(rows, self.samples_per_segment, self._half_step_columns)
+        else:
+            tau = np.zeros_like(rows)
         if self._window_index is not None:  # every window at once: the first node of each window's minimum
             arg = self._window_index[:, 0, None] + np.argmin(rows[self._window_index], axis=1)  # (W, R)
             constraints = np.take_along_axis(rows, arg, axis=0).reshape(-1) - CONSTRAINT_BACKOFF
@@ -581,16 +511,32 @@ class MotionProblem:
         if derivatives:
             sample = np.concatenate(picks)  # (W R,)
             column = np.tile(np.arange(rows.shape[1]), len(self.windows))
-            local = _chain_basis(sens_rows[sample, column][:, None], self._basis_by_node[sample])[:, 0]
+            row_local = self._row_derivatives(sens_rows, sample, column, tau[sample, column])
             width = 2 * N_DERIVS * n  # the entries of a segment's two points, in the points' flat order
             entries = self.segment[sample][:, None] * (N_DERIVS * n) + np.arange(width)
-            jac, jac_sparse = self._scatter(entries, local.reshape(sample.size, width), True)
+            jac_sparse = self._scatter(entries, row_local.reshape(sample.size, width))
         if not derivatives:
             return Evaluation(value, terms, constraints)
         if not self.power_model:
-            return Evaluation(value, terms, constraints, grad, jac, hess, jacobian_sparse=jac_sparse)
-        return Evaluation(value, terms, constraints, grad, jac, hess, power.reshape(-1), p_weight, p_jac, rate_hess,
-                          jac_sparse, p_sparse)
+            return Evaluation(value, terms, constraints, grad, None, hess, jacobian_sparse=jac_sparse)
+        return Evaluation(value, terms, constraints, grad, None, hess, power.reshape(-1), p_weight, None, rate_hess,
+                          jac_sparse, p_sparse, power_gram)
+
+    def _row_derivatives(self, sens_rows, sample, column, tau) -> np.ndarray:
+        """d (row ``column`` at node ``sample``, its value between nodes :func:`between_node_minima`) / d (the
+        entries of the node's segment's two points), (K, 2 * 5 * n): the Lagrange weights at tau of the node's
+        and its neighbours' derivatives (the value is the interpolating parabola's, the weights its
+        derivatives with respect to the three nodes' values)."""
+        basis = self._basis_by_node
+        local = _chain_basis(sens_rows[sample, column][:, None], basis[sample])[:, 0]
+        bent = np.flatnonzero(tau)
+        if bent.size:
+            t = tau[bent].reshape((-1,) + (1,) * (local.ndim - 1))
+            local[bent] *= 1.0 - t * t
+            for offset, weight in ((-1, 0.5 * t * (t - 1.0)), (1, 0.5 * t * (t + 1.0))):
+                node = sample[bent] + offset  # the same segment: tau is 0 at a segment's first and last node
+                local[bent] += weight * _chain_basis(sens_rows[node, column[bent]][:, None], basis[node])[:, 0]
+        return local
 
     def _node_derivatives(self, points, motion):
         """Every node's quantities and their sensitivities to its motion jet (:attr:`derivatives`, module docstring):
@@ -616,58 +562,43 @@ class MotionProblem:
         return raw, rows, sens_raw, sens_rows
 
     def _dual_derivatives(self, motion) -> bool:
-        """Whether :meth:`_node_derivatives` takes dual numbers (:attr:`derivatives`) at this motion: not for
-        a complex motion (a caller's own complex step through the problem) nor a singularity crossing (the
-        prototype's 5th and 6th derivatives: complex step, the reference)."""
-        if self.derivatives not in ("auto", "dual", "complex"):
+        """Whether :meth:`_node_derivatives` takes dual numbers (:attr:`derivatives`) at this motion: not with
+        "complex", nor for a complex motion (a caller's own complex step through the problem)."""
+        if self.derivatives not in DERIVATIVES:
             raise PlannerArgumentError("derivatives", self.derivatives, f"derivatives = {self.derivatives!r}: "
-                                       "give 'auto', 'dual' or 'complex'")
-        if self.derivatives == "complex" or self.crossing_sign is not None or np.iscomplexobj(motion):
-            return False
-        directions, nodes = DUAL_FROM
-        return self.derivatives == "dual" or (motion.shape[0] * motion.shape[2] >= directions
-                                              and motion.shape[1] >= nodes)
+                                       f"give {' or '.join(map(repr, DERIVATIVES))}")
+        return self.derivatives == "dual" and not np.iscomplexobj(motion)
 
-    def _scatter(self, entries, values, with_sparse: bool = False):
+    def _scatter(self, entries, values) -> sparse.csr_matrix:
         """The (rows, n_x) derivatives with respect to x of rows whose derivatives with respect to the
-        points' flat entries ``entries`` (rows, w) are ``values`` (rows, w): the free entries, scaled.
-
-        The same numbers as filling a (rows, points.size) array and taking its free columns, without that
-        array (each row touches one segment's two points: a long mission's would be mostly zeros). With
-        ``with_sparse``: (that array, None) below :data:`SPARSE_FROM` variables, else (None, the same numbers
-        as a CSR matrix): a long mission's dense array is not made (:class:`Evaluation` makes it when asked).
+        points' flat entries ``entries`` (rows, w) are ``values`` (rows, w): the free entries, scaled, as a CSR
+        matrix (each row touches one segment's two points: its dense array would be mostly zeros).
         """
         cols = self._column[entries]
         hit = cols >= 0
         row, col = np.nonzero(hit)
         col = cols[row, col]
         value = values[hit] * self.scale[col]
-        shape = (entries.shape[0], self.n_x)
-        if with_sparse and self.n_x >= SPARSE_FROM:
-            # row by row, columns increasing (a row's entries are its segment's, in the points' order): the
-            # CSR arrays directly, without scipy's conversion from coordinates
-            indptr = np.concatenate([[0], np.cumsum(hit.sum(axis=1))])
-            return None, sparse.csr_matrix((value, col, indptr), shape=shape)
-        out = np.zeros(shape)
-        out[row, col] = value
-        return (out, None) if with_sparse else out
+        # row by row, columns increasing (a row's entries are its segment's, in the points' order): the CSR
+        # arrays directly, without scipy's conversion from coordinates
+        indptr = np.concatenate([[0], np.cumsum(hit.sum(axis=1))])
+        return sparse.csr_matrix((value, col, indptr), shape=(entries.shape[0], self.n_x))
 
-    def _assemble(self, curvature, local) -> np.ndarray:
+    def _assemble(self, curvature, local) -> Banded:
         """Sum over nodes i and quantities q of c_iq grad q_i grad q_i^T, for the free entries in x's scaling.
 
         ``curvature`` c (N, Q) >= 0 and ``local`` (N, Q, 10 n): the derivatives of node i's quantities
         with respect to the entries of the two points of its segment. A segment's nodes share those
         entries: each segment's block is one product (its nodes' rows weighted by sqrt(c)), added at
-        its two points.
+        its two points into the band (:class:`~planners.problem.banded.Banded`: x holds the points in order,
+        so the sum couples neighbouring points only).
         """
         m = self.durations.size
         width = local.shape[-1]
         rows = (np.sqrt(curvature)[..., None] * local).reshape(m, -1, width)
         blocks = np.matmul(rows.transpose(0, 2, 1), rows)  # (m, 10 n, 10 n)
-        # each block's entries added at their x indices (fixed entries dropped): one bincount
-        hit, flat, scales = self._assembly_pattern
-        h = np.bincount(flat, blocks[hit], minlength=self.n_x * self.n_x).reshape(self.n_x, self.n_x)
-        return h * scales
+        hit, flat, scales, bandwidth = self._assembly_pattern
+        return Banded.scatter(blocks[hit] * scales, flat, self.n_x, bandwidth)
 
     @functools.cached_property
     def _basis_by_node(self) -> np.ndarray:
@@ -676,14 +607,18 @@ class MotionProblem:
         return np.ascontiguousarray(b.transpose(1, 0, 2, 3).reshape(b.shape[1], b.shape[0], -1))
 
     @functools.cached_property
-    def _assembly_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _assembly_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
         """What :meth:`_assemble` scatters by, the same at every evaluation: the entries of the segments'
-        blocks that are free in both indices (m, 10 n, 10 n), their flat index in the (n_x, n_x) matrix, and
-        the variables' scales' outer product (n_x, n_x)."""
+        blocks (m, 10 n, 10 n) that are free in both indices and on or above the diagonal, their flat index in
+        the band, their scales' products, and the band's width (the largest x-index distance of two entries of
+        one segment)."""
         cols = self._segment_columns  # (m, 10 n), -1 where fixed
-        hit = (cols[:, :, None] >= 0) & (cols[:, None, :] >= 0)
-        flat = (cols[:, :, None] * self.n_x + cols[:, None, :])[hit]
-        return hit, flat, np.outer(self.scale, self.scale)
+        both = (cols[:, :, None] >= 0) & (cols[:, None, :] >= 0)
+        bandwidth = int(np.max(np.abs(cols[:, :, None] - cols[:, None, :])[both], initial=0))
+        hit = both & (cols[:, :, None] <= cols[:, None, :])
+        rows, columns = np.broadcast_to(cols[:, :, None], hit.shape)[hit], np.broadcast_to(cols[:, None, :], hit.shape)[hit]
+        flat = Banded.flat_index(rows, columns, self.n_x, bandwidth)
+        return hit, flat, self.scale[rows] * self.scale[columns], bandwidth
 
     @functools.cached_property
     def _segment_columns(self) -> np.ndarray:

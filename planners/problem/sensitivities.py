@@ -8,13 +8,12 @@ derivative of coordinate j at node i, for the D = 5 n directions (r, j):
 * :func:`by_dual_numbers`: one pass on dual numbers (:mod:`fpr.model.dual`), the value once and the D
   directions as real tangents (each quantity carrying only the directions it depends on);
 * :func:`by_complex_step`: D complex-step copies of the motion (copy-major along the node axis), each with one
-  entry perturbed by i h, under :func:`fpr.model.jets.complex_step_copies` (the reference).
+  entry perturbed by i h: the independent reference the tests hold the dual numbers to.
 """
 from itertools import product
 
 import numpy as np
 
-from fpr.model import jets
 from fpr.model.dual import Dual
 
 
@@ -48,8 +47,7 @@ def by_dual_numbers(quantities, motion):
 def by_complex_step(quantities, motion, step: float):
     """The quantities and their sensitivities by complex step of size ``step`` (module docstring)."""
     n_r, n_s, n = motion.shape
-    with jets.complex_step_copies(n_r * n):  # their matrices inverted once, not per copy
-        raw, rows = quantities(seeded_motion(motion, step))
+    raw, rows = quantities(seeded_motion(motion, step))
     return (raw[:n_s].real, rows[:n_s].real, _arranged(raw.imag / step, n_r, n, n_s),
             _arranged(rows.imag / step, n_r, n, n_s))
 

@@ -10,13 +10,14 @@ a reference's). The sections, each in its own module:
   closed chain against the raw Pinocchio calls, and accuracy figures;
 * ``planning`` (:mod:`fpr.cli.bench.planning`): the planning methods on the square mission against a
   baseline in the manner of the thesis' fmincon runs (:mod:`fpr.bench.baseline`), re-optimising one
-  segment, the singularity crossing;
+  segment, the singularity crossing, and seeded families of random missions of every built-in robot
+  (:mod:`fpr.cli.bench.families`);
 * ``control`` (:mod:`fpr.cli.bench.control`): the rotor allocation's QP solvers side by side, and the
   closed-loop simulation's real-time factor;
 * ``replan`` (:mod:`fpr.cli.bench.replan`): the latency of a replan in flight (median, 95th percentile,
   worst) on the built-in missions;
-* ``scaling`` (:mod:`fpr.cli.bench.scaling`): planning time against the mission's length (4 to 32 way
-  points, 0 to 4 via points, both methods) and its growth exponent.
+* ``scaling`` (:mod:`fpr.cli.bench.scaling`): planning time against the mission's length (4 to 64 way
+  points, seeded families of random missions of every built-in robot, both methods) and its growth exponent.
 
 Timings depend on the machine and its load: no test asserts them.
 """
@@ -50,7 +51,8 @@ def parser() -> contract.Parser:
     p.add_argument("--quick", action="store_true",
                    help="3 repeats of ~20 ms loops instead of 7 of ~50 ms; planning: 1 run per item, "
                         "baseline capped at 15 s instead of 120 s; control: 32 states instead of 64, "
-                        "1 simulation run instead of 3; scaling: 1 via point only")
+                        "1 simulation run instead of 3; planning: 6 random missions a robot instead of 20; scaling: 2 a "
+                        "robot and length instead of 6")
     p.add_argument("--section", choices=("all", "model", "planning", "control", "replan", "scaling"),
                    default="all", help="which part to run")
     contract.add_debug(p)

@@ -18,7 +18,6 @@ import numpy as np
 from fpr.model.inverse_dynamics import inverse_dynamics
 from planners.problem.disturbance import dense_check
 from planners.trajectory.polynomial import PiecewisePolynomial
-from planners.problem.motion import COMPLEX_STEP
 from planners.replanning.replanner import Replanner, ReplanOptions
 from planners.replanning.check import evaluate_and_check
 from planners.replanning.solver import qp_step
@@ -50,17 +49,17 @@ def replan_phases(result, repeats: int = 15) -> dict:
             return call()
         return run
 
-    # what a derivative evaluation sends through the inverse dynamics (planners/problem/motion.py): the Dual motion,
-    # or the complex-step copies
+    # what a derivative evaluation sends through the inverse dynamics (planners/problem/motion.py): the motion on
+    # dual numbers, seeded with its 5 n directions
     motion = problem.motion(problem.points_of(x0))
     n_r, _, n = motion.shape
-    copies = seeded_motion(motion, None if problem._dual_derivatives(motion) else COMPLEX_STEP)
+    seeded = seeded_motion(motion)
     first = problem.evaluate(x0, True)
     part = PiecewisePolynomial(problem.points_of(x0), problem.durations)
     phases = {
         "set-up of the NLP": _least(lambda: replanner.problem(t_s), repeats),
         "derivative evaluation": _least(fresh(lambda: problem.evaluate(x0, True)), repeats),
-        "  its inverse dynamics": _least(lambda: inverse_dynamics(problem.robot, copies), repeats),
+        "  its inverse dynamics": _least(lambda: inverse_dynamics(problem.robot, seeded), repeats),
         "value evaluation": _least(fresh(lambda: problem.evaluate(x0)), repeats),
         "step QP": _least(lambda: qp_step(first, replanner.options.radius, 10.0), repeats),
         "dense check": _least(lambda: dense_check(problem.robot, part, rate, t_s), repeats),
@@ -68,14 +67,14 @@ def replan_phases(result, repeats: int = 15) -> dict:
             fresh(lambda: evaluate_and_check(problem, x0, rate, t_s)), repeats
         ),
     }
-    return {"nodes": int(problem.t.size), "copies": int(problem.t.size * n_r * n),
+    return {"nodes": int(problem.t.size), "directions": int(n_r * n),
             "dense_samples": int(dense_check(problem.robot, part, rate, t_s)[2]), "repeats": repeats,
             "cpu_s": phases}
 
 
 def phases_table(doc: dict) -> str:
     """The phases as text lines."""
-    lines = [f"moving-target replan taken apart ({doc['nodes']} nodes, {doc['copies']} perturbed copies, "
+    lines = [f"moving-target replan taken apart ({doc['nodes']} nodes, {doc['directions']} dual directions a node, "
              f"{doc['dense_samples']} dense samples; minimum CPU time of {doc['repeats']} runs):"]
     lines += [f"  {name:<40} {value * 1e3:7.2f} ms" for name, value in doc["cpu_s"].items()]
     return "\n".join(lines)
