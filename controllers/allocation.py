@@ -1,17 +1,17 @@
-"""Rotor allocation of the drones as a box-constrained QP solved by ProxQP (seed 2.13, 2.24, 3.10, 3.31).
+r"""Rotor allocation of the drones as a box-constrained QP solved by ProxQP (seed 2.13, 2.24, 3.10, 3.31).
 
 The inner loop wants the attitude accelerations u_a (psi'', theta'', roll'' of each drone for the
 FPR; psi'', theta'', phi1'' for the prototype) and the outer loop wants the thrusts f_d. With the
 attitude model (2.13)
 
-.. math:: \\ddot q_a = A_\\tau \\tau + M_{inv,a} (J_f^T f - c)
+.. math:: \ddot q_a = A_\tau \tau + M_{inv,a} (J_f^T f - c)
 
 and each drone's rotor map [f_i; tau_i] = R_f,i w_i^2 (3.10), the allocation chooses the squared
 rotor speeds z = w^2 of all drones:
 
-.. math:: \\min_z \\tfrac12 \\|W_a (A_\\tau S_\\tau z + M_{inv,a} J_f^T S_f z - M_{inv,a} c - u_a)\\|^2
-          + \\tfrac12 \\|W_f (S_f z - f_d)\\|^2 + \\tfrac{\\varepsilon}2 \\|S_\\tau z\\|^2
-          \\quad \\text{s.t.}\\; 0 \\le z \\le w_{max}^2.
+.. math:: \min_z \tfrac12 \|W_a (A_\tau S_\tau z + M_{inv,a} J_f^T S_f z - M_{inv,a} c - u_a)\|^2
+          + \tfrac12 \|W_f (S_f z - f_d)\|^2 + \tfrac{\varepsilon}2 \|S_\tau z\|^2
+          \quad \text{s.t.}\; 0 \le z \le w_{max}^2.
 
 N_tau = I - A_tau^+ A_tau projects on the torques that do not change the attitude accelerations
 (the FPR's A_tau is 4 x 6: two such directions; the prototype's is square and N_tau = 0). Without
@@ -93,7 +93,8 @@ def _result(speeds_squared, thrust, torque, saturated, iterations, attitude, att
             thrust_desired=None) -> AllocationResult:
     """An :class:`AllocationResult` without the frozen dataclass' ``__init__`` (one ``object.__setattr__``
     per field, about twice the cost on the control loop's path); the same object, fields filled directly.
-    ``thrust_desired`` defaults to ``thrust`` (the closed form reaches it)."""
+    ``thrust_desired`` defaults to ``thrust`` (the closed form reaches it).
+    """
     result = object.__new__(AllocationResult)
     result.__dict__.update(speeds_squared=speeds_squared, thrust=thrust, torque=torque, saturated=saturated,
                            iterations=iterations, attitude=attitude,
@@ -241,7 +242,8 @@ class Allocator:
 
     def _resolve_kernel(self):
         """The native tick for this allocator (:mod:`fpr._native`'s part ``allocation``), or None for the Python
-        path (the part off or not built, or the robot larger than the tick's fixed sizes)."""
+        path (the part off or not built, or the robot larger than the tick's fixed sizes).
+        """
         module = native.use("allocation")
         fits = module is not None and self.n <= module.MAX_ROTORS and self._w_a.size <= module.MAX_ATTITUDE \
             and self.robot.nq <= module.MAX_COORDINATES
@@ -264,7 +266,8 @@ class Allocator:
 
     def _handover(self, to_compiled: bool) -> None:
         """Move the previous tick's active bounds to the representation of the path that runs next (the Python
-        path's tuple ``_active`` or the compiled tick's array ``_state``)."""
+        path's tuple ``_active`` or the compiled tick's array ``_state``).
+        """
         if to_compiled:
             if self._active is not None:
                 self._state[:] = self._active
@@ -342,7 +345,8 @@ class Allocator:
 
     def solve(self, attitude, thrust_desired, attitude_desired) -> AllocationResult:
         """Allocate the rotor speeds for wanted thrusts f_d (n_d,) [N] and attitude accelerations u_a (n_a,)
-        [rad/s^2] at the state of ``attitude`` (:class:`fpr.model.robot.AttitudeModel`)."""
+        [rad/s^2] at the state of ``attitude`` (:class:`fpr.model.robot.AttitudeModel`).
+        """
         tick = self._kernel
         if tick is None:
             return self._solve_python(attitude, thrust_desired, attitude_desired)
@@ -453,7 +457,8 @@ class Allocator:
 
     def _saturated(self, zeta) -> np.ndarray:
         """Rotors within 1e-6 w_max^2 of a bound (as :meth:`_saturation`), from zeta = z / w_max^2 (n floats), shape
-        (n_d, 4): one read-only array per pattern, built at its first use."""
+        (n_d, 4): one read-only array per pattern, built at its first use.
+        """
         low, high = self._tol / self.scale, 1.0 - self._tol / self.scale
         key = tuple([w <= low or w >= high for w in zeta])
         mask = self._saturation_arrays.get(key)

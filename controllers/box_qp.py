@@ -1,7 +1,7 @@
-"""A small box-constrained QP solved exactly by a primal-dual active-set method (the allocation's bounded
+r"""A small box-constrained QP solved exactly by a primal-dual active-set method (the allocation's bounded
 route).
 
-.. math:: \\min_x \\tfrac12 x^T H x + g^T x \\quad \\text{s.t.}\\; 0 \\le x \\le 1,
+.. math:: \min_x \tfrac12 x^T H x + g^T x \quad \text{s.t.}\; 0 \le x \le 1,
 
 H symmetric positive definite, n small (the allocation: 8 variables for the FPR, 4 for the prototype).
 The method (Hintermüller, Ito and Kunisch's primal-dual active set, a semi-smooth Newton method on the KKT
@@ -41,7 +41,8 @@ def _small_solve(a: list[list[float]], b: list[float]) -> list[float] | None:
     """x with A x = b for k <= 2 unknowns, A symmetric positive definite given as k lists of k floats (its upper
     triangle read, as LAPACK's posv, by the same Cholesky factorisation A = R^T R written out); None when A is
     not positive definite (as posv's info > 0). :func:`solve_box_qp_state` has these lines inline (a call and
-    the lists fewer per tick); tests hold the two equal, and this one equal to posv."""
+    the lists fewer per tick); tests hold the two equal, and this one equal to posv.
+    """
     a00 = a[0][0]
     if a00 <= 0.0:
         return None
@@ -116,7 +117,7 @@ def solve_box_qp_state(h: np.ndarray, g: np.ndarray, state: tuple[int, ...], max
                     return None
                 value = -t[i] / row[i]
                 x[i] = value
-                grad = [d + c * value for d, c in zip(t, row)]
+                grad = [d + c * value for d, c in zip(t, row, strict=True)]
             else:
                 i, j = free
                 row_i, row_j = h[i].tolist(), h[j].tolist()
@@ -132,13 +133,13 @@ def solve_box_qp_state(h: np.ndarray, g: np.ndarray, state: tuple[int, ...], max
                 value_j = (-t[j] - r01 * y0) / r11 / r11
                 value_i = (y0 - r01 * value_j) / r00
                 x[i], x[j] = value_i, value_j
-                grad = [d + ci * value_i + cj * value_j for d, ci, cj in zip(t, row_i, row_j)]
+                grad = [d + ci * value_i + cj * value_j for d, ci, cj in zip(t, row_i, row_j, strict=True)]
         else:
             solution, info = _posv(h.take(block).reshape(k, k), [-t[i] for i in free])[1:]
             if info != 0:
                 return None
             x = list(corner_list)
-            for i, value in zip(free, solution.tolist()):
+            for i, value in zip(free, solution.tolist(), strict=True):
                 x[i] = value
             grad = (h.dot(np.array(x)) + g).tolist()
         # at 0: stays while its multiplier (the gradient) is >= 0; at 1: stays while the gradient is <= 0;
@@ -146,7 +147,7 @@ def solve_box_qp_state(h: np.ndarray, g: np.ndarray, state: tuple[int, ...], max
         new = tuple([(AT_LOWER if d >= below else FREE) if s == AT_LOWER
                      else (AT_UPPER if d <= slack else FREE) if s
                      else AT_LOWER if v < below else AT_UPPER if v > above else FREE
-                     for s, v, d in zip(state, x, grad)])
+                     for s, v, d in zip(state, x, grad, strict=True)])
         if new == state:
             if k and (min(x) < 0.0 or max(x) > 1.0):  # a free variable within the slack of a bound, outside it
                 x = [0.0 if v < 0.0 else 1.0 if v > 1.0 else v for v in x]
@@ -158,7 +159,8 @@ def solve_box_qp_state(h: np.ndarray, g: np.ndarray, state: tuple[int, ...], max
 @functools.lru_cache(maxsize=4096)
 def _guess(state: tuple):
     """The index sets of a guess: (free indices, x with the free variables at 0 as a read-only array and as a
-    tuple, the flat positions of H_FF in H when it is solved by LAPACK, else None)."""
+    tuple, the flat positions of H_FF in H when it is solved by LAPACK, else None).
+    """
     n = len(state)
     free = tuple(i for i in range(n) if state[i] == FREE)
     corner_list = tuple(1.0 if s == AT_UPPER else 0.0 for s in state)

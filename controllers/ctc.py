@@ -1,10 +1,10 @@
-"""The cascaded computed-torque controller of the thesis (seed 2.2), for any robot of the registry.
+r"""The cascaded computed-torque controller of the thesis (seed 2.2), for any robot of the registry.
 
 **Outer loop** (passive chain, eq. 2.14-2.16, 2.20): from the planned s_d and its derivatives and
 the measured chain state,
 
-.. math:: u_p = \\ddot s_d - K_{pp} (s - s_d) - K_{dp} (\\dot s - \\dot s_d), \\qquad
-          J_h(s)^T F = M_s(s) u_p + c_s(s, \\dot s)
+.. math:: u_p = \ddot s_d - K_{pp} (s - s_d) - K_{dp} (\dot s - \dot s_d), \qquad
+          J_h(s)^T F = M_s(s) u_p + c_s(s, \dot s)
 
 gives the force F_i each drone must apply at its joint (point-mass drones, the planning model);
 the desired roll is its direction, phi_d,i = atan2(-F_iy, F_iz) (2.20). The thrust is its
@@ -225,7 +225,8 @@ class CascadedController:
     @property
     def disturbance(self) -> np.ndarray:
         """The observer's estimate r_s of the external generalised force on the chain s [N or N m], shape (n_s,)
-        (zeros without an observer or before its second update)."""
+        (zeros without an observer or before its second update).
+        """
         return np.zeros(len(self.chain)) if self.observer is None else self.observer.estimate[self.chain]
 
     def estimated_forces(self) -> tuple[np.ndarray, np.ndarray]:
@@ -289,7 +290,8 @@ class CascadedController:
         """One update of the observer (:mod:`controllers.observer`) at the measured (q, q'), dt [s] after the
         last: the full model's M(q) and nonlinear effects (Pinocchio's CRBA and RNEA), and the mean over the
         inner-loop ticks since the last update of the generalised force the drones were commanded to apply
-        (J_f^T f + J_tau^T tau of the attitude model) plus the known wind's."""
+        (J_f^T f + J_tau^T tau of the attitude model) plus the known wind's.
+        """
         st = self.settings
         if self.observer is None or self.observer.bandwidth != st.observer_bandwidth:
             self.observer = MomentumObserver(st.observer_bandwidth, self.robot.nq)
@@ -361,7 +363,8 @@ class CascadedController:
     def _attitude_gains(self) -> tuple[np.ndarray, np.ndarray]:
         """K_pa, K_da of q_a = [psi, theta, rolls...], rebuilt only when the settings change; with them the
         compiled inner loop's constants (``fpr/_native/alloc.c``'s ``inner``: n_d, the lateral loop, the
-        indices, m_i d_i, K_pa, K_da), as ``self._gains = (key, kp, kd, kp list, kd list, constants)``."""
+        indices, m_i d_i, K_pa, K_da), as ``self._gains = (key, kp, kd, kp list, kd list, constants)``.
+        """
         st = self.settings
         key = (st.orientation_frequency, st.orientation_damping, st.attitude_frequency, st.attitude_damping,
                st.lateral_frequency, st.lateral_damping, st.max_pitch)
@@ -381,7 +384,8 @@ class CascadedController:
         """The inner loop's float part in Python: (thrust f_i (n_d,), u_a (n_a,), roll_desired (n_d,), pitch
         reference) from the measured state, the held outer-loop force and the reference's roll feed-forward.
         The reference of the native part (the same operations in the same order; the tests hold the two equal to
-        round-off)."""
+        round-off).
+        """
         st = self.settings
         # on floats: a few numbers each, where every numpy call costs a microsecond or more
         ql, vl = q.tolist(), v.tolist()
@@ -413,7 +417,8 @@ class CascadedController:
 
     def _inner_kernel(self):
         """The native inner loop's function (:mod:`fpr._native`'s part ``inner``, ``fpr/_native/alloc.c``), or None
-        for :meth:`_inner_python`."""
+        for :meth:`_inner_python`.
+        """
         module = native.use("inner")
         return module.inner if module is not None and len(self.attitude) <= module.MAX_ATTITUDE else None
 

@@ -23,10 +23,10 @@ from __future__ import annotations
 import time
 
 from planners.methods import METHODS, method_for
+from planners.optimisation.solving import StageReport
 from planners.options import PlanOptions
 from planners.problem.report import FEASIBILITY_TOLERANCE, ConstraintReport, MotionReport, evaluate_motion
 from planners.result import PlanResult, SampledPlan
-from planners.optimisation.solving import StageReport
 
 
 def plan(mission, method: str = "two-step", *, robot=None, progress=None, samples_per_segment: int = 17,

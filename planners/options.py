@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from fpr.model.errors import PlannerArgumentError
-from planners.result import PlanResult
 from planners.optimisation.solving import GRID_FEASIBILITY, Grid
 from planners.optimisation.sqp import SqpOptions
+from planners.result import PlanResult
 
 #: The starts of the one-step method (``PlanOptions.one_step_start``).
 ONE_STEP_STARTS = ("way-points", "stop")

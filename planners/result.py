@@ -66,7 +66,7 @@ def normalisation(robot, duration: float, reference_terms) -> tuple[float, float
             singularity crossing) [J, rad^2/s].
     """
     floors = normalisation_floors(robot, duration)
-    return tuple(max(float(v), floor) for v, floor in zip(reference_terms, floors))
+    return tuple(max(float(v), floor) for v, floor in zip(reference_terms, floors, strict=True))
 
 
 def method_label(method: str) -> str:
@@ -128,7 +128,8 @@ class PlanResult:
     @property
     def normalisation(self) -> tuple[float, float]:
         """(J_e0, J_phi0) that normalise J on the dense grid: the reference's, each at least its floor
-        (:func:`normalisation`) [J, rad^2/s]."""
+        (:func:`normalisation`) [J, rad^2/s].
+        """
         return normalisation(self.robot, float(self.trajectory.knots[-1] - self.trajectory.knots[0]),
                              (self.reference.J_e, self.reference.J_phi))
 

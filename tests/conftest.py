@@ -1,6 +1,7 @@
 """Test configuration: the test process tuned as the command lines tune theirs (one BLAS thread, freed memory
 kept in glibc's heap: fpr.tune_process), before numpy is imported; the replanner's latency model pinned for the
-whole session (FPR_CALIBRATION)."""
+whole session (FPR_CALIBRATION).
+"""
 
 import json
 

@@ -10,7 +10,8 @@ def random_state(robot, rng, scale=1.0):
 
 def near_hover(robot, seed):
     """A minimal state near hover at the reference pose, with a random velocity, and a rotor command 5 % off
-    hover: (q, v, hover rotor speeds w, command, the rng after these draws)."""
+    hover: (q, v, hover rotor speeds w, command, the rng after these draws).
+    """
     import numpy as np
 
     from fpr.sim.plant import hover_configuration, hover_speeds

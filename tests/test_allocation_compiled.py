@@ -44,7 +44,8 @@ def _allocators(robot, *args):
 def _walk(name, count, seed, spread=0.5):
     """(robot, [(attitude, thrust, u_a)]): a random walk of states near hover and of the thrust factor within
     [0.2, 3.5] (the ticks warm-start each other as in a loop, bounds come and go), u_a of about ``spread``
-    rad/s^2."""
+    rad/s^2.
+    """
     robot = fpr.load(name)
     rng = np.random.default_rng(seed)
     q0, hover = hover_thrusts(robot)
@@ -133,7 +134,8 @@ def test_c_active_set_is_solve_box_qp_state():
 def test_declined_tick_is_decided_by_the_python_path():
     """A_tau with a zero row (rank deficient): the C tick declines (returns None), the Python path's pinv
     builder and its active-set route decide, with the reference's answer; the bounds it leaves active are
-    handed to the compiled tick."""
+    handed to the compiled tick.
+    """
     robot, calls = _walk("fpr", 40, 8)
     fast, reference = _allocators(robot)
     declined = []
@@ -162,7 +164,8 @@ def test_declined_tick_is_decided_by_the_python_path():
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_pickled_allocator_continues_warm(name):
     """Pickled in the middle of a saturating sequence: the copy continues as the original does, natively, and
-    where the part is off (the Python path takes the active bounds over)."""
+    where the part is off (the Python path takes the active bounds over).
+    """
     robot, calls = _walk(name, 120, 21)
     allocator = Allocator(robot)
     start = 30
@@ -206,7 +209,8 @@ def test_without_the_part_the_python_path_is_used(name, monkeypatch):
 @needs_kernel
 def test_non_finite_input_is_decided_by_the_python_path():
     """A NaN attitude acceleration, an infinite thrust: the C tick declines, the answer is the reference's
-    (NaN speeds, the same route and iterations)."""
+    (NaN speeds, the same route and iterations).
+    """
     robot, calls = _walk("fpr", 3, 1)
     attitude, thrust, u_a = calls[0]
     u_nan = u_a.copy()
@@ -225,7 +229,8 @@ def test_non_finite_input_is_decided_by_the_python_path():
 
 def test_the_switch_refuses_what_is_not_a_setting():
     """One switch (FPR_NATIVE, native.configure, native.switched): an unknown part or value is refused in one line
-    naming the parts; the switch is unchanged."""
+    naming the parts; the switch is unchanged.
+    """
     before = native.parts()
     for value in ("yes", "plant,wheels", ["plnt"]):
         with pytest.raises(ValueError, match="FPR_NATIVE = .*: unknown part") as error:

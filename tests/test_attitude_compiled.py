@@ -14,7 +14,6 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 import pytest
-
 from native_parts import native_module, needs_native
 
 import fpr
@@ -67,7 +66,7 @@ def test_compiled_attitude_model_is_the_python_path(name, spread):
         np.testing.assert_allclose(compiled.j_f, reference.j_f, rtol=0, atol=1e-15)
         np.testing.assert_allclose(compiled.j_tau, reference.j_tau, rtol=0, atol=1e-15)
         own = dict(zip(robot_module._ATTITUDE_FIELDS,
-                       kernel.post(*_pinocchio_outputs(robot, q, v), robot._build_attitude_constants()[-1])))
+                       kernel.post(*_pinocchio_outputs(robot, q, v), robot._build_attitude_constants()[-1]), strict=True))
         for name in ("j_f", "j_tau"):
             want = getattr(reference, name)
             np.testing.assert_allclose(own[name], want, rtol=1e-13, atol=1e-13 * np.abs(want).max(), err_msg=name)
@@ -82,7 +81,8 @@ def test_compiled_attitude_model_is_the_python_path(name, spread):
 @needs_kernel
 def test_compiled_result_is_a_whole_attitude_model():
     """Built without the dataclass' __init__: the same fields, frozen, and dataclasses.replace works on it (the
-    controller's wind term replaces c)."""
+    controller's wind term replaces c).
+    """
     assert tuple(f.name for f in dataclasses.fields(AttitudeModel)) == robot_module._ATTITUDE_FIELDS
     robot = fpr.load("fpr")
     q, v = _states(robot, np.random.default_rng(9), 1, 0.1)[0]

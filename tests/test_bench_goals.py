@@ -37,7 +37,8 @@ def test_replay_splits_the_ticks_by_route():
 
 def test_replay_says_which_path_it_measured():
     """The Python path by request; both paths interleaved: one dict each, the same ticks split alike (the native
-    path only where the extension is built)."""
+    path only where the extension is built).
+    """
     robot = fpr.load("prototype")
     calls = _calls(robot, np.random.default_rng(1), [1.0] * 3 + [3.0] * 3)
     assert replay(robot, calls, passes=1, compiled=False)["path"] == "Python"

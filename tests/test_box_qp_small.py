@@ -1,5 +1,6 @@
 """The box QP's plain-Python linear solve for one or two free variables (controllers/box_qp.py, _small_solve)
-against LAPACK's posv, which the method uses for more."""
+against LAPACK's posv, which the method uses for more.
+"""
 
 import numpy as np
 from scipy.linalg import lapack

@@ -18,13 +18,13 @@ from controllers.allocation import Allocator, selectors
 from controllers.box_qp import AT_LOWER, AT_UPPER, FREE, solve_box_qp, solve_box_qp_state
 from fpr.model.qp import proxsuite_module
 
-
 proxsuite = proxsuite_module()
 
 
 def test_every_branch_meets_the_kkt_conditions_and_is_proxqps_minimiser():
     """Random positive definite QPs of the allocation's size (n = 8) with g spread so that the minimisers have
-    0 to 8 free variables; each start guess random (mostly wrong)."""
+    0 to 8 free variables; each start guess random (mostly wrong).
+    """
     rng = np.random.default_rng(21)
     free_counts = set()
     for trial in range(400):
@@ -61,7 +61,8 @@ def test_every_branch_meets_the_kkt_conditions_and_is_proxqps_minimiser():
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_bounded_result_is_its_definition(name):
     """Three times the hover thrust, 30 warm ticks: f = S_f z, tau = S_tau z, the mask is "within 1e-6 w_max^2 of
-    a bound", read-only, and z within the bounds."""
+    a bound", read-only, and z within the bounds.
+    """
     robot = fpr.load(name)
     rng = np.random.default_rng(4)
     q0, hover = hover_thrusts(robot)
@@ -86,7 +87,8 @@ def test_bounded_result_is_its_definition(name):
 
 def test_written_out_small_solves_are_small_solve():
     """One and two free variables, g made so that the guess is the answer (x_F inside the box, multipliers of the
-    right sign): one iteration, and x_F is _small_solve's, bit for bit."""
+    right sign): one iteration, and x_F is _small_solve's, bit for bit.
+    """
     from controllers.box_qp import _small_solve
     rng = np.random.default_rng(8)
     for k in (1, 2):

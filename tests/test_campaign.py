@@ -1,5 +1,6 @@
 """Robustness campaigns without a cluster: distributions, seeds, campaign files, one run's row, the store,
-the Wilson interval, the command line's refusals. (The runs on Dask: tests/test_campaign_dask.py.)"""
+the Wilson interval, the command line's refusals. (The runs on Dask: tests/test_campaign_dask.py.)
+"""
 
 from __future__ import annotations
 

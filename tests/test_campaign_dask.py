@@ -1,5 +1,6 @@
 """Robustness campaigns on Dask: the same table from 1 worker, 2 workers, a separately started scheduler and
-its workers, after a killed worker and after Ctrl-C and a rerun. A short prototype hop keeps each run ~1 s."""
+its workers, after a killed worker and after Ctrl-C and a rerun. A short prototype hop keeps each run ~1 s.
+"""
 
 from __future__ import annotations
 

@@ -11,6 +11,7 @@ import json
 import math
 import time
 import zipfile
+
 import numpy as np
 import pytest
 
@@ -72,7 +73,8 @@ def test_a_travel_too_short_is_refused_up_front(tmp_path, capsys, times, words):
 
 def test_the_travel_floor_is_below_every_feasible_plan_of_the_built_in_missions():
     """The rotors' floor (least_travel_times) refuses only what cannot be flown: the built-in missions' travels
-    are far above it, and the square planned at its floor (uniform times) breaks a limit."""
+    are far above it, and the square planned at its floor (uniform times) breaks a limit.
+    """
     from planners.missions.mission import load_mission
     from planners.optimize import plan
 
@@ -87,7 +89,8 @@ def test_the_travel_floor_is_below_every_feasible_plan_of_the_built_in_missions(
 
 def test_the_travel_floor_scales_as_the_physics_says():
     """Half the distance needs 1/sqrt(2) of the time (pure translation, same pose): F = G + H / T^2 with H
-    proportional to the distance."""
+    proportional to the distance.
+    """
     from planners.missions.mission import Mission
 
     def floor(d):
@@ -404,7 +407,7 @@ def test_library_warnings_do_not_reach_the_user_but_debug_shows_them(tmp_path, c
     real = cli.plan
 
     def noisy(*args, **kwargs):
-        warnings.warn("overflow encountered in multiply", RuntimeWarning)
+        warnings.warn("overflow encountered in multiply", RuntimeWarning, stacklevel=2)
         return real(*args, **kwargs)
 
     monkeypatch.setattr(cli, "plan", noisy)

@@ -394,7 +394,8 @@ def test_studies_keep_wall_times_out_of_studies_json():
 
 def test_taking_the_wall_times_out_of_plan_json_leaves_the_result_s_stages_their_times():
     """split_timings edits the plan document in place; the stages' times the CLI prints afterwards (and the
-    manifest's) must be the solver's, not the stage record's default 0 (the document holds copies)."""
+    manifest's) must be the solver's, not the stage record's default 0 (the document holds copies).
+    """
     from fpr.cli.plan_files import split_timings
     from planners.missions.mission import load_mission
     from planners.optimize import plan

@@ -196,7 +196,8 @@ ENCODINGS = st.sampled_from(["utf-8", "utf-8", "utf-8", "utf-8-sig", "utf-16", "
 @st.composite
 def toml_document(draw) -> bytes:
     """A TOML-ish document: random keys (mission ones and others) with nested values, sometimes a valid
-    mission with one field replaced, sometimes raw bytes; in some encoding."""
+    mission with one field replaced, sometimes raw bytes; in some encoding.
+    """
     choice = draw(st.integers(0, 9))
     if choice == 0:
         return draw(st.binary(max_size=200))
@@ -274,7 +275,8 @@ def test_every_numeric_option_at_its_extremes(capsys, option, value, other, simu
        other=EXTREMES)
 def test_every_campaign_option_at_its_extremes(capsys, monkeypatch, option, value, other):
     """The campaign's checks (the runs themselves stubbed: a valid input reaches the cluster, which is then
-    interrupted, exit 130)."""
+    interrupted, exit 130).
+    """
     from fpr.cli import campaign
 
     def no_cluster(*args, **kwargs):

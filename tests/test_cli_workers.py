@@ -1,5 +1,6 @@
 """``python -m fpr.campaign``'s worker processes: how many (bounded by the machine), and the watch that ends
-them with the campaign (:mod:`fpr.cli.workers`). The processes themselves are tested in test_cli_signals.py."""
+them with the campaign (:mod:`fpr.cli.workers`). The processes themselves are tested in test_cli_signals.py.
+"""
 
 from __future__ import annotations
 

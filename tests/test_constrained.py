@@ -14,7 +14,8 @@ SEED = 11
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_same_accelerations_as_the_minimal_model(name):
     """Same state, same thrusts and torques: pin.constraintDynamics on the closed chain gives the motion of
-    the minimal model (drone twists' derivatives and joint accelerations), for random states and inputs."""
+    the minimal model (drone twists' derivatives and joint accelerations), for random states and inputs.
+    """
     robot = fpr.load(name)
     closed = build_closed_chain(robot)
     assert closed.model.nv - sum(c.residualSize() for c in closed.constraints) <= robot.nq
@@ -43,7 +44,8 @@ def simulate_passive(closed, qc, vc, seconds, dt=1e-3):
 
 def test_fpr_closure_drift_stays_bounded():
     """10 s of falling and flailing at 1 kHz: Baumgarte stabilisation holds the loop closed to about a
-    millimetre; without it the closure drifts an order of magnitude further."""
+    millimetre; without it the closure drifts an order of magnitude further.
+    """
     robot = fpr.load("fpr")
     rng = np.random.default_rng(SEED + 1)
     q, v = random_state(robot, rng, scale=0.3)
@@ -72,7 +74,8 @@ def _poses(robot, rng, count):
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_to_minimal_inverts_from_minimal(name):
     """to_minimal(from_minimal(q, v)) = (q, v) to 1e-10 near the reference pose, without a reference (the
-    root roll is read within pi of 5pi/4), and the velocity map K is the derivative of from_minimal in v."""
+    root roll is read within pi of 5pi/4), and the velocity map K is the derivative of from_minimal in v.
+    """
     robot = fpr.load(name)
     closed = build_closed_chain(robot)
     rng = np.random.default_rng(SEED + 2)
@@ -89,7 +92,8 @@ def test_to_minimal_inverts_from_minimal(name):
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_to_minimal_unwraps_angles_to_the_reference(name):
     """With a reference, every angle comes back within pi of it: whole turns added to any angle, and
-    theta beyond pi/2 (the second Z-Y-X Euler solution), are recovered exactly."""
+    theta beyond pi/2 (the second Z-Y-X Euler solution), are recovered exactly.
+    """
     robot = fpr.load(name)
     closed = build_closed_chain(robot)
     angular = [i for i, c in enumerate(robot.layout.coordinates) if c not in ("x", "y", "z")]
@@ -109,7 +113,8 @@ def test_to_minimal_follows_a_passive_simulation(name):
     """400 steps of a passive simulation (semi-implicit Euler, so the loop drifts open by up to a few 1e-4 m):
     measured with the previous measurement as reference, q moves continuously, the minimal model at the
     measured q puts the drones where the closed chain has them to within the closure error, and K v
-    reproduces vc to within the closure's velocity error."""
+    reproduces vc to within the closure's velocity error.
+    """
     robot = fpr.load(name)
     closed = build_closed_chain(robot)
     q, v = random_state(robot, np.random.default_rng(SEED + 4), scale=0.5)

@@ -1,5 +1,6 @@
 """Crossing the prototype's Type-2 singularity (seed ch. 4): inverse dynamics through q2 = 0, the
-crossing criterion, the crossing NLP, the seed's approaches, the mission, and the closed loop."""
+crossing criterion, the crossing NLP, the seed's approaches, the mission, and the closed loop.
+"""
 
 import numpy as np
 import pytest
@@ -12,8 +13,8 @@ from fpr.model.jets import Jet
 from fpr.robots import prototype_singularity as singularity
 from fpr.robots import prototype_thrust
 from fpr.robots.prototype import prototype_workspace_margins
-from planners.crossing import solve as crossing
 from planners.crossing import problem as crossing_problem
+from planners.crossing import solve as crossing
 from planners.missions.mission import load_mission, mission_from_dict, mission_from_toml
 from planners.trajectory.polynomial import PiecewisePolynomial
 
@@ -77,7 +78,8 @@ def _plain(proto, m):
 def test_deflated_tension_agrees_with_the_plain_quotient_at_the_window_edge(proto, speed):
     """Within SINGULAR_TIME of the crossing the limit formula is used; near that edge the plain quotient
     is still accurate, so the two formulations must agree there, for a fast crossing and for the
-    slowest the planner allows (|q2'| >= 0.2 rad/s)."""
+    slowest the planner allows (|q2'| >= 0.2 rad/s).
+    """
     motion = _crossing_motion(proto, velocity=(-0.4 * speed, speed))
     ts = motion.knots[1]
     t = ts + np.array([-2.9e-3, -2.5e-3, 2.5e-3, 2.9e-3])
@@ -100,7 +102,8 @@ def test_without_the_sixth_derivative_the_limit_is_not_taken(proto):
 
 def test_force_diverges_like_one_over_time_when_the_criterion_fails(proto):
     """Without the criterion the tension is g / (L sin q2) with g(t_s) != 0: 10x closer, ~10x the force,
-    also inside the deflation window (a missed criterion is never deflated away)."""
+    also inside the deflation window (a missed criterion is never deflated away).
+    """
     motion = _crossing_motion(proto, satisfied=False)
     good = _crossing_motion(proto)
     ts = motion.knots[1]
@@ -152,7 +155,8 @@ def test_moving_onto_the_criterion_keeps_the_drones_acceleration(proto):
 
 def test_across_the_straight_chain_only_gravity_acts(proto):
     """n^T c at q2 = 0 does not depend on the velocity; it is minus the derivative of the potential
-    energy along n (a finite difference of the model's energy, an independent formulation)."""
+    energy along n (a finite difference of the model's energy, an independent formulation).
+    """
     point = proto.planar("point")
     n = singularity.NULL_VECTOR
     rng = np.random.default_rng(1)
@@ -183,7 +187,8 @@ def test_chain_force_acceleration_meets_the_criterion_and_gives_the_force_across
 def test_crossing_problem_derivatives_match_central_differences(proto, smooth):
     """Every column (crossing state, mu, 3rd/4th derivatives, via points, travel times) against central
     differences: the objective, the windowed motion rows (where the window's active node is stable) and,
-    exactly, the extra rows (time bounds, crossing speed, 5th-derivative continuity)."""
+    exactly, the extra rows (time bounds, crossing speed, 5th-derivative continuity).
+    """
     guess = crossing.first_guess(proto, singularity.SEED_START, singularity.SEED_END, 8.0, (1, 1))
     problem = crossing_problem.CrossingProblem(proto, guess.points, crossing_problem.travel_times(guess, (1, 1)), (1, 1),
                                        crossing_problem.GROUPS, 0.5, (30.0, 0.05), samples_per_segment=9,
@@ -269,7 +274,8 @@ def seed_outcomes(proto):
 def test_the_seeds_approaches_fail_as_in_the_seed(proto, seed_outcomes, approach):
     """With the seed's fixed crossing states and travel times, both approaches end far outside the
     drone's limits (the seed's conclusion), and their crossing velocity (q2' > 0) heads back into
-    the start's assembly mode, so q2 changes sign more than once."""
+    the start's assembly mode, so q2 changes sign more than once.
+    """
     out = seed_outcomes[approach]
     assert not out.feasible
     assert abs(out.criterion_residual(proto)) < 1e-9  # finite force at the crossing, as designed
@@ -310,7 +316,8 @@ def test_crossing_mission_in_task_space_uses_both_assembly_modes(proto):
 # ------------------------------------------------------------------------ control and closed loop
 def test_controller_force_near_the_singularity(crossing_plan, proto):
     """With a tracking error: far from q2 = 0 the outer loop is the plain CTC solve J^-T b; at q2 = 0
-    its tension is the planned one and its force across the link the CTC's (b2 / L)."""
+    its tension is the planned one and its force across the link the CTC's (b2 / L).
+    """
     from controllers.ctc import CascadedController, Reference
 
     res = crossing_plan
@@ -382,7 +389,8 @@ def test_crossing_comparison_figure(proto, seed_outcomes, crossing_plan, tmp_pat
 
 def test_the_planned_crossing_is_c5_there_so_the_rotor_speeds_do_not_step(crossing_plan, proto):
     """9th-degree segments are C4 at knots; at the crossing the plan also keeps the 5th derivative
-    continuous (a jump there steps the roll acceleration: F is only C1 where it is 0/0)."""
+    continuous (a jump there steps the roll acceleration: F is only C1 where it is 0/0).
+    """
     res = crossing_plan
     i, ts = res.crossing.index, res.crossing.crossing_time
     segments = res.trajectory.segments
@@ -400,7 +408,8 @@ def test_the_planned_crossing_is_c5_there_so_the_rotor_speeds_do_not_step(crossi
 def test_a_solve_that_stalls_next_to_the_feasible_set_is_refined_not_dropped():
     """solve_refining: an attempt whose stage ends infeasible on its grid by a hair (the crossing's SQP stalls at
     ~1e-6 near the singularity, round-off deciding) is continued on a finer grid up to ``refine_below``; above
-    it, or with the default threshold, the loop stops there as before."""
+    it, or with the default threshold, the loop stops there as before.
+    """
     from types import SimpleNamespace
 
     from planners.optimisation.solving import GRID_FEASIBILITY, Grid, solve_refining

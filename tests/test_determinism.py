@@ -50,7 +50,7 @@ def test_crossing_plan_is_identical_under_two_hash_seeds():
     second = _plan("2", "x" * 37)
     assert first["deterministic_qp"] and second["deterministic_qp"]
     assert first["durations"] == second["durations"]
-    differing = [i for i, (a, b) in enumerate(zip(first["points"], second["points"])) if a != b]
+    differing = [i for i, (a, b) in enumerate(zip(first["points"], second["points"], strict=True)) if a != b]
     assert not differing, f"{len(differing)} of {len(first['points'])} point entries differ, e.g. " \
                           f"{[(first['points'][i], second['points'][i]) for i in differing[:3]]}"
     assert first["J"] == second["J"]
@@ -70,7 +70,8 @@ def test_the_same_command_gives_the_same_bytes_with_or_without_the_allocator_tun
     """Two runs of ``python -m fpr.plan --mission square`` (different hash seeds) write the same plan.json and
     trajectory.csv, and so does a run that keeps glibc's allocator defaults (FPR_MALLOC_TUNING=0): where freed
     memory goes changes the speed, not the result. (The number of BLAS threads may change the last bits: every
-    command line runs BLAS on one thread, fpr.tuning.)"""
+    command line runs BLAS on one thread, fpr.tuning.)
+    """
     first = _square(tmp_path / "a", PYTHONHASHSEED="1")
     assert _square(tmp_path / "b", PYTHONHASHSEED="2") == first
     assert _square(tmp_path / "c", PYTHONHASHSEED="3", FPR_MALLOC_TUNING="0") == first

@@ -1,5 +1,6 @@
 """Dual numbers (fpr.model.dual): the planner's node sensitivities by dual numbers equal the complex step's,
-and every Dual operation the models use equals the complex step's derivative."""
+and every Dual operation the models use equals the complex step's derivative.
+"""
 
 import numpy as np
 import pytest
@@ -12,8 +13,8 @@ from planners.methods.one_step import one_step_problem
 from planners.methods.two_step import travel_problem
 from planners.methods.way_points import WayPointTask
 from planners.missions.mission import load_mission
-from planners.problem.motion import MotionProblem
 from planners.optimisation.solving import Grid
+from planners.problem.motion import MotionProblem
 
 H = 1e-30
 
@@ -178,7 +179,8 @@ def test_directions_carried_and_widened():
 
 def test_dual_numbers_everywhere_but_for_a_complex_motion(square):
     """Dual numbers by default, on every problem (a single travel, the whole mission); the complex step for a
-    complex motion (a caller's own complex step through the problem) whatever the setting, and on request."""
+    complex motion (a caller's own complex step through the problem) whatever the setting, and on request.
+    """
     grid = Grid()
     big = one_step_problem(square, grid)
     points, durations, is_way = square.via_layout
@@ -194,7 +196,8 @@ def test_dual_numbers_everywhere_but_for_a_complex_motion(square):
 
 def test_crossing_nlp_dual_equals_complex_step():
     """The prototype crossing its singularity (motion derivatives 0..6, the crossing's side rows): dual numbers
-    equal the complex step there too."""
+    equal the complex step there too.
+    """
     from planners.crossing.problem import crossing_layout
     from planners.crossing.solve import first_guess
 
@@ -224,9 +227,9 @@ def test_trimmed_drops_the_directions_a_dual_does_not_depend_on():
 
 def test_disturbed_problem_dual_equals_complex_step():
     """A problem whose inputs are flown in a gust (DisturbedProblem overrides _inputs) takes Duals too."""
-    from planners.problem.disturbance import DisturbedProblem
     from planners.missions.events import GustEvent
     from planners.optimize import plan
+    from planners.problem.disturbance import DisturbedProblem
     from planners.replanning.replanner import Replanner, ReplanOptions
 
     mission = load_mission("moving-target")

@@ -1,6 +1,7 @@
 """Event families for campaigns (fpr/robustness/events.py), the static gust-holding check
 (fpr/robustness/holding.py) against the closed-chain plant, one run of each family (fpr/robustness/outcomes.py)
-and the replanner's wind estimate from the controller's observer (fpr/sim/replanning.py)."""
+and the replanner's wind estimate from the controller's observer (fpr/sim/replanning.py).
+"""
 
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ from planners.replanning.replanner import Replanner, ReplanOptions
 def test_move_events_are_seeded_within_reach_and_warned(name):
     """Each draw: a way point after the start, moved by a distance in the family's range, at least ``warning``
     before the robot gets there and after it left the previous one, its target within the workspace; the same
-    (seed, index) gives the same event, another index another."""
+    (seed, index) gives the same event, another index another.
+    """
     mission = load_mission(name)
     robot = mission.load_robot()
     family_ = MoveFamily()
@@ -75,7 +77,8 @@ def test_gust_draws_cover_the_family():
 def test_a_static_hold_holds_the_closed_chain_plant_still(name, body, force):
     """The rolls, thrusts and roll torques of static_hold, made by its rotor speeds, keep the plant (the
     closed-chain constraint dynamics, not the minimal model the check solves) at rest under the gust: its
-    accelerations over a first step are those of round-off."""
+    accelerations over a first step are those of round-off.
+    """
     robot = fpr.load(name)
     s = np.array(robot.kind.reference_chain) + (0.05 if name == "fpr" else 0.1)
     hold = static_hold(robot, s, body, force)
@@ -161,7 +164,8 @@ def test_a_campaign_file_with_an_event_family_round_trips():
 
 def test_the_campaign_options_name_the_families_and_reach_the_campaign(tmp_path):
     """The light parser's --events choices (written there so that --help imports nothing heavy) are the
-    families; --events, --replan and --without-observer reach the campaign over its file's fields."""
+    families; --events, --replan and --without-observer reach the campaign over its file's fields.
+    """
     from fpr.cli.campaign import _campaign
     from fpr.cli.campaign_options import EVENT_FAMILIES, parser
     from fpr.robustness.events import FAMILIES
@@ -179,7 +183,8 @@ def test_the_campaign_options_name_the_families_and_reach_the_campaign(tmp_path)
 def test_the_observers_estimate_is_assumed_after_its_delay_and_again_when_it_moves():
     """With the controller's observer the replanner plans against its estimate (forces on the task point and
     the drones) once it has held ``observed_delay``, and again when it has moved by more than the threshold
-    for as long; none of it while the estimate stays under the threshold."""
+    for as long; none of it while the estimate stays under the threshold.
+    """
     mission = load_mission("gust")
     result = plan(mission, "two-step")
     robot = result.robot

@@ -144,7 +144,8 @@ def test_gust_force_is_on_only_during_its_window_and_adds_up():
 
 def test_a_gust_with_a_rise_builds_up_smoothly_and_its_rates_are_those_of_its_value():
     """rise > 0: 0 at the start, the full force after ``rise``, back to 0 at the end; C2 (rates checked by
-    finite differences of the value), close to the 1 - cosine discrete gust; rise 0 keeps the step."""
+    finite differences of the value), close to the 1 - cosine discrete gust; rise 0 keeps the step.
+    """
     gust = GustEvent(1.0, (0.0, -8.0, 0.0), 3.0, rise=0.8)
     t = np.linspace(0.5, 4.5, 40001)
     value, rate, curvature = gust.strength(t)

@@ -25,7 +25,7 @@ def test_complex_step_sin_cos_is_numpys_bit_for_bit():
     # and the complex step it carries is the derivative: Im(sin(x + i h b)) / h = cos(x) b
     np.testing.assert_allclose(sin.imag / 1e-30, np.cos(z.real) * (z.imag / 1e-30), rtol=1e-15)
     real = z.real
-    assert all(a.tobytes() == b.tobytes() for a, b in zip(jets.sin_cos_value(real), (np.sin(real), np.cos(real))))
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(jets.sin_cos_value(real), (np.sin(real), np.cos(real)), strict=True))
 
 
 def test_sincos_of_a_jet_uses_the_shortcut_bit_for_bit():
@@ -43,7 +43,8 @@ def test_sincos_of_a_jet_uses_the_shortcut_bit_for_bit():
 
 def test_truncations_share_the_cache_and_a_cached_result_serves_lower_orders(robot):
     """A point's position (order 2) after the body Jacobians (order 4) used the cached sin/cos: same bits as
-    a fresh computation, and the cache is not shared with an unrelated Jet."""
+    a fresh computation, and the cache is not shared with an unrelated Jet.
+    """
     rng = np.random.default_rng(5)
     n = len(robot.layout.chain)
     motion = rng.uniform(-0.3, 0.3, (5, 40, n))
@@ -62,7 +63,8 @@ def test_truncations_share_the_cache_and_a_cached_result_serves_lower_orders(rob
 
 def test_signed_rotor_speeds_carry_a_complex_step_derivative_and_keep_their_real_bits():
     """sign(w^2) sqrt(|w^2|): the same bits as before for real input (both signs and 0), and Im(f(w2 + ih))/h
-    equal to the analytic derivative 1 / (2 sqrt(|w^2|)) (numpy's complex sign/abs would lose it)."""
+    equal to the analytic derivative 1 / (2 sqrt(|w^2|)) (numpy's complex sign/abs would lose it).
+    """
     from fpr.model.rotors import signed_speeds
 
     w2 = np.array([-3.0e5, -1.0, 0.0, 2.5e-3, 4.2e5])

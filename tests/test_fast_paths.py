@@ -43,7 +43,8 @@ def _moving_plant(name, seed):
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_lean_step_is_the_reference_rkmk4_step(name, native_step):
     """20 steps of 1 ms: the lean step (the Python steps, and the native ones when on) and rkmk4_step on
-    Pinocchio's Jacobians agree to 1e-12 (relative)."""
+    Pinocchio's Jacobians agree to 1e-12 (relative).
+    """
     robot, plant, command, _ = _moving_plant(name, 1)
     on = {} if native_step is None else {"plant": native_step}
     lag = robot.rotor_constants.time_constant
@@ -86,7 +87,8 @@ def test_observe_is_measure_and_the_logged_kinematics(name):
 
 def _allocation_cases(name, thrust_factor, count, seed, spread=0.3):
     """(robot, [(attitude, thrust, u_a)]) near hover, u_a of standard deviation ``spread`` [rad/s^2];
-    thrust_factor 3 makes rotors saturate."""
+    thrust_factor 3 makes rotors saturate.
+    """
     robot = fpr.load(name)
     rng = np.random.default_rng(seed)
     q0, hover = hover_thrusts(robot)
@@ -113,7 +115,8 @@ def _cold(allocator, attitude, thrust, u_a):
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_closed_form_allocation_is_the_qp_minimiser(name):
     """No bound active: the closed form is taken, its w^2 is ProxQP's (cold, tight tolerance) and the QP's
-    gradient vanishes there."""
+    gradient vanishes there.
+    """
     robot, cases = _allocation_cases(name, 1.0, 20, 3, spread=0.05)
     allocator = Allocator(robot)
     for attitude, thrust, u_a in cases:
@@ -132,7 +135,8 @@ def test_closed_form_allocation_is_the_qp_minimiser(name):
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_bounded_allocation_is_the_qp_minimiser(name):
     """Three times the hover thrust: the QP route, the lean H, g equal the built ones, and its warm-started
-    w^2 equal ProxQP's from scratch."""
+    w^2 equal ProxQP's from scratch.
+    """
     robot, cases = _allocation_cases(name, 3.0, 20, 4)
     allocator = Allocator(robot)
     s_f, s_tau = selectors(robot)
@@ -167,7 +171,8 @@ def test_proxqp_fallback_gives_the_active_set_answer(name, monkeypatch):
 
 def test_box_qp_meets_the_kkt_conditions_from_any_guess():
     """Random positive definite box QPs (n = 8, the allocation's size), every start guess tried being wrong:
-    x in the box, gradient 0 where free, >= 0 at 0, <= 0 at 1; x equal to ProxQP's."""
+    x in the box, gradient 0 where free, >= 0 at 0, <= 0 at 1; x equal to ProxQP's.
+    """
     rng = np.random.default_rng(7)
     solved = 0
     for _ in range(200):

@@ -1,5 +1,6 @@
 """Tests of fpr.views.figures (every module of the package): the PNG files, what the figures draw, and the
-input checks."""
+input checks.
+"""
 
 import os
 import subprocess

@@ -351,7 +351,8 @@ def test_mujoco_and_pinocchio_agree_on_mass_matrix_and_bias(floating):
 
 def test_mujoco_sees_a_variant():
     """Another description (drones off their balls, longer legs, heavier platform) still agrees: the check is
-    not tuned to one file; and the floating map is needed (without S the bias differs)."""
+    not tuned to one file; and the floating map is needed (without S the bias differs).
+    """
     text = description.generate_urdf("fpr3", ball_offset=0.1, leg_length=1.2, platform_mass=0.5)
     worst_m, worst_b, scale_m, scale_b = _compare_with_mujoco(text, floating=True, samples=4, seed=SEED + 1)
     assert worst_m < 1e-9 * scale_m and worst_b < 1e-9 * scale_b
@@ -365,7 +366,8 @@ def test_mujoco_sees_a_variant():
 
 def test_the_chart_is_the_free_flyer_and_singular_only_at_pitch_90_degrees():
     """The Z-Y-X chart's model is Pinocchio's free flyer seen through q' -> (v, w): same kinetic energy and
-    tips; its Jacobian J = J_LS2N diag(I, E, I) with det E = -cos(theta): singular at theta = +-pi/2 only."""
+    tips; its Jacobian J = J_LS2N diag(I, E, I) with det E = -cos(theta): singular at theta = +-pi/2 only.
+    """
     chart = _planning_model()
     flyer = _planning_model(root=pin.JointModelFreeFlyer())
     cdata, fdata = chart.createData(), flyer.createData()
@@ -421,7 +423,8 @@ def test_hover_thrusts_balance_the_weight():
 
 def _constrained_model(text: str = TEXT):
     """The plant's formulation: the chain a tree (drones removed), each drone a free body (its own inertia,
-    its frame at its ball) joined to its leg's tip by a 3D point closure."""
+    its frame at its ball) joined to its leg's tip by a 3D point closure.
+    """
     model = _planning_model(text, drones="none")
     full = _full_model(text, pin.JointModelFreeFlyer())
     constraints = pin.StdVec_RigidConstraintModel()
@@ -443,7 +446,8 @@ def _constrained_model(text: str = TEXT):
 
 def _replay(text: str, times, rng) -> float:
     """Largest difference between the planned accelerations of the motion START -> END and those of the
-    constrained model under the planned thrusts (each drone turned along its thrust, spinning at random)."""
+    constrained model under the planned thrusts (each drone turned along its thrust, spinning at random).
+    """
     planning = _planning_model(text)
     pdata = planning.createData()
     model, data, constraints, datas, flyers = _constrained_model(text)
@@ -476,7 +480,8 @@ def test_planned_accelerations_come_back_from_the_constrained_model():
     """The thrusts F = J^-T (M q'' + c) of a motion (the take-off pose -> translated, yawed 60 degrees,
     tilted 20), applied to the drones as free bodies on 3D point closures, give back q'' to 1e-6
     (pin.constraintDynamics); the drones' attitudes and spins do not matter when they sit on the tips at their
-    centres of mass."""
+    centres of mass.
+    """
     rng = np.random.default_rng(SEED)
     worst = _replay(TEXT, np.linspace(0.0, 3.0, 9), rng)
     assert worst < 1e-6, worst
@@ -487,7 +492,8 @@ def test_planned_accelerations_come_back_from_the_constrained_model():
 def test_thrust_rate_from_pinocchio_derivatives():
     """F' along a motion from Pinocchio alone: J^T F = b gives F' = J^-T (b' - J'^T F), b' = dtau/dq q' +
     dtau/dv q'' + M q''' (computeRNEADerivatives), J' (frame Jacobian time variation); against central
-    differences of F along the motion."""
+    differences of F along the motion.
+    """
     model = _planning_model(root="chain")  # not the composite joint: see _root_model
     data = model.createData()
     step = 1e-5
@@ -541,7 +547,8 @@ def test_determinant_of_the_tips_jacobian():
 def test_singular_configurations():
     """Found from the model: J loses rank with all legs in the platform's plane (by 3), with two of them
     there, and where the tips meet on the platform's axis (cos q = -r_p / l); one leg in the plane is not
-    singular."""
+    singular.
+    """
     flyer = _planning_model(root=pin.JointModelFreeFlyer())
     pose = (np.zeros(3), np.eye(3))
     length, radius = PARAMS["leg_length"], PARAMS["platform_radius"]
@@ -565,7 +572,8 @@ def test_no_vertical_force_with_the_legs_in_the_platforms_plane():
     """With q = 0 every tip force that does not turn its leg lies in the platform's plane: the drones cannot
     hold the platform up. Lifting the platform with the tips fixed (v_z = 1, q_i' = 1/l) is a motion J
     leaves out, and gravity does work along it, (m_p + 3 m_leg (1 - c/l)) g: no thrusts solve J^T F = g(q)
-    (a hover)."""
+    (a hover).
+    """
     model = _planning_model()
     data = model.createData()
     q = np.concatenate([[0.0, 0.0, 1.0, 0.3, 0.0, 0.0], [0.0] * 3])

@@ -2,7 +2,8 @@
 reference (``CascadedController._inner_python``): the same operations in the same order, the same results to
 round-off (1e-12 relative: the C library's and numpy's sums may round otherwise on another CPU) -- thrusts, u_a,
 desired rolls, pitch reference -- at random states of both robots (rolls past pi, the pitch clamped on both
-sides), after the gains change; and whole controller ticks alike on either path."""
+sides), after the gains change; and whole controller ticks alike on either path.
+"""
 
 import dataclasses
 
@@ -87,7 +88,8 @@ def test_switched_off_the_python_part_runs():
 @needs_kernel
 def test_a_result_that_is_not_finite_goes_to_the_python_reference():
     """A roll rate whose square overflows: the C part returns None (no inf thrust), and the controller's tick
-    then raises what the Python reference raises."""
+    then raises what the Python reference raises.
+    """
     robot = fpr.load("fpr")
     q, v, *_ = near_hover(robot, 3)
     controller = CascadedController(robot)

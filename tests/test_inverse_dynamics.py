@@ -41,7 +41,8 @@ def test_round_trip_is_exact_without_hinge_offset(name):
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_round_trip_with_hinge_offset_differs_by_the_perturbation(name):
     """d > 0: the roll rows are exact (seed 2.24); the chain rows differ by the p_i perturbation of eq. 2.8,
-    which vanishes with d: the residual scales with d."""
+    which vanishes with d: the residual scales with d.
+    """
     t = np.linspace(0.0, 3.0, 9)
     residuals = []
     for d in (0.05, 0.1):
@@ -87,7 +88,8 @@ def test_fpr_hover_balances_the_weight():
 
 def hand_prototype_model(q, v, p):
     """M_pt, c_pt of a 2R arm with uniform rods, the end-effector sphere at joint 2 and the drone as a point
-    mass at joint 3 (seed 3.37), derived by hand with parameters straight from parameters.yaml."""
+    mass at joint 3 (seed 3.37), derived by hand with parameters straight from parameters.yaml.
+    """
     L, ml, r = p["link_length"], p["link_mass"], p["link_radius"]
     me, re, md, g = p["end_effector_mass"], p["end_effector_radius"], p["drone_mass"], p["gravity"]
     il = ml * (3 * r**2 + L**2) / 12  # rod about a transverse axis through its middle
@@ -123,7 +125,8 @@ def test_drone_translation_settles_the_p_i_question():
     """Which p_i is right in seed eq. 2.7-2.8?  Take the exact multibody model (d > 0), random state and inputs;
     get the chain forces f_pi from the passive chain alone (seed 2.6, J_p^T f_p = M_p s'' + c_p), and check
     [0; f_i] = R_i [f_pi + m (r_i'' - g)] + p_i. The exact derivation, p_i = [-m d phi''; -m d phi'^2], holds to
-    round-off; the seed's printed p_i = [-m d phi'^2; m d phi''] does not."""
+    round-off; the seed's printed p_i = [-m d phi'^2; m d phi''] does not.
+    """
     robot = fpr.load("fpr")
     chain = robot.planar("none")
     m, d = robot.drone_mass, robot.hinge_offset

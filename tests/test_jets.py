@@ -78,7 +78,7 @@ def stencil(k, m):
         rows[c] = [v / rows[c][c] for v in rows[c]]
         for r in range(n):
             if r != c and rows[r][c] != 0:
-                rows[r] = [a - rows[r][c] * b for a, b in zip(rows[r], rows[c])]
+                rows[r] = [a - rows[r][c] * b for a, b in zip(rows[r], rows[c], strict=True)]
     return np.array([float(r[n]) for r in rows])
 
 
@@ -200,11 +200,13 @@ def _scalar_comp(a, b, c):
 
 def test_scalar_compositions(rng):
     cs = [random_poly(rng) for _ in range(3)]
-    make = lambda t, order: _scalar_comp(*(poly_jet(c, t, order) for c in cs))
+    def make(t, order):
+        return _scalar_comp(*(poly_jet(c, t, order) for c in cs))
     jet = make(T, K)
     check_fd(lambda t: make(t, 0).value, jet)
     check_complex_step(make, jet)
-    with_atan = lambda t, o: atan2(poly_jet(cs[1], t, o), 2 + poly_jet(cs[0], t, o) ** 2)
+    def with_atan(t, o):
+        return atan2(poly_jet(cs[1], t, o), 2 + poly_jet(cs[0], t, o) ** 2)
     check_fd(lambda t: with_atan(t, 0).value, with_atan(T, K))
 
 
@@ -275,7 +277,8 @@ def test_solve_residual_every_order(rng):
 
 def test_solve_finite_differences(rng):
     ca, cb = random_poly(rng, (4, 4)) * 0.15, random_poly(rng, (4,))
-    make = lambda t, o: solve(poly_jet(ca, t, o) + 3.0 * np.eye(4), poly_jet(cb, t, o))
+    def make(t, o):
+        return solve(poly_jet(ca, t, o) + 3.0 * np.eye(4), poly_jet(cb, t, o))
     jet = make(T, K)
     check_fd(lambda t: make(t, 0).value, jet)
     check_complex_step(make, jet)
@@ -294,7 +297,8 @@ def test_atan2_rotating_vector_is_time():
 def test_atan2_branch_cut_continuous(rng):
     cy, cx = random_poly(rng), random_poly(rng) * 0.2
     cy[:2], cx[0] = [0.05, 1.0], -2.0              # y crosses 0 near t = -0.05 while x < 0
-    make = lambda t, o: atan2(poly_jet(cy, t, o), poly_jet(cx, t, o))
+    def make(t, o):
+        return atan2(poly_jet(cy, t, o), poly_jet(cx, t, o))
     jet = make(T, K)
     y, x = poly_eval(cy, T), poly_eval(cx, T)
     assert np.all(x < 0) and y.min() < 0 < y.max()

@@ -82,7 +82,8 @@ def test_batches_that_broadcast_otherwise_fall_back_to_numpy(reference):
 @pytest.mark.parametrize("order_a, order_b", [(2, 2), (4, 1), (1, 3), (None, 2), (2, None)])
 def test_jet_solve_is_numpy_s(reference, complex_, order_a, order_b):
     """A x = b along a motion (either side possibly a constant): x's jet, to round-off; and it solves A x = b
-    order by order (A x)^(n) = b^(n), an independent check of the recurrence."""
+    order by order (A x)^(n) = b^(n), an independent check of the recurrence.
+    """
     rng = np.random.default_rng(3)
     n = 4
     a0 = _random(rng, (9, n, n), complex_) + 4 * np.eye(n)
@@ -98,7 +99,8 @@ def test_jet_solve_is_numpy_s(reference, complex_, order_a, order_b):
 def test_inverse_is_numpy_s_and_singular_matrices_raise_as_numpy_does(reference):
     """Batches of small matrices: the inverse to round-off (relative to the condition number); a singular one
     raises numpy's LinAlgError; a matrix holding NaN gets NaN in its inverse (LAPACK leaves some entries finite, the
-    C code none: no inverse exists either way) and leaves the others of its batch alone."""
+    C code none: no inverse exists either way) and leaves the others of its batch alone.
+    """
     rng = np.random.default_rng(4)
     for n in (1, 2, 4, 7):
         a = rng.normal(size=(50, n, n))
@@ -129,7 +131,8 @@ def test_solve_matrices_is_numpy_s(reference):
 
 def test_node_derivatives_of_a_mission_are_numpy_s(reference):
     """The planner's exact derivatives of the square's 1-step NLP (complex-step copies of the inverse dynamics,
-    through every kernel): values and sensitivities equal to round-off."""
+    through every kernel): values and sensitivities equal to round-off.
+    """
     from planners.methods.one_step import one_step_problem
     from planners.methods.way_points import WayPointTask
     from planners.missions.mission import load_mission
@@ -139,6 +142,6 @@ def test_node_derivatives_of_a_mission_are_numpy_s(reference):
     points = problem.points
     motion = problem.motion(points)
     want, got = reference(lambda: problem._node_derivatives(points, motion))
-    for w, g in zip(want, got):
+    for w, g in zip(want, got, strict=True):
         _close(w, g, 1e-10)
     assert np.abs(want[2]).max() > 0 and np.abs(want[3]).max() > 0  # the sensitivities are not trivially zero

@@ -6,8 +6,8 @@ from planners.methods.one_step import one_step_problem
 from planners.methods.two_step import travel_problem
 from planners.methods.way_points import WayPointTask
 from planners.missions.mission import load_mission
-from planners.problem.motion import MotionProblem, NodeDerivatives
 from planners.optimisation.solving import Grid
+from planners.problem.motion import MotionProblem, NodeDerivatives
 
 
 def test_the_whole_problem_at_the_travels_points_takes_their_derivatives_and_they_are_its_own():
@@ -20,7 +20,7 @@ def test_the_whole_problem_at_the_travels_points_takes_their_derivatives_and_the
     shared = NodeDerivatives()
     rng = np.random.default_rng(7)
     way = np.flatnonzero(is_way)
-    for a, b in zip(way[:-1], way[1:]):  # each travel moved somewhere, evaluated there with derivatives
+    for a, b in zip(way[:-1], way[1:], strict=True):  # each travel moved somewhere, evaluated there with derivatives
         travel = travel_problem(task, points, durations, a, b, normalisation, grid)
         travel.share_node_derivatives(shared)
         x = travel.x_of(points[a:b + 1]) + 0.01 * rng.standard_normal(travel.n_x)

@@ -209,7 +209,8 @@ def test_notebook_runs(path, tmp_path, monkeypatch):
 
 def test_a_notebook_whose_cell_hangs_is_run_again_in_a_new_kernel(tmp_path, monkeypatch):
     """A cell that never answers (here: it sleeps the first time only) times out; the notebook is run again in a
-    fresh kernel and passes; a cell that hangs every time fails after the second run."""
+    fresh kernel and passes; a cell that hangs every time fails after the second run.
+    """
     monkeypatch.setattr(sys.modules[__name__], "CELL_TIMEOUT", 3)
     marker = tmp_path / "first-run"
     once = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(

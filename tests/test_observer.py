@@ -28,7 +28,8 @@ S0 = [0.0, 0.0, 5 * np.pi / 4, np.pi / 2]
 
 def test_the_discrete_observer_is_a_first_order_filter_of_the_force():
     """A mass-spring with a known force and a step of unknown force, integrated by hand: the estimate follows
-    r' = K (Q - r) to within K dt / 2, whatever the known input does, and holds a constant force exactly."""
+    r' = K (Q - r) to within K dt / 2, whatever the known input does, and holds a constant force exactly.
+    """
     mass, stiffness, k, dt, fine = 2.0, 3.0, 10.0, 1e-3, 50
     observer = MomentumObserver(k, 1)
     x, v, estimates, known = 0.0, 0.0, [], 0.0
@@ -68,7 +69,8 @@ def _time_to(values, level, t):
 def test_a_constant_wind_on_the_drones_is_estimated_with_the_documented_bandwidth(hover):
     """2 N along y on each drone's centre of mass in the plant from t = 0: the estimate converges to the
     hand-computed Q_ext = J_h^T f (f at each drone's joint: its centre's chain Jacobian is its joint's), 63 %
-    after about 1 / K_O and within 1 % after 1 s."""
+    after about 1 / K_O and within 1 % after 1 s.
+    """
     robot = hover.robot
     k = ControllerSettings().observer_bandwidth
     log = simulate(hover, SimulationSettings(wind=(0.0, 2.0, 0.0), hold=0.0))
@@ -85,7 +87,8 @@ def test_a_constant_wind_on_the_drones_is_estimated_with_the_documented_bandwidt
 def test_a_step_gust_on_the_end_effector_is_estimated_and_read_as_that_force(hover):
     """A 4 N step along z on the end-effector at 1 s (the plant: J^T F of the task point): the estimate reaches
     J_p^T F (J_p by complex step of the kind's task point) with the bandwidth, and the controller reads it
-    back as that force on the task point and none on the drones (estimated_forces)."""
+    back as that force on the task point and none on the drones (estimated_forces).
+    """
     robot = hover.robot
     gust = GustEvent(1.0, (0.0, 0.0, 4.0), 10.0)
     mission = hover.mission.replace(events=(gust,))
@@ -106,7 +109,8 @@ def test_a_step_gust_on_the_end_effector_is_estimated_and_read_as_that_force(hov
 
 def test_estimated_forces_reproduce_the_estimate(hover):
     """J_p^T f_p + sum_i J_h,i^T f_i of the forces the controller reads = its generalised estimate; a wind on
-    both drones is read as the same generalised force (the end-effector takes the share it can explain)."""
+    both drones is read as the same generalised force (the end-effector takes the share it can explain).
+    """
     robot = hover.robot
     log_settings = SimulationSettings(wind=(0.0, -1.5, 0.5), hold=0.0)
     chain = [robot.index[c] for c in robot.layout.chain]
@@ -122,7 +126,8 @@ def test_estimated_forces_reproduce_the_estimate(hover):
 
 def test_the_observer_holds_winds_the_controller_without_it_does_not(hover):
     """Against the thesis' controller (observer_bandwidth 0, the integral clamped): a 3 N wind along y on each
-    drone, and the square flown in 1.5 N along -y: the observer's worst tracking error is a fraction of it."""
+    drone, and the square flown in 1.5 N along -y: the observer's worst tracking error is a fraction of it.
+    """
     square = plan(load_mission("square"), "two-step")
     for flown, wind in ((hover, (0.0, 3.0, 0.0)), (square, (0.0, -1.5, 0.0))):
         worst = {}
@@ -142,7 +147,8 @@ def test_without_the_observer_the_controller_estimates_nothing(hover):
 
 def test_the_observer_also_holds_for_the_prototype():
     """The prototype (one drone, the chain pinned): a 2 N wind along z on its drone is estimated as
-    J_h^T f at the hover pose after 1 s, within 2 %."""
+    J_h^T f at the hover pose after 1 s, within 2 %.
+    """
     robot = fpr.load("prototype")
     pose = np.array(robot.kind.reference_chain)
     mission = Mission(name="hover", robot="prototype", way_points=[pose, pose + [0.0, 0.01]], times=[4.0],

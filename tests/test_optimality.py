@@ -17,8 +17,8 @@ from planners.methods import METHODS
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
 from planners.missions.mission import load_mission
-from planners.options import PlanOptions
 from planners.optimisation.solving import Grid
+from planners.options import PlanOptions
 
 
 @pytest.fixture(scope="module")

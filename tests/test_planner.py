@@ -23,8 +23,8 @@ from planners.methods import crossing as crossing_method
 from planners.missions.mission import load_mission, mission_from_dict
 from planners.optimize import evaluate_motion, plan
 from planners.options import PlanOptions
-from planners.trajectory.polynomial import PiecewisePolynomial, stop_points, with_via_points
 from planners.problem.motion import POWER_SMOOTHING, MotionProblem, constraint_kind, constraint_rows
+from planners.trajectory.polynomial import PiecewisePolynomial, stop_points, with_via_points
 
 P0, Q0 = 5 * np.pi / 4, np.pi / 2  # phi, q21 of s0: both drones above the end-effector
 S0 = np.array([0.0, 0.0, P0, Q0])
@@ -113,7 +113,8 @@ def window_argmins(problem, x):
 def test_gradient_and_jacobian_match_central_differences(nlp):
     """dJ/dx and d(constraints)/dx (complex step through the inverse dynamics, chain rule through the
     Hermite basis) equal central differences. The constraints are windowed minima, smooth only while the
-    minimising sample stays the same: rows whose argmin moves between x - h and x + h are left out."""
+    minimising sample stays the same: rows whose argmin moves between x - h and x + h are left out.
+    """
     build, x = nlp
     problem = build(0.5)
     ev = problem.evaluate(x, derivatives=True)
@@ -160,7 +161,8 @@ def test_hessian_is_the_gauss_newton_matrix(nlp, alpha):
     not the full Hessian (which adds 2 a_phi sum w r d^2 r): the roll rates r are not small along a
     motion, so comparing with d^2 J would need a tolerance that proves nothing; the exact identity is
     the honest check. For alpha > 0 the J_e part is the reweighted least-squares curvature that the
-    docstring promises (the curvature of the quadratic majorising |P|_eps at P)."""
+    docstring promises (the curvature of the quadratic majorising |P|_eps at P).
+    """
     build, x = nlp
     problem = build(alpha)
     hess = np.asarray(problem.evaluate(x, derivatives=True).hessian)  # the banded matrix as an array
@@ -195,7 +197,8 @@ def test_stop_at_way_points_has_J_one(square_plans):
 @pytest.mark.parametrize("method", ["two-step", "one-step"])
 def test_optimised_square_is_feasible_and_beats_stopping(square_plans, method):
     """The optimised square holds every constraint on the dense grid, every NLP solve succeeds, and it
-    costs less than stopping at every way point (J < 1)."""
+    costs less than stopping at every way point (J < 1).
+    """
     plans, _ = square_plans
     result = plans[method]
     assert result.feasible and result.report.violations == []
@@ -221,7 +224,8 @@ def test_way_points_kept_and_rest_at_both_ends(square_plans, square, fpr_robot, 
 @pytest.mark.parametrize("method", ["two-step", "one-step"])
 def test_c4_continuity_at_every_knot(square_plans, method):
     """s, s', s'', s''', s'''' are continuous at every knot (9th-degree Hermite segments), and both
-    one-sided limits at a knot are the stored point."""
+    one-sided limits at a knot are the stored point.
+    """
     plans, _ = square_plans
     trajectory = plans[method].trajectory
     order_scale = np.abs(plans[method].report.motion).max(axis=(1, 2))  # size of each derivative order
@@ -264,7 +268,8 @@ def test_report_is_not_lying(square_plans, method):
     g is smooth inside a segment and the knots are samples) the nearest sample is within dt / 2, so
     g(sample) - g(t*) <= sup|g''| (dt/2)^2 / 2, sup|g''| estimated from the 2 kHz samples with a 25 %
     allowance. (A report on a grid 2x coarser already breaks this bound on the optimised squares.)
-    The reported time and detail (which rotor) reproduce the margin."""
+    The reported time and detail (which rotor) reproduce the margin.
+    """
     plans, _ = square_plans
     result = plans[method]
     trajectory, robot = result.trajectory, result.robot
@@ -290,7 +295,8 @@ def test_report_is_not_lying(square_plans, method):
 # ---------------------------------------------------------------------------------- 4. two-step monotone
 def test_two_step_is_never_worse_than_its_step_one(square_plans, square, fpr_robot):
     """Step 2 starts from the step-1 motion (via points read off it), so it can only lower J: the
-    two-step result is no worse than the same plan without via points (= step 1 alone)."""
+    two-step result is no worse than the same plan without via points (= step 1 alone).
+    """
     plans, _ = square_plans
     step_one = plan(square.replace(via_points=0), "two-step", robot=fpr_robot)
     assert [s.name for s in step_one.stages] == ["step 1"]
@@ -329,7 +335,8 @@ DYNAMIC_CASES = {
 @pytest.mark.parametrize("case", DYNAMIC_CASES)
 def test_violated_constraints_are_named(case, square, tour):
     """Stopping at legal way points too fast (or along a path that dips) fails, and the report names the
-    constraint; the geometric constraints of a stop motion whose path stays legal are reported satisfied."""
+    constraint; the geometric constraints of a stop motion whose path stays legal are reported satisfied.
+    """
     build, expected, exact = DYNAMIC_CASES[case]
     mission = build(square, tour)
     result = plan(mission, "none")
@@ -373,7 +380,8 @@ def test_geometric_constraints_fail_and_are_named(case, fpr_robot, proto_robot):
     """A motion from a legal pose through a pose outside one bound and back (stop points, 6 s each way):
     the kinematics say which margin the bad pose breaks; evaluate_motion names it, at the bad pose or
     worse, and the optimiser's scaled rows (constraint_rows(scaled=True)) agree in sign with the
-    natural-unit rows everywhere (so the NLP sees the same violation)."""
+    natural-unit rows everywhere (so the NLP sees the same violation).
+    """
     robot_name, bad, expected, exact = GEOMETRIC_CASES[case]
     robot = fpr_robot if robot_name == "fpr" else proto_robot
     home = S0 if robot_name == "fpr" else XI_HOME
@@ -404,7 +412,8 @@ def test_geometric_constraints_fail_and_are_named(case, fpr_robot, proto_robot):
 
 def test_arm_up_prototype_mission_is_not_reported_singular(proto_robot):
     """Arm up (q2 < 0) is a legal assembly mode (Mission.positions mirrors the q2 bounds for it); a slow
-    motion between two arm-up poses far from q2 = 0 must be feasible."""
+    motion between two arm-up poses far from q2 = 0 must be feasible.
+    """
     mission = mission_from_dict({"robot": "prototype", "arm": "up", "way_points": [[1.2, 0.3], [1.0, 0.6]],
                                  "times": [3.0]})
     xi = mission.positions(proto_robot)
@@ -422,7 +431,8 @@ def test_arm_up_prototype_mission_is_not_reported_singular(proto_robot):
 @pytest.mark.parametrize("method", ["two-step", "one-step"])
 def test_progress_is_called_for_every_stage(square_plans, method):
     """progress(stage name, iteration, J, violation) is called at least once per stage that has
-    variables, with iterations counting 1, 2, ... within a stage and J, violation finite, violation >= 0."""
+    variables, with iterations counting 1, 2, ... within a stage and J, violation finite, violation >= 0.
+    """
     plans, calls = square_plans
     log = calls[method]
     for stage in plans[method].stages:
@@ -458,7 +468,8 @@ def test_infeasible_request_returns_a_report(square, mission_case, options):
 def test_infeasible_request_with_the_default_solver_ends(square, fpr_robot):
     """The infeasible square (0.5 s travels: constraint Jacobian entries ~3.6e7 where the thrust nearly
     vanishes) with the default SQP settings ends with a report: the step QPs have bounded work and a
-    stage stops once its violation stalls (this once ran for more than 15 min)."""
+    stage stops once its violation stalls (this once ran for more than 15 min).
+    """
     result = plan(square.replace(times=[0.5] * 4), "two-step", robot=fpr_robot)
     assert not result.feasible and result.report.violations
     assert all(stage.iterations < 60 for stage in result.stages)
@@ -469,7 +480,8 @@ def test_infeasible_request_with_the_default_solver_ends(square, fpr_robot):
 def test_plan_looks_the_method_up_in_the_registry(square, fpr_robot, monkeypatch):
     """A method is a function (mission, robot, options) -> PlanResult registered by name: one defined
     here (outside the library) is found by plan(), given the options, and timed; unknown names are
-    refused before anything is planned, and the crossing method refuses a way-point mission."""
+    refused before anything is planned, and the crossing method refuses a way-point mission.
+    """
     with pytest.raises(UnknownMethodError, match="three-step") as error:
         plan(square, "three-step", robot=fpr_robot)
     assert error.value.known == tuple(METHODS)

@@ -24,7 +24,8 @@ def hovering(name, **coordinates):
 @pytest.mark.parametrize("name, coordinates", [("fpr", {"x": 0.4, "psi": 0.7}), ("prototype", {"psi": -0.5})])
 def test_hover_speeds_hold_the_pose(name, coordinates):
     """2 s at the hover speeds (yawed, and off the plane for the FPR): the drones move less than 1e-4 m and
-    the measured state is the initial one."""
+    the measured state is the initial one.
+    """
     robot, q, w = hovering(name, **coordinates)
     plant = Plant.from_minimal(robot, q, w=w)
     start = plant.drone_positions()
@@ -51,7 +52,8 @@ def test_hover_speeds_refuse_a_pose_that_is_not_static():
 
 def test_passive_prototype_swings_with_constant_energy():
     """Rotors stopped, the prototype swings and spins about its fixed point for 3 s: energy constant to
-    1e-4 J (RKMK4 at 1 ms), the loop closed to 1e-5 m."""
+    1e-4 J (RKMK4 at 1 ms), the loop closed to 1e-5 m.
+    """
     robot = fpr.load("prototype")
     q = robot.configuration(q1=0.3, q2=1.2, phi1=0.5)
     v = robot.configuration(psi=0.5, theta=0.2, q1=1.0, phi1=2.0)
@@ -71,7 +73,8 @@ def test_passive_prototype_swings_with_constant_energy():
 def test_measure_is_continuous_and_consistent_while_flailing():
     """The FPR falling with rotors stopped and a large roll rate (phi crosses +-pi and goes past 5pi/4 + pi):
     successive measurements move by small steps, and the minimal model at the measured q puts the drones
-    where the plant has them (1e-6 m)."""
+    where the plant has them (1e-6 m).
+    """
     robot = fpr.load("fpr")
     q, v = random_state(robot, np.random.default_rng(SEED), scale=0.5)
     v[robot.index["phi"]] = 8.0
@@ -116,7 +119,8 @@ def test_rotor_speed_commands_are_saturated():
 def test_wind_accelerates_the_centre_of_mass(wind):
     """A constant wind on the hovering FPR: over the first 10 ms the centre of mass accelerates at the total
     wind force over the total mass (within 5 %), since thrust and weight balance and the closure is
-    internal."""
+    internal.
+    """
     robot, q, w = hovering("fpr")
     plant = Plant.from_minimal(robot, q, w=w)
     _, v0 = plant.center_of_mass()
@@ -131,7 +135,8 @@ def test_wind_accelerates_the_centre_of_mass(wind):
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_plant_accelerations_are_the_minimal_model_s(name):
     """Random states and rotor speeds: the plant's accelerations are those of the minimal model
-    (robot.forward_dynamics under the thrusts and torques R_f w^2), mapped by from_minimal."""
+    (robot.forward_dynamics under the thrusts and torques R_f w^2), mapped by from_minimal.
+    """
     robot = fpr.load(name)
     rng = np.random.default_rng(SEED + 1)
     for _ in range(10):
@@ -161,7 +166,8 @@ def test_rotor_constant_scale_scales_force_and_drag(name):
 
 def test_rotors_without_thrust_let_the_fpr_fall_freely():
     """rotor_constant_scale 0 at hover speeds: no force at all, every drone drops g t^2 / 2 in 0.3 s (1e-6 m),
-    the chain keeps its shape."""
+    the chain keeps its shape.
+    """
     robot, q, w = hovering("fpr")
     plant = Plant.from_minimal(robot, q, w=w, rotor_constant_scale=0.0)
     start = plant.drone_positions()
@@ -176,7 +182,8 @@ def test_rotors_without_thrust_let_the_fpr_fall_freely():
 def test_drone_hinges_tilts_and_speeds(name):
     """What the simulator's watch reads: the hinges are the minimal model's drone joints; in the plane, a
     drone's tilt is |its roll|; spinning the whole robot about z at 0.5 rad/s gives each drone that angular
-    speed and its hinge the speed 0.5 |r_y| (r_y its distance to the axis)."""
+    speed and its hinge the speed 0.5 |r_y| (r_y its distance to the axis).
+    """
     robot, q, w = hovering(name)
     plant = Plant.from_minimal(robot, q, w=w)
     joints = robot.kind.drone_joints(q[robot.indices(robot.layout.chain)])

@@ -30,7 +30,8 @@ DT = 1e-3
 
 def closed_state(name, seed, spread=0.05):
     """A robot's plant (its closed chain as the plant builds it) at a state on the closure near its reference pose:
-    a random minimal-coordinate state mapped to the closed chain (a consistent q, v)."""
+    a random minimal-coordinate state mapped to the closed chain (a consistent q, v).
+    """
     robot = fpr.load(name)
     rng = np.random.default_rng(seed)
     hover = hover_configuration(robot, robot.kind.reference_chain)
@@ -51,7 +52,8 @@ def _run(robot, q, w, on, ticks, steps_per_tick=2, wind=None):
 @pytest.mark.parametrize("name", ROBOTS)
 def test_constrained_acceleration_is_pinocchio_s(name):
     """On and off the closure, under random generalised forces: the native acceleration is pin.constraintDynamics'
-    (the same function of the same library) to round-off."""
+    (the same function of the same library) to round-off.
+    """
     native_module("plant")
     plant, _, rng = closed_state(name, 3)
     kernel = plant._step_kernel()
@@ -68,7 +70,8 @@ def test_constrained_acceleration_is_pinocchio_s(name):
 @pytest.mark.parametrize("windy", [False, True])
 def test_native_steps_follow_the_python_steps(name, windy):
     """0.5 s of varying rotor commands (in a wind, a different force on each drone, or without): the native steps
-    and the Python steps end at the same state to 1e-10, the same clock and rotor speeds; the robot moved."""
+    and the Python steps end at the same state to 1e-10, the same clock and rotor speeds; the robot moved.
+    """
     native_module("plant")
     robot = fpr.load(name)
     q = hover_configuration(robot, robot.kind.reference_chain)
@@ -106,7 +109,8 @@ def test_a_non_finite_state_stops_the_native_steps_at_the_last_finite_one():
 @pytest.mark.parametrize("name", ROBOTS)
 def test_observed_positions_and_closure_error_are_the_python_ones(name):
     """observe() with the native plant: the drones' centres and the closure error equal the Python path's to
-    1e-15 m, on a plant that flew 0.2 s (a closure error of its own); a NaN state gives a NaN closure error."""
+    1e-15 m, on a plant that flew 0.2 s (a closure error of its own); a NaN state gives a NaN closure error.
+    """
     native_module("plant")
     robot = fpr.load(name)
     q = hover_configuration(robot, robot.kind.reference_chain)
@@ -125,7 +129,8 @@ def test_observed_positions_and_closure_error_are_the_python_ones(name):
 @pytest.mark.parametrize("name", ROBOTS)
 def test_measurement_is_the_python_one(name):
     """to_minimal natively (forward kinematics, the kind's reads, the unwrapping, the velocity's least squares)
-    equals the Python path's at states on and off the closure, against references a turn away."""
+    equals the Python path's at states on and off the closure, against references a turn away.
+    """
     native_module("measure")
     plant, q0, rng = closed_state(name, 7, spread=0.3)
     closed = plant.closed
@@ -157,7 +162,8 @@ def _well_posed(model, q, constraints) -> bool:
 def _random_model(seed):
     """A random tree of every kind of joint, ball (spherical) joints among them, and 3D point closures between
     random bodies, which hold at the random configuration returned; more joints and closures than the robots
-    have."""
+    have.
+    """
     rng = np.random.default_rng(seed)
     model = pin.Model()
     model.gravity = pin.Motion(np.array([0.0, 0.0, -9.81, 0.0, 0.0, 0.0]))
@@ -199,7 +205,8 @@ def _random_model(seed):
 @pytest.mark.parametrize("seed", [1, 2])
 def test_any_joint_pinocchio_knows_runs_natively(seed):
     """A random model (18 joints of every kind, ball joints among them, 6 point closures): the native acceleration
-    is pin.constraintDynamics', and 50 native steps follow rkmk4_step on Pinocchio's Python calls to 1e-10."""
+    is pin.constraintDynamics', and 50 native steps follow rkmk4_step on Pinocchio's Python calls to 1e-10.
+    """
     module = native_module("plant")
     model, constraints, frames, q, rng = _random_model(seed)
     assert any(model.joints[j].shortname() == "JointModelSpherical" for j in range(model.njoints))
@@ -240,7 +247,8 @@ def test_any_joint_pinocchio_knows_runs_natively(seed):
 
 def test_the_closed_loop_is_the_python_one():
     """The square's two-step plan simulated (simulate's defaults) with every native part on and with every part
-    off: the same states, rotor speeds and thrusts to 1e-9."""
+    off: the same states, rotor speeds and thrusts to 1e-9.
+    """
     from fpr.sim.closed_loop import SimulationSettings, simulate
     from planners.missions.mission import load_mission
     from planners.optimize import plan

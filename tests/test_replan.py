@@ -6,9 +6,9 @@ import pytest
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from planners.missions.mission import load_mission
 from planners.optimize import plan
-from planners.trajectory.polynomial import PiecewisePolynomial
 from planners.replanning.latency import LatencyModel
 from planners.replanning.replanner import Replanner, ReplanOptions, jet, splice
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 S0 = [0.0, 0.0, 3.9269908169872414, 1.5707963267948966]
 
@@ -91,7 +91,8 @@ def test_splice_reproduces_the_cut_segment_exactly():
 
 def test_a_solve_that_cannot_be_ready_by_the_deadline_is_spliced_when_it_can(moving):
     """The modelled first iteration does not fit the deadline: the splice moves to when it is ready (rounded up
-    to the ms), the change is used, C4 there, and the record says why; nothing is late in the model."""
+    to the ms), the change is used, C4 there, and the record says why; nothing is late in the model.
+    """
     mission, result = moving
     slow = LatencyModel((0.0, 0.0, 3e-3, 0.0, 0.0))  # 3 ms per node and derivative evaluation
     replanner, record = _replanned(result, latency=slow, deadline=0.05)
@@ -114,7 +115,8 @@ def test_a_solve_that_cannot_be_ready_by_the_deadline_is_spliced_when_it_can(mov
 def test_a_late_wall_clock_solve_is_solved_again_after_its_end(moving):
     """Against an impossible wall-clock deadline (and a model that calls every solve instant, so the splice is
     not delayed) the first solve is late (not used: the plan in force stays then), and is solved again at
-    once, triggered when it ended."""
+    once, triggered when it ended.
+    """
     mission, result = moving
     instant = LatencyModel((0.0,) * 5)
     replanner, record = _replanned(result, timing="wall", deadline=1e-6, latency=instant)
@@ -161,7 +163,8 @@ def test_a_start_off_the_plan_is_solved_but_not_spliced(moving):
 
 def test_a_travel_cut_by_the_splice_keeps_segments_as_long_as_the_offline_plans(moving):
     """The cut travel's via points leave segments no shorter than the offline ones (at least one when the
-    travel is the whole horizon); the travels after it keep all their via points."""
+    travel is the whole horizon); the travels after it keep all their via points.
+    """
     mission, result = moving
     replanner = Replanner(result, ReplanOptions())
     way = replanner.way_times
@@ -186,7 +189,8 @@ def test_an_infeasible_replan_is_solved_again_with_more_iterations():
     """A way point moved 0.49 m 0.85 s before the robot gets there (square, way point 3 to [0.14, 1.46]): two
     SQP iterations leave the part infeasible; it is solved again when that solve ends, with up to
     ``persist_iterations`` iterations and its splice as far as they take on this machine (the model), and
-    that part is used. With persist_iterations 0 it is not."""
+    that part is used. With persist_iterations 0 it is not.
+    """
     mission = load_mission("square").replace(
         events=[{"at": 8.150262, "kind": "move", "way_point": 3, "to": [0.1404476745649267, 1.4574497310551306,
                                                                           S0[2], S0[3]]}])

@@ -1,5 +1,6 @@
 """The replanner's latency on the machine that runs it (planners/replanning/latency.py): the model, the
-per-machine file, measured once and read back, pinned; the least horizon of a replan."""
+per-machine file, measured once and read back, pinned; the least horizon of a replan.
+"""
 
 from __future__ import annotations
 
@@ -39,7 +40,8 @@ def test_the_model_refuses_absurd_costs(costs):
 
 def test_the_machines_file_is_measured_once_and_read_back_to_the_bit(tmp_path):
     """No file: measured (the given function, once) and written; the model used then is the one every later
-    run reads. Another machine's file is measured again; a robot the file lacks is added to it."""
+    run reads. Another machine's file is measured again; a robot the file lacks is added to it.
+    """
     path = tmp_path / "fpr" / "replan-latency.json"
     robot = fpr.load("fpr")
     calls = []
@@ -77,7 +79,8 @@ def test_a_run_is_pinned_by_a_calibration_file_or_by_a_replans_json(tmp_path):
 
 def test_measuring_fits_this_machines_replans():
     """The calibration times real replans and fits them: non-negative costs, a positive latency for a replan
-    of its mission (how close the model is to the wall clock is the bench's to say, over many replans)."""
+    of its mission (how close the model is to the wall clock is the bench's to say, over many replans).
+    """
     robot = fpr.load("prototype")
     model = measure_latency(robot, repeats=1)
     assert all(c >= 0 for c in model.costs) and model.source.startswith("measured on this machine")
@@ -88,7 +91,8 @@ def test_measuring_fits_this_machines_replans():
 
 def test_a_short_horizon_takes_the_next_travel_too():
     """A replan splicing 0.5 s before the next way point re-optimises through the one after it (least_horizon),
-    unless told not to."""
+    unless told not to.
+    """
     result = plan(load_mission("square"), "none")
     model = LatencyModel((0.0,) * 5)
     for least, end in ((1.0, 2), (0.0, 1)):

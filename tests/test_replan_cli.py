@@ -84,8 +84,8 @@ def test_replanned_run_follows_the_moved_way_point(runs):
 def test_closed_loop_margins_are_measured_against_the_executed_plan(runs):
     """simulation.json's planned margins are the executed plan's (rebuilt from replans.json), not the offline's."""
     from fpr.robots import load
-    from planners.trajectory.polynomial import PiecewisePolynomial
     from planners.problem.report import evaluate_motion
+    from planners.trajectory.polynomial import PiecewisePolynomial
 
     (_, out), (_, plain) = runs["replan"], runs["plain"]
     executed = json.loads((out / "replans.json").read_text())["executed_plan"]
@@ -142,7 +142,8 @@ def test_a_moved_way_point_out_of_reach_exits_2_before_any_work(tmp_path, capsys
 
 def test_a_deadline_no_solve_meets_moves_the_splice_to_when_the_solve_is_ready(tmp_path, capsys):
     """A 1 ms deadline: the change is not dropped; it is spliced when its first iteration is ready on this
-    machine (the tests' pinned latency model), and the record and the summary say so."""
+    machine (the tests' pinned latency model), and the record and the summary say so.
+    """
     mission = tmp_path / "short.toml"
     mission.write_text(MISSION, encoding="utf-8")
     code = main(["--mission", str(mission), "--method", "none", "--simulate", "--hold", "0", "--no-plots",
@@ -160,7 +161,8 @@ def test_a_deadline_no_solve_meets_moves_the_splice_to_when_the_solve_is_ready(t
 def test_a_run_pinned_to_a_calibration_gives_the_same_bytes(tmp_path):
     """--replan-calibration FILE: the decisions depend on that file only. Two runs pinned to the same model
     (a calibration file, and the replans.json of the first run) write the same bytes, whatever this
-    machine's own calibration holds; a slower model delays the splice."""
+    machine's own calibration holds; a slower model delays the splice.
+    """
     slow = tmp_path / "slow.json"
     slow.write_text(json.dumps({"latency_model": {"costs": [0.0, 0.0, 0.004, 0.0, 0.0], "source": "slow"}}),
                     encoding="utf-8")

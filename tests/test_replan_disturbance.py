@@ -1,5 +1,6 @@
 """A known external force in the planning model (planners/problem/disturbance.py), and the replanner's own SQP
-(planners/replanning/solver.py)."""
+(planners/replanning/solver.py).
+"""
 
 import dataclasses
 
@@ -91,7 +92,8 @@ def test_disturbed_problem_gradient_matches_finite_differences(moving):
 def test_a_zero_force_gust_leaves_the_problem_exactly_the_motion_problem(moving):
     """DisturbedProblem differs from MotionProblem only by Q_ext in the inverse dynamics (its ``_inputs``):
     with a gust of no force, J, its terms, every constraint (the between-node workspace rows included) and
-    the exact derivatives are MotionProblem's, bit for bit."""
+    the exact derivatives are MotionProblem's, bit for bit.
+    """
     _, result = moving
     replanner = Replanner(result, ReplanOptions())
     replanner.move(0)
@@ -209,7 +211,8 @@ def test_a_known_sustained_wind_is_planned_against_and_keeps_the_planned_rotors_
 
 def test_the_wind_estimate_reads_a_steady_held_error_as_the_force_on_the_end_effector():
     """In a steady state the controller's feedback holds M_s^-1 Q_ext (fpr/sim/wind_estimate.py): an error
-    held at K_p e = M_s^-1 J_p^T F (no integral term, at rest) is read back as F, through the low-pass."""
+    held at K_p e = M_s^-1 J_p^T F (no integral term, at rest) is read back as F, through the low-pass.
+    """
     import dataclasses
 
     from controllers.ctc import ControllerSettings
@@ -234,7 +237,8 @@ def test_the_wind_estimate_reads_a_steady_held_error_as_the_force_on_the_end_eff
 def test_an_estimated_wind_is_planned_against_once_it_has_held_and_silences_the_tracking_trigger():
     """estimate_wind: a robot held 30 cm off the plan in y from 2 s reads as a steady force; the replanner
     assumes it after ``estimate_delay`` (one replan, "wind estimated"), not before, and no tracking-error
-    replan fires while the estimate is up (the error is the wind's)."""
+    replan fires while the estimate is up (the error is the wind's).
+    """
     from fpr.sim.closed_loop import SimulationSettings
     from fpr.sim.replanning import InFlight, TriggerSettings
 
@@ -267,7 +271,8 @@ def test_an_estimated_wind_that_drops_is_forgotten_and_kept_as_the_record_of_wha
     """An estimate of 5 N towards -y from 2 s to 4 s, then none: the replanner assumes it once it has held for
     ``estimate_delay``; once it has stayed under its threshold as long, the replanner stops planning against
     it (``assumed`` None, a replan saying so), and the estimated gust stays in ``gusts``, ending (fully off)
-    one ramp after it was dropped, so the executed plan is checked against the wind it was made for."""
+    one ramp after it was dropped, so the executed plan is checked against the wind it was made for.
+    """
     from fpr.sim.closed_loop import SimulationSettings
     from fpr.sim.replanning import InFlight, TriggerSettings
 
@@ -304,7 +309,7 @@ def test_an_estimated_wind_that_drops_is_forgotten_and_kept_as_the_record_of_wha
     # the wind re-estimates it), the last one ramp after it was dropped
     kept = sorted((g for g in replanner.gusts if g.force == assumed[0][0].force), key=lambda g: g.at)
     assert kept[0].at + kept[0].rise == pytest.approx(estimated[0], abs=1e-9), kept  # fully on when estimated
-    for g, after in zip(kept, kept[1:]):
+    for g, after in zip(kept, kept[1:], strict=False):
         assert g.at + g.duration == pytest.approx(after.at + after.rise, abs=1e-9)
     last = kept[-1]
     assert last.at + last.duration == pytest.approx(dropped[0] + last.rise, abs=1e-9)

@@ -32,7 +32,8 @@ def _state(robot, motion):
 @pytest.mark.parametrize("name", ["fpr", "prototype"])
 def test_the_fed_forward_wind_gives_the_planners_thrusts_in_that_wind(name):
     """On the reference (no error), F of the outer loop with a force on the task point equals the planning
-    inverse dynamics flown in that force (J_h^T F = M_s s'' + c_s - J_p^T f): a moving state, not hover."""
+    inverse dynamics flown in that force (J_h^T F = M_s s'' + c_s - J_p^T f): a moving state, not hover.
+    """
     robot = fpr.load(name)
     rng = np.random.default_rng(3)
     n_s = len(robot.layout.chain)
@@ -54,7 +55,8 @@ def test_the_fed_forward_wind_gives_the_planners_thrusts_in_that_wind(name):
 
 def test_a_force_on_a_drone_is_that_drones_joint_force():
     """A force on drone i enters as J_h,i^T f (the planning model's point mass at the joint): the outer loop's
-    F_i with it is F_i without it minus f, the other drone's force unchanged (at rest: hover)."""
+    F_i with it is F_i without it minus f, the other drone's force unchanged (at rest: hover).
+    """
     robot = fpr.load("fpr")
     motion = np.zeros((5, 1, 4))
     motion[0, 0] = POSES["fpr"]
@@ -73,7 +75,8 @@ def test_a_force_on_a_drone_is_that_drones_joint_force():
 def test_hover_in_a_wind_balances_the_forces_by_hand():
     """Static equilibrium of the FPR at s0 in 8 N along -y on the end-effector: the drones' forces add up to
     (+8 N, m_total g) (the whole robot at rest: external forces sum to zero), and their moment about the
-    end-effector balances the links' weight (each link's weight at its middle, the drones' at the joints)."""
+    end-effector balances the links' weight (each link's weight at its middle, the drones' at the joints).
+    """
     robot = fpr.load("fpr")
     motion = np.zeros((5, 1, 4))
     motion[0, 0] = POSES["fpr"]
@@ -114,7 +117,8 @@ def test_no_known_force_is_the_controller_as_it_was():
 def test_the_inner_loops_model_in_the_wind_is_the_forward_dynamics_with_the_force():
     """The attitude model (2.12) the allocation uses, with a known force on the end-effector: its attitude
     accelerations equal those of M a = B u - c + Q_ext, Q_ext = (d p / d q)^T f by central differences of the
-    end-effector's position (forward kinematics only; the controller uses Pinocchio's frame Jacobian)."""
+    end-effector's position (forward kinematics only; the controller uses Pinocchio's frame Jacobian).
+    """
     import pinocchio as pin
 
     robot = fpr.load("fpr")
@@ -144,7 +148,8 @@ def test_the_inner_loops_model_in_the_wind_is_the_forward_dynamics_with_the_forc
 
 def _short_flight(robot):
     """A 1.5 s rest-to-rest travel of the FPR from s0, 0.2 m along y (a stand-in for a plan: its trajectory
-    and robot are all the simulation reads)."""
+    and robot are all the simulation reads).
+    """
     from types import SimpleNamespace
 
     from planners.trajectory.polynomial import PiecewisePolynomial
@@ -169,7 +174,8 @@ def _run(result, mission, triggers):
 def test_without_a_known_force_the_closed_loop_is_the_same_to_the_bit():
     """The hooks of the wind feed-forward change nothing when no force is known: a mission whose events move
     a way point only (ignored without a replanner) flies bit for bit as without any hook; a gust the
-    controller is told of changes the run from its start on, and only from then."""
+    controller is told of changes the run from its start on, and only from then.
+    """
     import dataclasses
 
     from fpr.sim.replanning import TriggerSettings
@@ -197,7 +203,8 @@ def test_without_a_known_force_the_closed_loop_is_the_same_to_the_bit():
 
 def test_the_wind_estimate_adds_what_the_controller_feeds_forward():
     """With the wind fed forward the feedback holds only the rest of it: on the plan (no error) the estimate
-    is the fed force; held off by what a force G needs, it is the fed force plus G."""
+    is the fed force; held off by what a force G needs, it is the fed force plus G.
+    """
     from controllers.ctc import ControllerSettings
     from fpr.sim.wind_estimate import WindEstimator
     from planners.problem.disturbance import task_jacobian
@@ -220,13 +227,14 @@ def test_the_wind_estimate_adds_what_the_controller_feeds_forward():
 
 def test_an_infeasible_wind_replan_is_solved_again_without_the_headroom_after_its_latency():
     """_wind_replan: the wind deadline for the solve; infeasible with the rotors' headroom, a second solve
-    without it (ReplanOptions.wind_headroom 0 during it only), triggered when the first ends."""
+    without it (ReplanOptions.wind_headroom 0 during it only), triggered when the first ends.
+    """
     from types import SimpleNamespace
 
     from fpr.sim.closed_loop import SimulationSettings
     from fpr.sim.replanning import InFlight, TriggerSettings
-    from planners.problem.disturbance import CONTROL_HEADROOM
     from planners.missions.mission import load_mission
+    from planners.problem.disturbance import CONTROL_HEADROOM
     from planners.replanning.replanner import ReplanOptions
 
     calls = []
@@ -262,7 +270,8 @@ def test_wind_headroom_refuses_absurd_values(value):
                                           ("tracking_bound", float("nan")), ("wind_lead", 0.0)])
 def test_trigger_settings_refuse_absurd_values_by_name(field, value):
     """A deadline that is not a finite time before the wind lead, a flag that is not a bool, a rate or a
-    bound <= 0: refused at once with the field's name (they used to fail mid-flight or pass silently)."""
+    bound <= 0: refused at once with the field's name (they used to fail mid-flight or pass silently).
+    """
     from fpr.sim.replanning import TriggerSettings
 
     with pytest.raises(Exception, match=field):
@@ -271,7 +280,8 @@ def test_trigger_settings_refuse_absurd_values_by_name(field, value):
 
 def test_an_estimate_is_fed_to_the_controller_as_a_ramp_from_its_take_up():
     """The replanner's first estimate is fully on when assumed; the controller's copy ramps on over its rise
-    from that time (the feedback held the wind until then), and later blended estimates are as assumed."""
+    from that time (the feedback held the wind until then), and later blended estimates are as assumed.
+    """
     from types import SimpleNamespace
 
     from fpr.sim.closed_loop import SimulationSettings

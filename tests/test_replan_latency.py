@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 
 from fpr.model.dual import Dual
-from planners.problem.disturbance import dense_check
 from planners.missions.events import GustEvent
 from planners.missions.mission import load_mission
 from planners.optimize import plan
-from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.problem.disturbance import dense_check
+from planners.replanning.check import evaluate_and_check
 from planners.replanning.latency import LatencyModel
 from planners.replanning.replanner import Replanner, ReplanOptions
-from planners.replanning.check import evaluate_and_check
 from planners.replanning.solver import solve_warm
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 
 @pytest.fixture(scope="module")
@@ -113,7 +113,8 @@ def test_a_refinement_that_would_make_the_plan_late_is_not_started(moving):
 @pytest.mark.parametrize("value", [-1.0, float("nan"), float("inf"), "1.7", 0.8, True])
 def test_refine_margin_refuses_absurd_values(value):
     """A negative, non-finite or non-numeric margin, or one in (0, 1) (a refinement could then make an
-    on-time plan late), is refused with its name."""
+    on-time plan late), is refused with its name.
+    """
     with pytest.raises(Exception, match="refine_margin"):
         ReplanOptions(refine_margin=value)
 

@@ -61,7 +61,8 @@ def test_the_gust_mission_saturates_without_replanning_and_not_with_it():
     0: the rotors saturate and the robot is lost. With the replanner told the wind (default deadline; the
     wind replans get ``wind_deadline``), no rotor saturates, the ground keeps its design margin, no physical
     limit breaks, and the executed plan holds every constraint flown in the wind (documentation:
-    guides/replanning)."""
+    guides/replanning).
+    """
     from fpr.cli.replanning import executed
     from fpr.sim.closed_loop import SimulationSettings, simulate
     from fpr.sim.margins import broken, closed_loop_margins, eaten

@@ -38,7 +38,8 @@ XACRO = {"link_1_length": 0.9, "link_2_length": 0.6, "link_2_mass": 0.08, "drone
 
 def test_an_installed_package_registers_by_entry_point(monkeypatch):
     """A package that declares the robot in the entry-point group fpr.robots needs no register() line: the
-    registry loads it on the first look-up (so ``python -m fpr.plan`` knows it too)."""
+    registry loads it on the first look-up (so ``python -m fpr.plan`` knows it too).
+    """
     entry = importlib.metadata.EntryPoint("unequal_fpr", "robots.unequal_fpr.robot:UnequalFpr", "fpr.robots")
     monkeypatch.setattr(importlib.metadata, "entry_points",
                         lambda group=None: [entry] if group == fpr.robots.ENTRY_POINT_GROUP else [])
@@ -88,7 +89,8 @@ def _rod(sel, length, row):
 
 def hand_model(robot, q):
     """M and the gravity terms g of the planar FPR with unequal links, from the Lagrangian (independent of
-    fpr.model.planar and of Pinocchio): bodies at p, p - L_i/2 u(.), drone centres r_i + d_i (-sin phi_i, cos phi_i)."""
+    fpr.model.planar and of Pinocchio): bodies at p, p - L_i/2 u(.), drone centres r_i + d_i (-sin phi_i, cos phi_i).
+    """
     p = robot.parameters
     l1, l2 = XACRO["link_1_length"], XACRO["link_2_length"]
     d1, d2 = p["hinge_offset"], XACRO["drone_2_hinge_offset"]

@@ -1,5 +1,6 @@
 """The registry of robots and their Pinocchio models in thesis coordinates, checked against physics they did not
-compute themselves."""
+compute themselves.
+"""
 
 import numpy as np
 import pinocchio as pin

@@ -96,7 +96,8 @@ def test_prototype_tour_is_tracked():
 def test_saturation_is_reported_and_rotors_stay_within_limits():
     """A motion the rotors cannot fly (square in 1 s per side, stopping at the way points: w^2 < 0 is
     asked at some instants): the allocation clips at the bounds and says so; nothing exceeds w_max. The
-    robot does not follow: q21 is 1 rad off its plan at 0.55 s, where the simulation stops."""
+    robot does not follow: q21 is 1 rad off its plan at 0.55 s, where the simulation stops.
+    """
     fast = plan(load_mission("square").replace(times=[1.0] * 4), "none")
     assert fast.report.constraints["rotor_speed_low_1"].margin < 0
     log = simulate(fast, SimulationSettings(hold=0.0))
@@ -134,7 +135,8 @@ def assert_stopped_at_failure(log, start):
 
 def test_zero_thrust_is_a_free_fall_stopped_by_the_tracking_bound(stopping_square):
     """Rotors without thrust: the robot falls freely; the planned z stays 0 on the first side, so the z error
-    passes 1 m at sqrt(2 / g) = 0.4515 s."""
+    passes 1 m at sqrt(2 / g) = 0.4515 s.
+    """
     log = simulate(stopping_square, SimulationSettings(rotor_constant_scale=0.0))
     assert_stopped_at_failure(log, "tracking lost on z")
     expected = np.sqrt(2 * 1.0 / G)
@@ -146,7 +148,8 @@ def test_zero_thrust_is_a_free_fall_stopped_by_the_tracking_bound(stopping_squar
 
 def test_zero_thrust_ends_below_the_ground(stopping_square):
     """With a tracking bound out of the way, the lowest drone hinge reaches the ground minus its tolerance
-    after an exact free fall: t = sqrt(2 h / g), h from its start height."""
+    after an exact free fall: t = sqrt(2 h / g), h from its start height.
+    """
     settings = SimulationSettings(rotor_constant_scale=0.0, max_tracking_error=10.0)
     log = simulate(stopping_square, settings)
     assert_stopped_at_failure(log, "drone ")
@@ -162,7 +165,8 @@ def test_zero_thrust_ends_below_the_ground(stopping_square):
 def test_wind_that_the_rotors_cannot_hold_loses_the_robot(stopping_square):
     """100 N of wind along y on each drone, more than all their rotors can give: the end-effector is blown
     1 m off its path after a time bounded by constant accelerations, the wind alone (upper acceleration)
-    and the wind minus every rotor at full thrust (lower), plus the motor lag and one tick."""
+    and the wind minus every rotor at full thrust (lower), plus the motor lag and one tick.
+    """
     robot = stopping_square.robot
     log = simulate(stopping_square, SimulationSettings(wind=(0.0, 100.0, 0.0)))
     assert_stopped_at_failure(log, "tracking lost on y")
@@ -201,7 +205,8 @@ def test_a_drone_faster_than_the_speed_bound(stopping_square):
 
 def test_a_drone_spinning_or_tilting_past_its_bound(stopping_square):
     """Bounds on the drones' angular speed and tilt under the plan's roll rate and roll: each fires where
-    the plan crosses it (the robot stays in its plane: tilt = |roll|, angular speed = |roll rate|)."""
+    the plan crosses it (the robot stays in its plane: tilt = |roll|, angular speed = |roll rate|).
+    """
     planned = inverse_dynamics(stopping_square.robot, planned_motion(stopping_square))
     for field, bound, planned_value, word in (
             ("max_drone_rate", 0.2, np.abs(planned.roll_rate).max(axis=1), "angular speed"),
@@ -215,7 +220,8 @@ def test_a_drone_spinning_or_tilting_past_its_bound(stopping_square):
 
 def test_a_force_no_chain_holds_breaks_the_closure(stopping_square):
     """1e6 N on each drone, up and sideways: the integrator cannot keep the loop closed (its closure
-    drift is ~2 cm after the first tick), which the watch reports before the speed it also reaches."""
+    drift is ~2 cm after the first tick), which the watch reports before the speed it also reaches.
+    """
     log = simulate(stopping_square, SimulationSettings(wind=(0.0, 1e6, 1e6)))
     assert_stopped_at_failure(log, "the chain's closure broke (closure error ")
     assert "> 0.001 m" in log.failure

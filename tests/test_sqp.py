@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from fpr.model.errors import PlannerArgumentError
-from planners.problem.motion import POWER_SMOOTHING, Evaluation
 from planners.optimisation.sqp import SqpOptions, damped_bfgs, kkt_residual, solve_sqp
+from planners.problem.motion import POWER_SMOOTHING, Evaluation
 
 TIGHT = SqpOptions(stop="kkt", kkt_tolerance=1e-7, max_iterations=200)
 
@@ -119,7 +119,8 @@ def test_an_infeasible_start_is_brought_to_the_feasible_optimum():
 
 class PowerNlp(SmallNlp):
     """J = sum_k |P_k|_eps + 0.1 |x|^2 with P = (x1 - 1, x2 + 1/2) (the planner's smoothed |.|, the
-    ``power`` fields of :class:`planners.problem.motion.Evaluation`), s.t. x1 <= 1/2."""
+    ``power`` fields of :class:`planners.problem.motion.Evaluation`), s.t. x1 <= 1/2.
+    """
 
     def __init__(self):
         self.n_x = 2

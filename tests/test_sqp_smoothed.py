@@ -12,16 +12,16 @@ import pytest
 from scipy.optimize import minimize
 
 from fpr.model.errors import PlannerArgumentError
-from planners.optimisation.active_set import solve_step_qp
-from planners.optimisation.curvature import power_curvature, smoothed_hessian
 from planners.methods import METHODS
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
 from planners.missions.mission import load_mission
-from planners.options import PlanOptions
-from planners.trajectory.polynomial import PiecewisePolynomial
-from planners.problem.motion import POWER_CURVATURE_FLOOR, POWER_SMOOTHING
+from planners.optimisation.active_set import solve_step_qp
+from planners.optimisation.curvature import power_curvature, smoothed_hessian
 from planners.optimisation.solving import Grid
+from planners.options import PlanOptions
+from planners.problem.motion import POWER_CURVATURE_FLOOR, POWER_SMOOTHING
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 SQUARE_BEST_J = 0.5037  # peer solvers, feasible on the 500 Hz grid
 

@@ -1,5 +1,6 @@
 """The stacked planar model (fpr.model.stacked): one table of sines and cosines and products of features give
-the per-body formulation's M, c, Jacobians and inverse dynamics to round-off, values and complex steps."""
+the per-body formulation's M, c, Jacobians and inverse dynamics to round-off, values and complex steps.
+"""
 
 import numpy as np
 import pytest
@@ -35,9 +36,9 @@ def _reference(model, q, v):
     """M and c by the per-body sums of the module docstring of fpr.model.planar (the formulation before)."""
     jac = [b.com.jacobian(q) for b in model.bodies]
     m = sum(b.mass * np.swapaxes(j, -1, -2) @ j + b.inertia * np.outer(b.angle_row, b.angle_row)
-            for b, j in zip(model.bodies, jac))
+            for b, j in zip(model.bodies, jac, strict=True))
     g = np.array([0.0, -model.gravity])
-    c = sum(b.mass * np.einsum("...in,...i->...n", j, b.com.bias(q, v) - g) for b, j in zip(model.bodies, jac))
+    c = sum(b.mass * np.einsum("...in,...i->...n", j, b.com.bias(q, v) - g) for b, j in zip(model.bodies, jac, strict=True))
     return m, c
 
 
@@ -130,7 +131,8 @@ def test_sparse_linear_map_is_the_dense_product():
 
 def test_features_of_a_motion_are_cached_for_its_truncations(robot):
     """The hinges' Jacobian after the inverse dynamics reuses the motion's features (truncated): same bits as
-    from a fresh Jet, and a fresh Jet does not see the cache."""
+    from a fresh Jet, and a fresh Jet does not see the cache.
+    """
     rng = np.random.default_rng(15)
     point = robot.planar("point")
     s = Jet(_complex_step(rng, (5, 20, point.n), scale=0.5))

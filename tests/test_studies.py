@@ -27,8 +27,6 @@ import pytest
 from fpr.cli import studies
 from fpr.cli.studies import format_table, format_value, write_study_figures
 from fpr.model.errors import PlannerArgumentError, UnknownMethodError
-from planners.methods import METHODS
-from planners.missions.mission import load_mission
 from fpr.studies.thesis import (
     AlphaStudy,
     Case,
@@ -37,6 +35,8 @@ from fpr.studies.thesis import (
     method_comparison,
     via_point_study,
 )
+from planners.methods import METHODS
+from planners.missions.mission import load_mission
 
 DENSE_RTOL = 1e-3
 OPTIMUM_RTOL = 1e-3
@@ -70,7 +70,7 @@ def test_via_point_reference_ratios_are_one(via: ViaPointStudy):
 
 
 def test_via_point_ratios_divide_by_no_via_point_case(via: ViaPointStudy):
-    for case, e, p in zip(via.cases, via.energy_ratio, via.perturbation_ratio):
+    for case, e, p in zip(via.cases, via.energy_ratio, via.perturbation_ratio, strict=True):
         assert e == case.J_e / via.reference.J_e
         assert p == case.J_phi / via.reference.J_phi
     # single travel: the n_vp = 0 motion is the stop-at-way-points motion (J = 1 exactly)
@@ -103,8 +103,8 @@ def test_alpha_reference_ratios_are_one(alpha: AlphaStudy):
 
 
 def test_each_alpha_extreme_is_best_for_its_own_objective(alpha: AlphaStudy):
-    e = dict(zip(alpha.alphas, alpha.J_e))
-    p = dict(zip(alpha.alphas, alpha.J_phi))
+    e = dict(zip(alpha.alphas, alpha.J_e, strict=True))
+    p = dict(zip(alpha.alphas, alpha.J_phi, strict=True))
     assert p[0.0] <= p[1.0] * (1 + OPTIMUM_RTOL)
     assert e[1.0] <= e[0.0] * (1 + OPTIMUM_RTOL)
 
@@ -167,7 +167,7 @@ def test_table_contains_every_number(via: ViaPointStudy, alpha: AlphaStudy):
         text = format_table(rows)
         lines = text.splitlines()
         assert len(lines) == len(rows) + 2  # header, rule, one line per row
-        for row, line in zip(rows, lines[2:]):
+        for row, line in zip(rows, lines[2:], strict=True):
             for key, value in row.items():
                 assert format_value(value) in line, (key, value, line)
         for key in rows[0]:

@@ -25,7 +25,8 @@ DT = 1e-3
 
 def _twins(name, seed):
     """Two equal plants near hover with a random velocity, and a command 5 % off hover with one rotor above
-    w_max (so that the saturation matters)."""
+    w_max (so that the saturation matters).
+    """
     robot = fpr.load(name)
     q, v, w, command, _ = near_hover(robot, seed)
     command[0, 0] = 1.5 * robot.rotor_constants.max_speed
@@ -71,7 +72,8 @@ def test_advance_runs_an_overridden_step_at_every_step():
 
 def test_advance_stops_where_step_does():
     """A command that makes the state non-finite: advance raises at the same step as step, and the plant
-    keeps its last finite state."""
+    keeps its last finite state.
+    """
     robot, (fast, slow), _ = _twins("prototype", 5)
     command = np.full((robot.n_drones, 4), np.nan)  # NaN passes the saturation and poisons the state
     with pytest.raises(PlantDivergedError) as fast_error:

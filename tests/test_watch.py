@@ -1,6 +1,7 @@
 """The watch for a lost robot (fpr.sim.watch), on states built by hand: a real plant at a pose of our
 choosing, changed where a branch needs it. The closed-loop cases (free fall, wind, each bound crossed
-by a simulation) are in test_simulate.py."""
+by a simulation) are in test_simulate.py.
+"""
 
 import numpy as np
 import pytest
@@ -13,7 +14,8 @@ from fpr.sim.watch import Watch, _past
 
 def state(name, **coordinates):
     """A plant hovering at the robot's reference chain (with the given coordinates changed) and what the
-    watch is given about it."""
+    watch is given about it.
+    """
     robot = fpr.load(name)
     q = hover_configuration(robot, robot.kind.reference_chain)
     for c, value in coordinates.items():
@@ -33,7 +35,8 @@ def test_a_hovering_robot_is_not_lost(name):
 
 def test_a_centre_of_mass_below_the_ground_with_its_hinge_above():
     """A drone whose centre of mass is given 0.04 m below the ground while the hinges hover (as for an upside
-    down drone whose hinge is just above the ground): the centre of mass is what is reported."""
+    down drone whose hinge is just above the ground): the centre of mass is what is reported.
+    """
     robot, plant, q, positions, closure, planned = state("fpr")
     assert plant.drone_joint_positions()[:, 2].min() > 0.4
     positions = positions.copy()
@@ -69,7 +72,8 @@ def test_values_are_printed_past_their_bound():
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_the_cheap_screen_never_hides_a_failure(name):
     """The screen (plain Python, every tick) against the full check alone, on states scattered across every bound:
-    whenever the full check finds a failure, the screen lets the state through to it."""
+    whenever the full check finds a failure, the screen lets the state through to it.
+    """
     robot, plant, q, positions, closure, planned = state(name)
     rng = np.random.default_rng(7)
     bounds = dict(max_drone_speed=0.5, max_drone_rate=0.5, max_tilt=0.3, max_tracking_error=0.2, ground_tolerance=0.0)

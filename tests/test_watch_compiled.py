@@ -1,6 +1,7 @@
 """The watch's screen natively (fpr._native's part ``watch``, ``fpr/_native/watch.c``) against its Python reference
 (``Watch._may_be_lost_python``): the same answer on states scattered across every bound (and on the bounds'
-edges), with and without the tilt screen, on non-finite states; the switch selects it."""
+edges), with and without the tilt screen, on non-finite states; the switch selects it.
+"""
 
 import math
 
@@ -82,7 +83,8 @@ def test_switched_off_the_python_screen_runs():
 @needs_kernel
 def test_a_zero_quaternion_goes_to_the_full_check():
     """A drone quaternion of zeros gives a NaN tilt cosine: the C screen answers "may be lost" (the full check
-    then decides), where the Python screen divides by zero."""
+    then decides), where the Python screen divides by zero.
+    """
     robot, plant, q, positions, closure, planned = state("fpr")
     watch = Watch(robot, SimulationSettings(**BOUNDS))
     watch._build_screen(plant)

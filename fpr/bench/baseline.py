@@ -20,10 +20,10 @@ from scipy.optimize import BFGS, NonlinearConstraint, minimize
 
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
-from planners.trajectory.polynomial import PiecewisePolynomial
+from planners.optimisation.solving import GRID_FEASIBILITY, Grid
 from planners.problem.report import evaluate_motion
 from planners.result import PlanResult
-from planners.optimisation.solving import GRID_FEASIBILITY, Grid
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 
 @dataclass(eq=False)
@@ -57,7 +57,8 @@ class BaselineResult:
 
     def time_to(self, J: float, rtol: float = 1e-4, feasibility: float = GRID_FEASIBILITY) -> float | None:
         """When an iterate first held the grid constraints (violation <= ``feasibility``) with a grid J
-        at most ``J`` (1 + ``rtol``) [s], or None if none did."""
+        at most ``J`` (1 + ``rtol``) [s], or None if none did.
+        """
         for elapsed, value, violation in self.trace:
             if violation <= feasibility and value <= J * (1 + rtol):
                 return elapsed

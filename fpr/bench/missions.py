@@ -70,7 +70,8 @@ MAX_DRAWS = 2000
 
 class MissionRegionError(FprError):
     """A random mission could not be drawn: the robot has no mission region, or its region holds too few
-    feasible way points (every draw failed)."""
+    feasible way points (every draw failed).
+    """
 
 
 @dataclass(frozen=True)
@@ -116,7 +117,8 @@ class MissionFamily:
 def builtin_families(way_points: int, **settings) -> list[MissionFamily]:
     """One family per built-in robot, space and assembly mode (:data:`fpr.robots.BUILTIN`): the FPR in task
     space (its task and joint coordinates are the same), the prototype in task and joint space, arm down and
-    up. ``settings`` are further :class:`MissionFamily` fields."""
+    up. ``settings`` are further :class:`MissionFamily` fields.
+    """
     out = []
     for name in robots.BUILTIN:
         kind = robots.get(name)
@@ -129,14 +131,16 @@ def builtin_families(way_points: int, **settings) -> list[MissionFamily]:
 
 def _unit_step(order: int) -> np.ndarray:
     """sigma^(k)(tau), k = 0..order, of the stop motion's 0 -> 1 step of unit duration on the search grid,
-    shape (order + 1, TIME_SEARCH_SAMPLES)."""
+    shape (order + 1, TIME_SEARCH_SAMPLES).
+    """
     step = PiecewisePolynomial(stop_points([[0.0], [1.0]]), [1.0])
     return step.evaluate(np.linspace(0.0, 1.0, TIME_SEARCH_SAMPLES), order=order)[..., 0]
 
 
 def _stop_feasible(robot, poses: np.ndarray, times: np.ndarray, clearance: float = 0.0) -> np.ndarray:
     """Whether the stop motion of each travel poses[i] -> poses[i + 1] in times[i] holds every planning
-    constraint on the search grid (the geometric ones with ``clearance``), shape (m,)."""
+    constraint on the search grid (the geometric ones with ``clearance``), shape (m,).
+    """
     sigma = _unit_step(MOTION_ORDER)  # (7, K)
     delta = np.diff(poses, axis=0)  # (m, n)
     k = np.arange(MOTION_ORDER + 1)[:, None, None, None]
@@ -203,7 +207,8 @@ def _planning_pose(robot, point, space: str, mode, clearance: float):
 
 def _path_clear(robot, start, end, mode, clearance: float) -> bool:
     """Whether the straight path start -> end (planning coordinates) keeps ``clearance`` to every geometric
-    bound, on the search grid."""
+    bound, on the search grid.
+    """
     tau = np.linspace(0.0, 1.0, TIME_SEARCH_SAMPLES)[:, None]
     margins = robot.kind.workspace_margins(start + tau * (end - start), mode)
     return min(float(np.min(v)) for v in margins.values()) >= clearance

@@ -48,7 +48,8 @@ __all__ = ["EXIT_CODES", "MAX_RUNS", "Progress", "main", "parser", "work"]
 def _campaign_file(path) -> Campaign:
     """The campaign file, read as a mission file is (a size cap, UTF-8 with or without a byte-order mark, no
     pathological TOML: :mod:`planners.missions.files`), its fields as
-    :func:`fpr.robustness.campaign_file.load_campaign` reads them."""
+    :func:`fpr.robustness.campaign_file.load_campaign` reads them.
+    """
     try:
         document = parse_toml(read_toml_text(path, "campaign", "give the path of a .toml campaign file"), str(path))
     except MissionError as error:
@@ -95,7 +96,8 @@ def _plan_options(campaign: Campaign, values: dict) -> argparse.Namespace:
 def _check_ranges(campaign: Campaign, mission, robot) -> None:
     """Every value a distribution can give (its bounds, or its mean for an unbounded one) passes the checks of
     ``python -m fpr.plan --simulate`` (:mod:`fpr.cli.checks`) and of ``fpr.load`` (robot parameters); the
-    simulated time is within the limit."""
+    simulated time is within the limit.
+    """
     for name in campaign.columns:
         dist = campaign.vary[name]
         low, high = dist.support()
@@ -113,7 +115,8 @@ def _check_ranges(campaign: Campaign, mission, robot) -> None:
 
 class Progress:
     """The progress bar on stderr: runs done (reused), failures, rate, time left; redrawn in place on a
-    terminal, a line every 10 s (and at the end) otherwise."""
+    terminal, a line every 10 s (and at the end) otherwise.
+    """
 
     def __init__(self, total: int, stream=None, quiet: bool = False):
         self.total, self.stream, self.quiet = total, stream or sys.stderr, quiet

@@ -279,7 +279,8 @@ def _check_grid_times(args, mission) -> None:
 
 def _check_travel_times(args, mission, robot) -> None:
     """Each travel long enough for the rotors (:func:`least_travel_times`; not for a singularity crossing, whose
-    times are first guesses the planner optimises)."""
+    times are first guesses the planner optimises).
+    """
     if mission.cross_singularity:
         return
     times = [float(t) for t in mission.times]

@@ -83,7 +83,8 @@ class Parser(argparse.ArgumentParser):
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
     """Defaults shown in the help (unless None, a flag's False, an empty list, or the help already speaks
-    of its default), the description and the epilog (exit codes) as written."""
+    of its default), the description and the epilog (exit codes) as written.
+    """
 
     def _expand_help(self, action):
         if isinstance(action.choices, LazyChoices):  # the help does not list them: no registry to import
@@ -169,7 +170,8 @@ class _LineFormatter(logging.Formatter):
 
 def _log_lines() -> None:
     """Log records of warnings and above from the libraries, as one line each on stderr (when nothing else
-    handles them: an application that configured logging keeps its own)."""
+    handles them: an application that configured logging keeps its own).
+    """
     root = logging.getLogger()
     if not root.handlers:
         handler = logging.StreamHandler(sys.stderr)

@@ -1,6 +1,7 @@
 """Ctrl-C and SIGTERM in the command lines: both raise ``KeyboardInterrupt``; after the first, a second one
 ends the process at once. Standard library only: :mod:`fpr.cli.launch` installs these before any heavy
-import, :mod:`fpr.cli.contract` maps the interruption to exit code 130 and one line."""
+import, :mod:`fpr.cli.contract` maps the interruption to exit code 130 and one line.
+"""
 
 from __future__ import annotations
 

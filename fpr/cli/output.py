@@ -200,7 +200,8 @@ class OutputFolder:
 @contextlib.contextmanager
 def _interrupts_held():
     """Defer SIGINT (Ctrl-C) and SIGTERM until the block is over, then raise KeyboardInterrupt (main thread
-    only)."""
+    only).
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return

@@ -47,20 +47,26 @@ from pathlib import Path
 import numpy as np
 
 from fpr.cli import checks, contract, replanning
-from fpr.cli.output import (OutputError, OutputFolder, inputs_hash, manifest, write_deterministic_npz,
-                            write_manifest)
+from fpr.cli.output import OutputError, OutputFolder, inputs_hash, manifest, write_deterministic_npz, write_manifest
 from fpr.cli.plan_files import csv_columns, plan_document, split_timings, write_csv
 from fpr.cli.plan_options import parser
 from fpr.cli.text import plural
 from fpr.model.errors import FprError, MissionError
 from fpr.sim.closed_loop import SimulationSettings, simulate
-from fpr.sim.margins import (broken_message, closed_loop_margins, eaten, margin_lines, margin_series,
-                             simulation_document, thrust_floor)
+from fpr.sim.margins import (
+    broken_message,
+    closed_loop_margins,
+    eaten,
+    margin_lines,
+    margin_series,
+    simulation_document,
+    thrust_floor,
+)
 from fpr.sim.plant import PlantDivergedError
+from fpr.tuning import tune_process
 from fpr.views.figures import margins_figure, plan_figures, simulation_figures
 from fpr.views.figures.all_figures import CROSSING_FIGURES
 from fpr.views.scene import view
-from fpr.tuning import tune_process
 from planners.methods import CROSSING_METHODS, method_for
 from planners.missions.mission import load_mission
 from planners.optimize import PlanResult, plan
@@ -121,7 +127,8 @@ _CROSSING_ROWS = [("q2 sign changes", "crossings", "", "{}"),
 
 def comparison_table(reference: PlanResult, result: PlanResult | None = None) -> str:
     """The table ``python -m fpr.plan`` prints: the reference motion (stop at way points; for a
-    singularity crossing, its first guess) beside the optimised one, one row per quantity."""
+    singularity crossing, its first guess) beside the optimised one, one row per quantity.
+    """
     results = [reference] + ([result] if result is not None else [])
     summaries = [r.summary() for r in results]
     rows = list(_TABLE_ROWS)
@@ -161,7 +168,8 @@ class _Progress:
 
 def _figure_options(final) -> dict:
     """What the figures must know of the motion: a singularity crossing gets chapter 4's titles, no assembly-mode
-    bounds it crosses, and its thrust floor."""
+    bounds it crosses, and its thrust floor.
+    """
     crossing = final.crossing is not None
     return {"figure_numbers": CROSSING_FIGURES if crossing else None, "crossing": crossing,
             "min_thrust": thrust_floor(final.report)}
@@ -376,7 +384,8 @@ def _method_line(mission, method: str) -> str:
 def work(args, argv) -> int:
     """Plan (and simulate) as the options say and write the output folder; returns 0 or 1 (the result breaks
     a limit). Bad input raises :class:`fpr.model.errors.FprError` before any work (:func:`fpr.cli.contract.run`
-    maps what it raises to the exit codes)."""
+    maps what it raises to the exit codes).
+    """
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, flush=True))
     started, start = time.time(), time.perf_counter()
     mission, robot = _inputs(args)

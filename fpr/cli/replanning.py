@@ -77,7 +77,8 @@ def with_observer(args, settings):
 
 def in_flight(args, final, settings):
     """The closed loop's :class:`InFlight` for this run, or None (no events, no --replan); its ``verdicts``
-    hold each gust's :func:`fpr.robustness.holding.hold_check` (by event index), made before the flight."""
+    hold each gust's :func:`fpr.robustness.holding.hold_check` (by event index), made before the flight.
+    """
     mission, robot = final.mission, final.robot
     replan = getattr(args, "replan", False)
     if not mission.events and not replan:
@@ -170,7 +171,8 @@ def write(out, hooks, done, written, log=None, final=None) -> dict:
 
 def passes(hooks, log) -> list[dict]:
     """For each move event: how close the simulated task point passes to the moved way point
-    (:meth:`fpr.sim.replanning.InFlight.passes`); none without hooks or a log."""
+    (:meth:`fpr.sim.replanning.InFlight.passes`); none without hooks or a log.
+    """
     if hooks is None or log is None:
         return []
     return hooks.passes(log)
@@ -178,7 +180,8 @@ def passes(hooks, log) -> list[dict]:
 
 def summary(hooks, done, log=None) -> str:
     """Lines for stdout: each gust's holding verdict, each replan, how close the robot passed to moved way
-    points, the executed plan."""
+    points, the executed plan.
+    """
     if hooks is None:
         return ""
     held = [f"  gust {i}: {v.line()}" for i, v in sorted(getattr(hooks, "verdicts", {}).items())]

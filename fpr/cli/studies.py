@@ -26,9 +26,6 @@ import numpy as np
 from fpr.cli import contract
 from fpr.cli.output import OutputFolder, inputs_hash, manifest, write_manifest
 from fpr.cli.plan_files import split_timings
-from fpr.views.figures import alpha_study_figure, plan_figures, via_point_study_figure
-from fpr.views.figures.studies import APPENDIX_FIGURES
-from planners.missions.mission import load_mission
 from fpr.studies.thesis import (
     ALPHAS,
     COMPARED_METHODS,
@@ -44,6 +41,9 @@ from fpr.studies.thesis import (
     via_point_study,
 )
 from fpr.tuning import tune_process
+from fpr.views.figures import alpha_study_figure, plan_figures, via_point_study_figure
+from fpr.views.figures.studies import APPENDIX_FIGURES
+from planners.missions.mission import load_mission
 
 QUICK = {"counts": (0, 1), "alphas": (0.0, 0.5, 1.0), "methods": COMPARED_METHODS}
 """Settings of ``--quick``."""
@@ -80,7 +80,7 @@ def format_table(rows: Iterable[Mapping], digits: int = 4) -> str:
     widths = [max(len(k), *(len(c[i]) for c in cells)) for i, k in enumerate(keys)]
 
     def line(values):
-        cells_ = (v.rjust(w) if num else v.ljust(w) for v, w, num in zip(values, widths, numeric))
+        cells_ = (v.rjust(w) if num else v.ljust(w) for v, w, num in zip(values, widths, numeric, strict=True))
         return "  ".join(cells_).rstrip()
 
     return "\n".join([line(keys), line(["-" * w for w in widths])] + [line(c) for c in cells])
@@ -113,7 +113,7 @@ def write_study_figures(out_dir: str | Path, via: ViaPointStudy | None = None,
         reference = None
         if "none" in comparison.methods:
             reference = comparison.plan("none").sampled(rate)
-        for method, result in zip(comparison.methods, comparison.plans):
+        for method, result in zip(comparison.methods, comparison.plans, strict=True):
             if method == "none":
                 continue
             folder = out / f"{comparison.mission}-{method}"

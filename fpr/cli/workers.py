@@ -44,7 +44,8 @@ def usable_cores() -> int:
 
 def available_memory() -> int | None:
     """The memory the system can give without swapping (``MemAvailable`` of ``/proc/meminfo``) [bytes], or
-    None where unknown."""
+    None where unknown.
+    """
     try:
         with open("/proc/meminfo", encoding="ascii") as stream:
             for line in stream:
@@ -137,7 +138,8 @@ def dask_setup(worker=None) -> None:
 
 def local_client(workers: int):
     """A Dask client of a new local cluster of ``workers`` processes (one thread each), each watching this
-    process (:func:`watch_parent`); its dashboard on a free port; closing the client closes the cluster."""
+    process (:func:`watch_parent`); its dashboard on a free port; closing the client closes the cluster.
+    """
     from distributed import Client
 
     _quiet_resource_tracker()
@@ -196,7 +198,8 @@ def children() -> list[int]:
 
 def end_children() -> None:
     """Kill (SIGKILL) every descendant of this process (the worker processes): the campaign is ending after
-    Ctrl-C or SIGTERM."""
+    Ctrl-C or SIGTERM.
+    """
     for pid in children():
         try:
             os.kill(pid, signal.SIGKILL)

@@ -117,7 +117,7 @@ class ClosedChainModel:
         qc = np.zeros(self.model.nq)
         vc = np.zeros(self.model.nv)
         ac = np.zeros(self.model.nv)
-        for fly, hinge in zip(self.freeflyer_ids, r.hinge_joint_ids):
+        for fly, hinge in zip(self.freeflyer_ids, r.hinge_joint_ids, strict=True):
             jq, jv = self.model.joints[fly].idx_q, self.model.joints[fly].idx_v
             qc[jq:jq + 7] = pin.SE3ToXYZQUAT(r.data.oMi[hinge])
             vc[jv:jv + 6] = r.data.v[hinge].vector
@@ -239,7 +239,8 @@ class ClosedChainModel:
 
     def closure_error(self, qc) -> float:
         """Norm of the loop-closure error (placement log for a weld, distance for a point) [m, rad]; NaN when
-        a closure's is (a non-finite configuration)."""
+        a closure's is (a non-finite configuration).
+        """
         pin.framesForwardKinematics(self.model, self.data, qc)
         err = 0.0
         for cm in self.constraints:
@@ -301,7 +302,8 @@ class _MinimalCache:
     def native_measure(self, closed):
         """The native measurement (:mod:`fpr._native`'s part ``measure``: forward kinematics on ``closed.data``,
         the kind's reads, the unwrapping and the velocity), made at its first use; None when the part is off or
-        not built, or the kind's reader gives no native reads."""
+        not built, or the kind's reader gives no native reads.
+        """
         if self.native_minimal() is None or not hasattr(self.reader, "native_reads"):
             return None
         if self._native_measure is None:
@@ -315,7 +317,8 @@ class _MinimalCache:
     def native_minimal(self):
         """The native measured velocity (:mod:`fpr._native`'s part ``measure``: the minimal model, its own data,
         T, the constant rows of K and the hinges whose LOCAL Jacobians fill the free flyers' rows), made at its
-        first use; None when the part is off or not built."""
+        first use; None when the part is off or not built.
+        """
         module = native.use("measure")
         if module is None:
             return None

@@ -49,7 +49,8 @@ class Dual:
     def seeded(cls, value, directions):
         """The Dual of ``value`` (shape S) whose tangent d is 1 at the entries ``directions[d]`` selects (an
         index into S whose first entry is an integer, e.g. ``(r, slice(None), j)``) and 0 elsewhere (with its
-        ``bands``)."""
+        ``bands``).
+        """
         value = np.asarray(value, dtype=float)
         tangents = np.zeros((len(directions),) + value.shape)
         bands = [None] * len(value)
@@ -235,7 +236,8 @@ class Dual:
 
 def _update(x: Dual, result: Dual) -> Dual:
     """An in-place operator's result: written into ``x`` when x carries its directions, else ``result`` itself
-    (the operator's name then refers to it)."""
+    (the operator's name then refers to it).
+    """
     if isinstance(result, Dual) and result.tangents.shape[0] and (result.lo < x.lo or result.hi > x.hi):
         return result
     return _inplace(x, result)
@@ -264,7 +266,8 @@ def _tax(axis):
 
 def _pad(x: Dual, ndim: int):
     """x's tangents with unit axes after the direction axis, for its value to have ``ndim`` dims (broadcasting
-    against values of ``ndim`` dims then lines up)."""
+    against values of ``ndim`` dims then lines up).
+    """
     t = x.tangents
     extra = ndim - x.value.ndim
     return t.reshape(t.shape[:1] + (1,) * extra + t.shape[1:]) if extra > 0 else t
@@ -272,14 +275,16 @@ def _pad(x: Dual, ndim: int):
 
 def _full(t, shape):
     """Tangents ``t`` broadcast to (n,) + ``shape`` (a copy when broadcasting adds entries: results stay
-    writable)."""
+    writable).
+    """
     full = t.shape[:1] + tuple(shape)
     return t if t.shape == full else np.broadcast_to(t, full).copy()
 
 
 def gather(value, parts) -> Dual:
     """The Dual of ``value`` whose tangents are the sum of ``parts``: (tangents (n_i, ...) broadcasting
-    against ``value``, their first direction lo_i), over the directions any of them carries."""
+    against ``value``, their first direction lo_i), over the directions any of them carries.
+    """
     parts = [p for p in parts if p[0].shape[0]]
     if not parts:
         return Dual(value, np.zeros((0,) + value.shape))
@@ -432,7 +437,8 @@ def span(*items) -> tuple[int, int]:
 
 def lift(x, lo: int = 0, hi: int = 0) -> Dual:
     """``x`` as a Dual over the directions lo..hi-1 (a constant: zero tangents); a Dual over other directions
-    is widened to them."""
+    is widened to them.
+    """
     if isinstance(x, Dual):
         if x.lo == lo and x.hi == hi:
             return x
@@ -561,7 +567,8 @@ _FUNCTIONS = {
 def trimmed(x):
     """``x`` without the directions at either end of its range whose tangents are all 0 (a Dual computed with
     others may depend on fewer directions than they: the value of a jet of the motion depends on the motion's
-    first orders only); anything else as it is."""
+    first orders only); anything else as it is.
+    """
     if not isinstance(x, Dual) or not x.tangents.shape[0]:
         return x
     used = np.flatnonzero(np.any(x.tangents.reshape(x.tangents.shape[0], -1) != 0.0, axis=1))
@@ -573,7 +580,8 @@ def trimmed(x):
 
 def empty(shape, *like) -> np.ndarray | Dual:
     """``np.empty(shape)`` of floats; a Dual over the directions of the Duals among ``like`` when it holds
-    any."""
+    any.
+    """
     if any(isinstance(x, Dual) for x in like):
         lo, hi = span(*like)
         return Dual(np.empty(shape), np.empty((hi - lo,) + tuple(shape)), lo)
@@ -608,7 +616,8 @@ def jet_products(da, db, K):
     """The elementwise product of real jets da, db (orders >= K+1, ...), orders 0..K, in a few numpy calls:
     every term's product at once (da[k] * db[n - k] over the pairs k <= n <= K), weighted and summed per order
     n by one matrix product (the dual path's arrays are small: numpy's per-term calls cost more than the
-    arithmetic)."""
+    arithmetic).
+    """
     ka, kb, w = _pairs(K)
     terms = da[ka] * db[kb]
     return np.dot(w, terms.reshape(terms.shape[0], -1)).reshape((K + 1,) + terms.shape[1:])
@@ -633,7 +642,8 @@ def jet_leibniz(da, db, K):
 def jet_chain(value, parts):
     """The Dual jet of ``value`` (K+1, ...) (a real jet) whose tangents are the sum of the jet products of the
     Duals' tangents by real jets: ``parts`` [(Dual jet (orders >= K+1, ...), real jet (K+1, ...))] (a
-    function's jet and its derivative's: d sin a = cos a da)."""
+    function's jet and its derivative's: d sin a = cos a da).
+    """
     K, nd = value.shape[0] - 1, value.ndim
     out = []
     for x, m in parts:

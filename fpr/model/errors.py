@@ -137,7 +137,7 @@ def check_shape(argument: str, x, expected: tuple[int | None, ...]) -> np.ndarra
     if type(x) is np.ndarray and x.shape == expected and x.dtype == _FLOAT:  # the usual call: 2 comparisons
         return x
     a = np.asarray(x, dtype=float)
-    if a.ndim != len(expected) or any(e is not None and e != s for e, s in zip(expected, a.shape)):
+    if a.ndim != len(expected) or any(e is not None and e != s for e, s in zip(expected, a.shape, strict=True)):
         shown = "(" + ", ".join("N" if e is None else str(e) for e in expected) + ("," if len(expected) == 1 else "") + ")"
         raise ShapeError(argument, a.shape, shown)
     return a
@@ -162,12 +162,14 @@ class ArgumentError(FprError, ValueError):
 class TrajectoryError(ArgumentError):
     """A wrong argument of a polynomial trajectory (:mod:`planners.trajectory.polynomial`): points, durations,
     query times, derivative orders, via-point counts (``argument``: ``points``, ``durations``, ``t``,
-    ``order``...; ``value``, ``reason`` as in :class:`ArgumentError`)."""
+    ``order``...; ``value``, ``reason`` as in :class:`ArgumentError`).
+    """
 
 
 class PlannerArgumentError(ArgumentError):
     """A wrong argument of a planner, a planning NLP or a study (:mod:`planners`) (``argument``:
-    ``solver``, ``free``, ``counts``...; ``value``, ``reason`` as in :class:`ArgumentError`)."""
+    ``solver``, ``free``, ``counts``...; ``value``, ``reason`` as in :class:`ArgumentError`).
+    """
 
 
 class UnknownMethodError(FprError, ValueError):
@@ -187,7 +189,8 @@ class UnknownMethodError(FprError, ValueError):
 class FigureError(ArgumentError):
     """A wrong argument of a figure (:mod:`fpr.views.figures`): a sampled plan, a simulation log, a robot,
     a study's numbers or a file name that the figures cannot draw or write (``argument``: ``plan.t``,
-    ``log``, ``robot``, ``rate``, ``n_via``...; ``value``, ``reason`` as in :class:`ArgumentError`)."""
+    ``log``, ``robot``, ``rate``, ``n_via``...; ``value``, ``reason`` as in :class:`ArgumentError`).
+    """
 
 
 class RobotDefinitionError(FprError, ValueError):
@@ -209,7 +212,8 @@ class RobotDefinitionError(FprError, ValueError):
 class ModelArgumentError(ArgumentError):
     """A wrong argument of a model, robot, simulation or controller function (:mod:`fpr.model`,
     :mod:`fpr.robots`, :mod:`fpr.sim`, :mod:`controllers`) (``argument``: ``mode``, ``arm``, ``dt``, ``q``...;
-    ``value``, ``reason`` as in :class:`ArgumentError`)."""
+    ``value``, ``reason`` as in :class:`ArgumentError`).
+    """
 
 
 class NotUniformError(FprError, ValueError):

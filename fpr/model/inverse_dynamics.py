@@ -1,4 +1,4 @@
-"""Inverse dynamics of a planned motion: what each drone must do to fly it (seed 3.12-3.17, 3.31, 3.47).
+r"""Inverse dynamics of a planned motion: what each drone must do to fly it (seed 3.12-3.17, 3.31, 3.47).
 
 From the chain motion s(t) (FPR: ``[y z phi q21]``; prototype: ``xi = [q1 q2]``) and its time
 derivatives up to the 4th, for every sample at once:
@@ -6,7 +6,7 @@ derivatives up to the 4th, for every sample at once:
 1. **Thrust vectors** F_i (world y, z) with the seed's planning model, where each drone is a point
    mass at its joint (eq. 2.6-2.7 with p_i left out, 2.16, 3.12; 3.37 for the prototype):
 
-   .. math:: J_h(s)^T F = M_s(s) \\ddot s + c_s(s, \\dot s),
+   .. math:: J_h(s)^T F = M_s(s) \ddot s + c_s(s, \dot s),
 
    M_s, c_s being the chain plus the drones' point masses and J_h the Jacobian of the drone
    joints. This is what makes s a flat output: the drone roll is then the direction of F_i
@@ -79,7 +79,8 @@ class MotionInputs:
 
     def full_state(self, robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Configurations, velocities and accelerations of the full model (x = psi = theta = 0),
-        each of shape (N, n): the chain coordinates from the motion, the drone rolls from the plan."""
+        each of shape (N, n): the chain coordinates from the motion, the drone rolls from the plan.
+        """
         n = self.motion.shape[1]
         out = [np.zeros((n, robot.nq)) for _ in range(3)]
         chain = robot.indices(robot.layout.chain)
@@ -145,9 +146,9 @@ MOTION_ORDER = 6
 
 
 def roll_torques(robot, q, v, thrust, roll_acceleration, external=None) -> np.ndarray:
-    """Roll torques giving the drones the roll accelerations phi_i'' in the exact planar model.
+    r"""Roll torques giving the drones the roll accelerations phi_i'' in the exact planar model.
 
-    .. math:: \\tau_x = (S M^{-1} S^T)^{-1} \\left(\\ddot\\phi - S M^{-1} (B_f f - c)\\right)
+    .. math:: \tau_x = (S M^{-1} S^T)^{-1} \left(\ddot\phi - S M^{-1} (B_f f - c)\right)
 
     (the roll rows of seed 2.24 with psi'' = theta'' = 0), S selecting the drone rolls and B_f f the
     generalised force of the thrusts applied at the drones' centres of mass along their body z.
@@ -181,7 +182,8 @@ def roll_torques(robot, q, v, thrust, roll_acceleration, external=None) -> np.nd
 @functools.lru_cache(maxsize=32)
 def _roll_layout(shape, data):
     """(chain, rolls) indices of a roll selection S (its shape and bytes: a cache key) that selects coordinates,
-    as slices when the rolls come last ([chain..., rolls...]: views, no copies); None for another S."""
+    as slices when the rolls come last ([chain..., rolls...]: views, no copies); None for another S.
+    """
     sel = np.frombuffer(data).reshape(shape)
     rolls = np.flatnonzero(np.any(sel != 0, axis=0))
     if not (len(rolls) == len(sel) and np.array_equal(sel[:, rolls], np.eye(len(sel)))):

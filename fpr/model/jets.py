@@ -28,13 +28,15 @@ _B = np.array([[math.comb(n, k) for k in range(_MAXK + 1)] for n in range(_MAXK 
 
 def _kernel():
     """The native jet products and solves (:mod:`fpr._native`'s part ``jets``, ``fpr/_native/jets.c``), or None
-    for numpy's (the reference the tests hold them equal to)."""
+    for numpy's (the reference the tests hold them equal to).
+    """
     return native.use("jets")
 
 
 def _suffix_batches(*batches):
     """(the broadcast batch shape, its size, each batch's size) when every batch shape with its leading 1s dropped
-    is a suffix of the broadcast one (what ``fpr/_native/jets.c``'s ``s % S_a`` indexing broadcasts); else None."""
+    is a suffix of the broadcast one (what ``fpr/_native/jets.c``'s ``s % S_a`` indexing broadcasts); else None.
+    """
     try:
         out = np.broadcast_shapes(*batches)
     except ValueError:
@@ -54,7 +56,8 @@ def _compiled_product(da, db, K):
     """:func:`_leibniz`'s matrix products natively (the part ``jets``): ``da`` (Ka+1, ..., n, m), ``db`` (Kb+1,
     ..., m, k) padded to one ndim, the result's orders 0..K (K <= Ka + Kb, terms beyond an operand's order are 0);
     None where it does not apply (no kernel, mixed or other dtypes, sizes beyond its limits, batches that broadcast
-    otherwise)."""
+    otherwise).
+    """
     if isinstance(da, Dual) or isinstance(db, Dual):
         return _dual_product(da, db, K)
     kernel = _kernel()
@@ -74,7 +77,8 @@ def _compiled_product(da, db, K):
 def small_matmul(a, b):
     """``np.matmul(a, b)`` of batches of small matrices (..., n, m) @ (..., m, k), natively (the part ``jets``)
     where it applies (about 5 times faster than numpy's on the planner's batches of 4 x 4 matrices; round-off
-    apart, the same)."""
+    apart, the same).
+    """
     if isinstance(a, Dual) or isinstance(b, Dual):
         return _dual_product(a[None], b[None], 0)[0]
     a, b = np.asarray(a), np.asarray(b)
@@ -95,7 +99,8 @@ def _ax(axis):
 
 def _wsum(w, terms):
     """Weighted sum ``sum_i w[i] * terms[i]`` over the leading axis (one BLAS dot: what ``np.tensordot`` does,
-    without its Python overhead, which dominated on small batches)."""
+    without its Python overhead, which dominated on small batches).
+    """
     if isinstance(terms, Dual):
         t = terms.tangents
         if t.shape[1] == 0 or t.size == 0:
@@ -122,7 +127,8 @@ def _lift(x, order):
 
 def inexact(x) -> np.ndarray:
     """``x`` as an array of floats, complex values kept (complex-step differentiation
-    passes through every function of this package that converts its inputs this way)."""
+    passes through every function of this package that converts its inputs this way).
+    """
     if isinstance(x, Dual):
         return x
     x = np.asarray(x)
@@ -133,7 +139,8 @@ def _small_solve(a, b=None):
     """``np.linalg.solve(a, b)`` (``b`` None: ``np.linalg.inv(a)``) of a real batch a (..., n, n), b (..., n, k),
     n, k <= 32, natively by Gauss-Jordan elimination (the part ``jets``; about 3 times faster than numpy's on
     batches of 4 x 4 matrices, the same to round-off); numpy's for other batches and singular matrices (which numpy
-    then reports as it does)."""
+    then reports as it does).
+    """
     kernel = _kernel()
     numpy_s = (lambda: np.linalg.inv(a)) if b is None else (lambda: np.linalg.solve(a, b))
     if kernel is None or a.dtype.char != "d" or a.ndim < 2 or not 1 <= a.shape[-1] <= 32 or a.size == 0:
@@ -166,7 +173,8 @@ def solve_matrices(a, b):
 
 def _atan2_value(y, x):
     """``arctan2`` that also takes complex-step arguments ``a + i h b`` (h tiny): the real part is
-    the angle of the real parts, the imaginary part its first-order change (exact for h -> 0)."""
+    the angle of the real parts, the imaginary part its first-order change (exact for h -> 0).
+    """
     if not (np.iscomplexobj(y) or np.iscomplexobj(x)):
         return np.arctan2(y, x)
     yr, xr = np.real(y), np.real(x)
@@ -177,7 +185,8 @@ def sin_cos_value(a):
     """``(np.sin(a), np.cos(a))`` of an array; for complex-step arguments ``a = x + i h b`` (h tiny) from the
     real sine and cosine: sin(x) + i cos(x) h b and cos(x) - i sin(x) h b, which is what numpy's complex sine
     and cosine give there bit for bit (cosh(h b) = 1, sinh(h b) = h b in floating point), at a fraction of
-    their cost (no complex transcendental functions)."""
+    their cost (no complex transcendental functions).
+    """
     if isinstance(a, Dual):
         s, c = np.sin(a.value), np.cos(a.value)
         return Dual(s, a.tangents * c, a.lo), Dual(c, a.tangents * -s, a.lo)
@@ -195,7 +204,8 @@ def _leibniz(da, db, K, op=np.multiply):
     """Derivatives of ``op(a, b)`` for a bilinear ``op``: sum_k C(n,k) op(a^(k), b^(n-k)).
 
     Elementwise products (the usual case) accumulate term by term into one preallocated array (no stacked
-    temporaries: the planner's complex-step batches are large); other ``op`` stack and weight."""
+    temporaries: the planner's complex-step batches are large); other ``op`` stack and weight.
+    """
     out = _compiled_product(da[:K + 1], db[:K + 1], K) if op is np.matmul else None
     if out is not None:
         return out
@@ -288,7 +298,8 @@ class Jet:
         callers need (e.g. the sines and cosines of a chain's angles, :mod:`fpr.model.planar`). A cached
         Jet result may be of a higher order than the caller's: derivatives 0..k of a jet function depend
         on derivatives 0..k of its argument only, so the caller truncates it. Do not modify ``d`` in place
-        once the cache is used."""
+        once the cache is used.
+        """
         cache = getattr(self, "_shared", None)
         if cache is None:
             cache = self._shared = {}
@@ -390,7 +401,8 @@ def _integrate(value, dj):
 # --- elementwise functions ---------------------------------------------------------------------
 def sincos(a):
     """Return ``(sin(a), cos(a))`` by the coupled recurrence
-    s^(n) = sum_{k<n} C(n-1,k) c^(k) a^(n-k),  c^(n) = -sum_{k<n} C(n-1,k) s^(k) a^(n-k)."""
+    s^(n) = sum_{k<n} C(n-1,k) c^(k) a^(n-k),  c^(n) = -sum_{k<n} C(n-1,k) s^(k) a^(n-k).
+    """
     if not isinstance(a, Jet):
         return sin_cos_value(np.asarray(a)) if np.iscomplexobj(a) else (np.sin(a), np.cos(a))
     if isinstance(a.d, Dual):  # the real jets, and d sin = cos da, d cos = -sin da (jet products)
@@ -455,7 +467,8 @@ def square(a):
 
 def atan2(y, x):
     """Four-quadrant angle with continuous derivatives across the branch cut:
-    value ``np.arctan2(y, x)``, derivative jet ``(x y' - y x') / (x^2 + y^2)``."""
+    value ``np.arctan2(y, x)``, derivative jet ``(x y' - y x') / (x^2 + y^2)``.
+    """
     if not isinstance(y, Jet) and not isinstance(x, Jet):
         return _atan2_value(y, x)
     K = min(j.order for j in (y, x) if isinstance(j, Jet))
@@ -541,7 +554,8 @@ def solve(A, b):
 
 def _jet_solve(inv, dA, dB, K):
     """The jet of A^-1 b, orders 0..K, from inv = A0^-1, A's jet dA (None: a constant A) and b's dB
-    (:func:`solve`)."""
+    (:func:`solve`).
+    """
     x = _compiled_solve(inv, dA, dB, K)
     if x is None and dA is None:
         x = np.matmul(inv, dB[:K + 1])
@@ -561,7 +575,8 @@ def _value(x):
 
 def _jet_product(da, db, K):
     """The jet of the matrix product of jets da (Ka+1, ..., n, m), db (Kb+1, ..., m, k), orders 0..K (terms
-    beyond an operand's order 0)."""
+    beyond an operand's order 0).
+    """
     out = _compiled_product(da, db, K)
     if out is not None:
         return out
@@ -590,7 +605,8 @@ def _reciprocal(db):
 
 def _dual_jet_solve(dA, kA, dB, K):
     """:func:`solve`'s jet of A^-1 b when A's or b's jet is a Dual: x by the real solve, its tangents from
-    A0^-1 (once) as the jet solve of A dx = db - dA x."""
+    A0^-1 (once) as the jet solve of A dx = db - dA x.
+    """
     av, bv = _value(dA), _value(dB)
     inv = _small_solve(av[0])
     x = _jet_solve(inv, av if kA is not None else None, bv, K)
@@ -621,7 +637,8 @@ def _dual_solve_matrices(a, b):
 def _compiled_solve(inv, dA, dB, K):
     """The jet of A^-1 b, orders 0..K, natively (the part ``jets``: :func:`solve`'s recurrence) from ``inv`` =
     A0^-1 (..., n, n), A's jet ``dA`` (or None: a constant A) and b's ``dB`` (Kb+1, ..., n, k) (orders beyond Kb
-    are 0); None where it does not apply (as :func:`_compiled_product`)."""
+    are 0); None where it does not apply (as :func:`_compiled_product`).
+    """
     kernel = _kernel()
     dA = inv[None] if dA is None else dA[:K + 1]
     dB = dB[:K + 1]

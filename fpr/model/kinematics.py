@@ -19,7 +19,8 @@ from fpr.model.parameters import margins as default_margins
 
 def u(a) -> np.ndarray:
     """Unit vector (cos a, sin a), shape (..., 2) (complex-step arguments: :func:`fpr.model.jets.sin_cos_value`,
-    numpy's values bit for bit without its complex sine and cosine)."""
+    numpy's values bit for bit without its complex sine and cosine).
+    """
     sin, cos = sin_cos_value(inexact(a))
     return np.stack([cos, sin], axis=-1)
 

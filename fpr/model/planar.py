@@ -1,4 +1,4 @@
-"""Closed-form, vectorised dynamics of the robots in their plane of motion.
+r"""Closed-form, vectorised dynamics of the robots in their plane of motion.
 
 The planner evaluates the dynamics at thousands of samples per iteration; this module gives the
 in-plane model (x = psi = theta = 0) in closed form with numpy, batched over samples, and along a
@@ -8,16 +8,16 @@ URDF (:class:`fpr.model.robot.Robot`), and the tests check it against Pinocchio'
 
 Every point of the planar chain is written as
 
-.. math:: p(q) = S q + \\sum_k \\mathrm{Rot}(a_k^T q + b_k)\\, v_k,
+.. math:: p(q) = S q + \sum_k \mathrm{Rot}(a_k^T q + b_k)\, v_k,
 
 with Rot the rotation of the (y, z) plane, S a selector of the end-effector position (FPR) and
 a_k rows of joint-angle sums; each body is such a point (its centre of mass) with a mass, an
 angle a^T q + b and a moment of inertia about x. Then
 
 .. math::
-    M = \\sum_b m_b J_b^T J_b + I_b a_b a_b^T, \\qquad
-    c = \\sum_b m_b J_b^T (\\dot J_b \\dot q - g),\\qquad
-    \\dot J_b \\dot q = -\\sum_k \\mathrm{Rot}(a_k^T q + b_k) v_k (a_k^T \\dot q)^2.
+    M = \sum_b m_b J_b^T J_b + I_b a_b a_b^T, \qquad
+    c = \sum_b m_b J_b^T (\dot J_b \dot q - g),\qquad
+    \dot J_b \dot q = -\sum_k \mathrm{Rot}(a_k^T q + b_k) v_k (a_k^T \dot q)^2.
 
 The batched methods of :class:`PlanarModel` evaluate these sums as products of the features of the chain's
 distinct angles (:mod:`fpr.model.stacked`, one sine-cosine table per batch); :class:`PlanarPoint` keeps the
@@ -122,7 +122,8 @@ class PlanarPoint:
 
     def position_and_jacobian_jet(self, q: Jet, jacobian_order: int) -> tuple[Jet, Jet]:
         """Both :meth:`position_jet` (order of q) and :meth:`jacobian_jet` (truncated to
-        ``jacobian_order``) from one evaluation of the rotations."""
+        ``jacobian_order``) from one evaluation of the rotations.
+        """
         y, z = self._rotated_jet(q)
         return self._position_from(q, y, z), self._jacobian_from(y.truncate(jacobian_order), z.truncate(jacobian_order))
 
@@ -245,7 +246,7 @@ class PlanarModel:
             bodies.append(PlanarBody(model.names[j], float(inertia.mass), float(inertia.inertia[0, 0]),
                                      point(sel, terms, com_term), row @ to_planar, float(off)))
         hinges, centres, angles = [], [], []
-        for jid, fid in zip(robot.hinge_joint_ids, robot.drone_frame_ids):
+        for jid, fid in zip(robot.hinge_joint_ids, robot.drone_frame_ids, strict=True):
             sel, terms, row, off = frames[jid]
             hinges.append(point(sel, terms))
             centre = model.frames[fid].placement.translation
@@ -257,7 +258,8 @@ class PlanarModel:
     @functools.cached_property
     def stacked(self) -> StackedDynamics:
         """The bodies, drone centres and hinges as one :class:`~fpr.model.stacked.StackedDynamics` (one table
-        of sines and cosines per batch, M and c as matrix products): what the methods below evaluate."""
+        of sines and cosines per batch, M and c as matrix products): what the methods below evaluate.
+        """
         return StackedDynamics(self)
 
     def mass_matrix(self, q) -> np.ndarray:
@@ -275,7 +277,8 @@ class PlanarModel:
 
     def dynamics_and_centre_jacobians(self, q, v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """M(q), c(q, qdot) and the Jacobians of the :attr:`drone_centres` as one array (..., n_d, 2, n), from
-        one table of sines and cosines."""
+        one table of sines and cosines.
+        """
         st = self.stacked
         features = st.points.features(q)
         return (st.mass_matrix_from(features), st.bias_from(features, v),

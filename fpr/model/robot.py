@@ -86,9 +86,9 @@ def euler_root_joint() -> pin.JointModelComposite:
 
 @dataclass(frozen=True)
 class AttitudeModel:
-    """Attitude dynamics of the drones (seed 2.12-2.13) at one state.
+    r"""Attitude dynamics of the drones (seed 2.12-2.13) at one state.
 
-    .. math:: \\ddot q_a = M_{inv,a} (J_\\tau^T \\tau + J_f^T f - c) = A_\\tau \\tau + M_{inv,a}(J_f^T f - c)
+    .. math:: \ddot q_a = M_{inv,a} (J_\tau^T \tau + J_f^T f - c) = A_\tau \tau + M_{inv,a}(J_f^T f - c)
 
     Attributes:
         m_inv_a: rows of M^-1 of the attitude coordinates, shape (n_a, n).
@@ -162,7 +162,7 @@ class Robot:
         self._build_coordinate_map()
         self.drone_frame_ids = tuple(self.model.getFrameId(f"{d}_center") for d in self.layout.drones)
         self.hinge_joint_ids = tuple(self.model.getJointId(f"{d}_hinge") for d in self.layout.drones)
-        for fid, jid, d in zip(self.drone_frame_ids, self.hinge_joint_ids, self.layout.drones):
+        for fid, jid, d in zip(self.drone_frame_ids, self.hinge_joint_ids, self.layout.drones, strict=True):
             if fid >= self.model.nframes or jid >= self.model.njoints:
                 raise RobotDefinitionError(self.name, f"the URDF has no frame '{d}_center' or no joint '{d}_hinge': "
                                                       "make each drone with the quadrotor macro of urdf/quadrotor.xacro")
@@ -281,7 +281,7 @@ class Robot:
     def rotors(self) -> tuple[RotorModel, ...]:
         """Rotor model of each drone, with rotor positions read from the URDF frames."""
         models = []
-        for drone, fid in zip(self.layout.drones, self.drone_frame_ids):
+        for drone, fid in zip(self.layout.drones, self.drone_frame_ids, strict=True):
             centre = self.model.frames[fid].placement
             positions = []
             for m in range(1, 5):
@@ -415,14 +415,15 @@ class Robot:
                 # the frozen dataclass without its __init__ (one object.__setattr__ per field): the same
                 # object, about half the cost
                 result = object.__new__(AttitudeModel)
-                result.__dict__.update(zip(_ATTITUDE_FIELDS, out))
+                result.__dict__.update(zip(_ATTITUDE_FIELDS, out, strict=True))
                 return result
         return self._attitude_python(m, nle, jacobians)
 
     def _build_attitude_constants(self) -> tuple:
         """What :meth:`attitude_model` needs besides the state, built once: (T^-1)[a]^T, the Jacobian rows of
         f and tau, and the native part's constants vector (``fpr/_native/attitude.c``: n, n_d, n_a, the
-        attitude indices, T, T^-1; None when the robot does not fit it)."""
+        attitude indices, T, T^-1; None when the robot does not fit it).
+        """
         n, n_d = self.nq, self.n_drones
         attitude = self.indices(self.layout.attitude)
         rows = np.arange(6 * n_d).reshape(n_d, 6)
@@ -442,7 +443,8 @@ class Robot:
 
     def _native_terms(self):
         """The minimal model's native terms (``fpr._native._pinocchio.Minimal``: M_p, nle and the drones' LOCAL frame
-        Jacobians at (T q, T v), on a data of its own), made at its first use; None when the model's nq != nv."""
+        Jacobians at (T q, T v), on a data of its own), made at its first use; None when the model's nq != nv.
+        """
         terms = self.__dict__.get("_native_minimal", False)
         if terms is False:
             module = native.module("_pinocchio")

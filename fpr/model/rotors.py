@@ -1,14 +1,14 @@
-"""Rotor model of a quadrotor: from squared rotor speeds to thrust and body torques (seed 3.2-3.11).
+r"""Rotor model of a quadrotor: from squared rotor speeds to thrust and body torques (seed 3.2-3.11).
 
 The mixing matrix is built from the rotor positions (read from the URDF frames) and their spin
 senses, so that it follows the robot description; for the "+" layout of the parameter file it is
 the seed's eq. 3.10:
 
 .. math::
-    \\begin{bmatrix} f \\\\ \\tau_x \\\\ \\tau_y \\\\ \\tau_z \\end{bmatrix} = R_f
-    \\begin{bmatrix} \\varpi_1^2 \\\\ \\varpi_2^2 \\\\ \\varpi_3^2 \\\\ \\varpi_4^2 \\end{bmatrix},\\quad
-    R_f = \\begin{bmatrix} c_T & c_T & c_T & c_T \\\\ 0 & d c_T & 0 & -d c_T \\\\
-    -d c_T & 0 & d c_T & 0 \\\\ -c_Q & c_Q & -c_Q & c_Q \\end{bmatrix}
+    \begin{bmatrix} f \\ \tau_x \\ \tau_y \\ \tau_z \end{bmatrix} = R_f
+    \begin{bmatrix} \varpi_1^2 \\ \varpi_2^2 \\ \varpi_3^2 \\ \varpi_4^2 \end{bmatrix},\quad
+    R_f = \begin{bmatrix} c_T & c_T & c_T & c_T \\ 0 & d c_T & 0 & -d c_T \\
+    -d c_T & 0 & d c_T & 0 \\ -c_Q & c_Q & -c_Q & c_Q \end{bmatrix}
 """
 
 from __future__ import annotations

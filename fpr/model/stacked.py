@@ -1,22 +1,22 @@
-"""All the points of a planar chain at once: one table of sines and cosines, dynamics as matrix products.
+r"""All the points of a planar chain at once: one table of sines and cosines, dynamics as matrix products.
 
 Every point of the chain (:class:`fpr.model.planar.PlanarPoint`) is p(q) = S q + sum_k Rot(a_k.q + b_k) v_k.
 The points of one robot share few distinct angles theta_a = a_a.q + b_a (a link's angle appears in every
 point beyond it). With Rot(theta) v = cos(theta) v + sin(theta) v_perp, v_perp = (-v_z, v_y), every point,
 its Jacobian and its velocity product are *linear* in the features
 
-.. math:: \\varphi(q) = [1, \\cos\\theta_1 \\dots \\cos\\theta_A, \\sin\\theta_1 \\dots \\sin\\theta_A]:
+.. math:: \varphi(q) = [1, \cos\theta_1 \dots \cos\theta_A, \sin\theta_1 \dots \sin\theta_A]:
 
-    J_i(q) = \\sum_f \\varphi_f Y_{if}, \\qquad
-    \\dot J_i \\dot q = -\\sum_a \\omega_a^2 (\\cos\\theta_a v_{ia} + \\sin\\theta_a v_{ia\\perp}),\\
-    \\omega_a = a_a.\\dot q,
+    J_i(q) = \sum_f \varphi_f Y_{if}, \qquad
+    \dot J_i \dot q = -\sum_a \omega_a^2 (\cos\theta_a v_{ia} + \sin\theta_a v_{ia\perp}),\
+    \omega_a = a_a.\dot q,
 
 with constant Y. The mass matrix and the bias of the bodies are then quadratic forms in the features:
 
 .. math::
-    M = \\sum_{f \\le f'} \\varphi_f \\varphi_{f'} K_{ff'}, \\qquad
-    c = \\sum_{f, e} \\varphi_f \\psi_e L_{fe} + \\sum_f \\varphi_f L^g_f,\\quad
-    \\psi = [\\cos\\theta_a \\omega_a^2, \\sin\\theta_a \\omega_a^2],
+    M = \sum_{f \le f'} \varphi_f \varphi_{f'} K_{ff'}, \qquad
+    c = \sum_{f, e} \varphi_f \psi_e L_{fe} + \sum_f \varphi_f L^g_f,\quad
+    \psi = [\cos\theta_a \omega_a^2, \sin\theta_a \omega_a^2],
 
 K, L and L^g (gravity's) summed over the bodies once (the bodies' rotational inertia I_b a_b a_b^T is in
 K_00; only the products of features that meet a body are formed). A batch of samples is then one sine-cosine
@@ -39,7 +39,8 @@ from fpr.model.jets import Jet
 
 class _Linear:
     """x -> x @ K + k0 on the last axis for a constant K (and constant k0). Takes arrays, Duals and Jets (k0 on
-    the value)."""
+    the value).
+    """
 
     def __init__(self, k, k0=None):
         self.k = np.ascontiguousarray(k, dtype=float)
@@ -82,7 +83,7 @@ class StackedPoints:
         n = points[0].selector.shape[1]
         index, rows, offsets = {}, [], []
         for p in points:
-            for r, o in zip(p.rows, p.offsets):
+            for r, o in zip(p.rows, p.offsets, strict=True):
                 key = (np.asarray(r, float).tobytes(), float(o))
                 if key not in index:
                     index[key] = len(rows)
@@ -93,7 +94,7 @@ class StackedPoints:
         self.offsets = np.array(offsets, dtype=float)
         vectors = np.zeros((len(points), a, 2))
         for i, p in enumerate(points):
-            for r, o, v in zip(p.rows, p.offsets, p.vectors):
+            for r, o, v in zip(p.rows, p.offsets, p.vectors, strict=True):
                 vectors[i, index[(np.asarray(r, float).tobytes(), float(o))]] += v
         perp = np.stack([-vectors[..., 1], vectors[..., 0]], axis=-1)  # Rot(pi/2) v
         self.selectors = np.array([p.selector for p in points], dtype=float)
@@ -129,7 +130,8 @@ class StackedPoints:
 
     def features_jet(self, q: Jet) -> Jet:
         """The features along a motion (same order as q), kept in ``q.shared_cache()``: the bodies' dynamics and
-        the hinges' Jacobian of one motion use the same ones."""
+        the hinges' Jacobian of one motion use the same ones.
+        """
         cache, key = q.shared_cache(), ("stacked-features", id(self))
         owner, hit = cache.get(key, (None, None))
         if owner is not self or hit.order < q.order:
@@ -153,7 +155,8 @@ class StackedPoints:
 
     def positions_from(self, q, features, group: str = "all"):
         """The positions of a group's points from q and its features (arrays, or Jets of one order): shape
-        (..., P_g, 2)."""
+        (..., P_g, 2).
+        """
         if isinstance(features, Jet):
             both = Jet(np.concatenate([features.d, jets.inexact(q.d)], axis=-1))
         else:
@@ -165,7 +168,8 @@ class StackedPoints:
 
 def _take(x, index):
     """``x[..., index]`` for an integer array ``index`` (array or Jet): np.take, about 3 times faster than
-    fancy indexing on the last axis of large batches (the same values)."""
+    fancy indexing on the last axis of large batches (the same values).
+    """
     return Jet(np.take(x.d, index, axis=-1)) if isinstance(x, Jet) else np.take(x, index, axis=-1)
 
 

@@ -218,7 +218,8 @@ class _FprReader:
     def native_reads(self) -> tuple[list, list]:
         """:meth:`read` as the native measurement takes it (``fpr/_native/cpp/native.hpp``: EulerRead,
         AngleRead): the root joint's translation and Euler angles off the end-effector placement, hinge 2's
-        angle about x."""
+        angle about x.
+        """
         i0 = self.root_q
         eulers = [(self.reversed_1, self.root_placement_inv.homogeneous, self.hinge_1_inv.homogeneous,
                    (i0, i0 + 1, i0 + 2), (i0 + 3, i0 + 4, i0 + 5), tuple(int(i) for i in self.euler_coordinates))]
@@ -293,7 +294,8 @@ class Fpr(RobotKind):
 
     def mission_region(self, space: str, mode: str | None) -> tuple[np.ndarray, np.ndarray]:
         """The square mission's 1 m x 1 m square for the end-effector (task and joint space alike), phi and
-        q21 within 0.3 rad of the reference pose's 5 pi/4 and pi/2 [m, m, rad, rad]."""
+        q21 within 0.3 rad of the reference pose's 5 pi/4 and pi/2 [m, m, rad, rad].
+        """
         centre = np.array(self.reference_chain[2:])
         return np.concatenate([[0.0, 0.0], centre - 0.3]), np.concatenate([[1.0, 1.0], centre + 0.3])
 

@@ -71,10 +71,10 @@ def prototype_joints(xi, link_length: float) -> np.ndarray:
 
 
 def prototype_jacobian(xi, link_length: float) -> np.ndarray:
-    """J_pr: d r3 / d xi, shape (..., 2, 2) (seed 3.35, with the sign convention of DESIGN.md).
+    r"""J_pr: d r3 / d xi, shape (..., 2, 2) (seed 3.35, with the sign convention of DESIGN.md).
 
-    .. math:: J_{pr} = L \\begin{bmatrix} -\\sin q_1 - \\sin(q_1+q_2) & -\\sin(q_1+q_2) \\\\
-              \\cos q_1 + \\cos(q_1+q_2) & \\cos(q_1+q_2) \\end{bmatrix}, \\quad \\det J_{pr} = L^2 \\sin q_2
+    .. math:: J_{pr} = L \begin{bmatrix} -\sin q_1 - \sin(q_1+q_2) & -\sin(q_1+q_2) \\
+              \cos q_1 + \cos(q_1+q_2) & \cos(q_1+q_2) \end{bmatrix}, \quad \det J_{pr} = L^2 \sin q_2
     """
     xi = last_axis(xi, 2, "xi")
     a = link_length * u_perp(xi[..., 0])
@@ -143,7 +143,8 @@ def prototype_workspace_margins(xi, link_length: float, margins: Margins, arm: s
 class _PrototypeReader:
     """Reads the prototype's pivot off the closed chain (``closure_reader``): yaw, pitch and q1 are the
     Z-Y-X Euler angles of link 1 (the pivot joints turn about z, y, x at the fixed point, without rotation
-    in their placements); q2 and the hinge are the closed chain's reversed joints."""
+    in their placements); q2 and the hinge are the closed chain's reversed joints.
+    """
 
     def __init__(self, closed):
         r, model, src = closed.robot, closed.model, closed.robot.model
@@ -161,7 +162,8 @@ class _PrototypeReader:
 
     def native_reads(self) -> tuple[list, list]:
         """:meth:`read` as the native measurement takes it (``fpr/_native/cpp/native.hpp``: EulerRead): the
-        pivot's Euler angles off link 1's placement."""
+        pivot's Euler angles off link 1's placement.
+        """
         eulers = [(self.q2_reversed, np.eye(4), self.q2_placement_inv.homogeneous, (-1, -1, -1),
                    tuple(int(i) for i in self.pivot_q), tuple(int(i) for i in self.euler_coordinates))]
         return eulers, []
@@ -271,7 +273,8 @@ class Prototype(RobotKind):
 
     def crossing_margins(self, s, crossing_sign) -> dict[str, np.ndarray]:
         """The margins of a motion crossing q2 = 0 once: those of 3.40-3.45, and ``crossing_side``
-        (sign * q2 >= 0) and ``crossing_range`` (sign * q2 <= pi - m_ga) instead of 3.46 [m, rad]."""
+        (sign * q2 >= 0) and ``crossing_range`` (sign * q2 <= pi - m_ga) instead of 3.46 [m, rad].
+        """
         margins = prototype_workspace_margins(s, self._length, self.robot.margins, "down")
         del margins["q2_low"], margins["q2_high"]
         q2 = s[..., 1] * crossing_sign  # > 0 on the correct side of the crossing
@@ -317,7 +320,8 @@ class Prototype(RobotKind):
 
     def mission_region(self, space: str, mode: str | None) -> tuple[np.ndarray, np.ndarray]:
         """Task space: the drone joint within the tour's box, y in [0.3, 1.4] m, z in [-0.5, 1.2] m. Joint
-        space: q1 within its bounds (3.44), q2 within those of ``mode`` (3.46; "down" by default) [rad]."""
+        space: q1 within its bounds (3.44), q2 within those of ``mode`` (3.46; "down" by default) [rad].
+        """
         if space == "task":
             return np.array([0.3, -0.5]), np.array([1.4, 1.2])
         m = self.robot.margins.angle
@@ -342,7 +346,8 @@ class Prototype(RobotKind):
 
     def outer_loop_forces(self, s, b, jacobian, planned_force, singular_band: float) -> np.ndarray:
         """With a planned force, the tension regularised towards the planned one near q2 = 0
-        (:func:`fpr.robots.prototype_thrust.regularised_force`); the plain solve without."""
+        (:func:`fpr.robots.prototype_thrust.regularised_force`); the plain solve without.
+        """
         if planned_force is None:
             return super().outer_loop_forces(s, b, jacobian, planned_force, singular_band)
         return prototype_thrust.regularised_force(s, b, planned_force[0], self._length, singular_band)[None, :]
@@ -351,7 +356,8 @@ class Prototype(RobotKind):
     def closed_chain(self, model, axis_offset: float) -> ClosureTree:
         """The drone a free flyer; the chain hangs from it (hinge reversed, link 2 with the end-effector,
         joint 2 reversed, link 1); the end of link 1 is held at the fixed point by a 3D point constraint
-        (a ball joint): 8 - 3 = 5 degrees of freedom. ``axis_offset`` is not used."""
+        (a ball joint): 8 - 3 = 5 degrees of freedom. ``axis_offset`` is not used.
+        """
         robot = self.robot
         src = robot.model
         jp, inertias = src.jointPlacements, src.inertias

@@ -1,11 +1,11 @@
-"""The prototype at its Type-2 singularity (seed ch. 4): the crossing criterion and the forces around it.
+r"""The prototype at its Type-2 singularity (seed ch. 4): the crossing criterion and the forces around it.
 
 The prototype's chain obeys J_pr(xi)^T F = M_pt(xi) xi'' + c_pt(xi, xi') (seed 3.37, drone as a point
 mass at its joint). At q2 = 0 the links are aligned and J_pr loses rank: its null vector n = [-1, 2]
 (DESIGN.md) is the motion of the elbow across the straight chain with the drone still. No drone force
 acts along it, so a motion can only pass q2 = 0 with a finite force if, there,
 
-.. math:: n^T (M_{pt}(\\xi_s) \\ddot\\xi_s + c_{pt}(\\xi_s, \\dot\\xi_s)) = 0 \\qquad (4.7)
+.. math:: n^T (M_{pt}(\xi_s) \ddot\xi_s + c_{pt}(\xi_s, \dot\xi_s)) = 0 \qquad (4.7)
 
 the *crossing criterion* (:func:`criterion`). It is one linear equation in xi_s'': its solutions
 form a line (:func:`criterion_acceleration`, :func:`nearest_criterion_acceleration`). The force is

@@ -43,7 +43,8 @@ CRITERION_TOLERANCE = 1e-6
 
 def link_components(b1, b2, cos_q2, link_length: float):
     """(g, f_p): the tension's right-hand side g = b1 - b2 (1 + cos q2) = L sin(q2) f_r [N m] and the
-    force across the second link f_p = b2 / L [N] (arrays or Jets)."""
+    force across the second link f_p = b2 / L [N] (arrays or Jets).
+    """
     return b1 - b2 * (1.0 + cos_q2), b2 / link_length
 
 
@@ -99,15 +100,15 @@ def thrust_vector(motion: Jet, generalized: Jet, link_length: float, order: int)
 
 
 def regularised_force(xi, b, planned, link_length: float, band: float) -> np.ndarray:
-    """F from J_pr^T F = b at one state, the tension regularised towards the planned one (the controller's).
+    r"""F from J_pr^T F = b at one state, the tension regularised towards the planned one (the controller's).
 
     Near q2 = 0 the row L sin(q2) f_r = g cannot be inverted; it is solved in the least-squares sense,
     regularised towards the planned tension f_r,d = F_d . e (the plan satisfies the crossing criterion,
     so f_r,d is finite):
 
-    .. math:: f_r = \\frac{L \\sin q_2\\, g + \\epsilon^2 f_{r,d}}{(L \\sin q_2)^2 + \\epsilon^2}, \\quad
-              \\epsilon^2 = \\varepsilon^2 \\max(0, 1 - (L \\sin q_2 / 10 \\varepsilon)^2), \\quad
-              \\varepsilon = L \\sin(\\mathrm{band}).
+    .. math:: f_r = \frac{L \sin q_2\, g + \epsilon^2 f_{r,d}}{(L \sin q_2)^2 + \epsilon^2}, \quad
+              \epsilon^2 = \varepsilon^2 \max(0, 1 - (L \sin q_2 / 10 \varepsilon)^2), \quad
+              \varepsilon = L \sin(\mathrm{band}).
 
     Where |sin q2| >= 10 sin(band) this is the plain solve exactly (and within (eps / L sin q2)^2 closer
     in); near q2 = 0 the elbow's motion across the straight chain, which no drone force can act on,

@@ -132,7 +132,8 @@ def static_hold(robot, s, body: str = END_EFFECTOR, force=(0.0, 0.0, 0.0),
 
 def _external_chain(robot, s, body, force) -> np.ndarray:
     """Q_ext of the force on the chain coordinates at s in the planning model (rolls at 0: the chain rows of
-    the full model's do not depend on the rolls for a force at the task point or a drone's joint)."""
+    the full model's do not depend on the rolls for a force at the task point or a drone's joint).
+    """
     q = np.zeros(robot.nq)
     q[robot.indices(robot.layout.chain)] = s
     return _external(robot, q, body, force)[robot.indices(robot.layout.chain)]

@@ -144,7 +144,8 @@ class Flight:
 @dataclass(frozen=True)
 class _Plan:
     """What :func:`fpr.sim.closed_loop.simulate` (and with events the replanner and the margins) ask of a
-    plan."""
+    plan.
+    """
 
     robot: object
     trajectory: object
@@ -255,7 +256,8 @@ def _flown(flight: Flight, robot, settings: SimulationSettings, event, observer:
 
 def _executed_violations(hooks) -> str:
     """The constraints the executed plan violates on its dense grid, in the gusts it was made for ("": none,
-    or nothing replanned)."""
+    or nothing replanned).
+    """
     replanner = hooks.replanner
     if replanner is None or not replanner.revisions:
         return ""
@@ -306,7 +308,8 @@ def _judged(flight: Flight, robot, log, hooks, plan) -> dict:
 
 def fly_event(flight: Flight, robot, settings: SimulationSettings, event) -> dict:
     """The outcomes of one run of an event family (module docstring): the event's columns, the flight's, and
-    with ``without_observer`` the same flight by the controller without its observer."""
+    with ``without_observer`` the same flight by the controller without its observer.
+    """
     setup = flight.setup
     row = {}
     if setup.family == "gust":

@@ -140,7 +140,8 @@ def local_client(workers: int | None = None):
 
 def _tuned_worker():
     """A Dask worker plugin that makes :func:`fpr.tune_process` in each worker process, also in one the nanny
-    restarts (a plugin's ``setup`` runs in every worker, present or future)."""
+    restarts (a plugin's ``setup`` runs in every worker, present or future).
+    """
     from distributed.diagnostics.plugin import WorkerPlugin
 
     class TunedWorker(WorkerPlugin):

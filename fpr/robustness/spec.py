@@ -214,7 +214,8 @@ OUTCOME_UNITS = {"least_clearance_m": "m", "saturated_ticks": "ticks", "peak_rot
 
 def coordinate_unit(coordinate: str) -> str:
     """The unit of a planning coordinate: "m" for a position (``x``, ``y``, ``z``), "rad" for an angle (``phi``,
-    ``q21``, ``q1``...)."""
+    ``q21``, ``q1``...).
+    """
     return "m" if coordinate in ("x", "y", "z") else "rad"
 
 
@@ -303,7 +304,8 @@ class Campaign:
 
     def with_vary(self, name: str, text) -> Campaign:
         """This campaign with quantity ``name`` (a component, a vector such as ``wind``, a robot parameter or
-        ``initial_error.<coordinate>``) drawn from ``text`` (see :func:`parse_distribution`)."""
+        ``initial_error.<coordinate>``) drawn from ``text`` (see :func:`parse_distribution`).
+        """
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)?", name or ""):
             raise CampaignError(f"{name}={text}", "write NAME=DISTRIBUTION, e.g. model_mass_scale=uniform(0.9,1.1)")
         if "." in name and not name.startswith(INITIAL_ERROR):
@@ -336,7 +338,8 @@ class Campaign:
     def key(self, mission_toml: str) -> str:
         """SHA-256 of what a run's row depends on: the mission as planned, the method, the seed, the
         distributions, the fixed parameters, hold and tolerance (not ``runs``, unless a ``linspace`` makes
-        the values depend on it: a campaign can then grow and keep its runs)."""
+        the values depend on it: a campaign can then grow and keep its runs).
+        """
         document = {"mission": mission_toml, "method": self.method, "seed": self.seed, "hold": self.hold,
                     "tracking_tolerance": self.tracking_tolerance, "robot_parameters": self.robot_parameters,
                     "vary": {k: self.vary[k].text() for k in self.columns}}

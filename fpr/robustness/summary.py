@@ -90,7 +90,8 @@ def _distribution(values) -> dict:
 
 def summarise(rows: list[dict], varied: list[str], outcomes: list[str]) -> dict:
     """The campaign's numbers: success rate and its 95 % Wilson interval, lost robots and errors by kind, the
-    distribution (count, min, 5 %, median, mean, 95 %, max) of every varied value and numeric outcome."""
+    distribution (count, min, 5 %, median, mean, 95 %, max) of every varied value and numeric outcome.
+    """
     n = len(rows)
     successes = sum(bool(r["success"]) for r in rows)
     low, high = wilson_interval(successes, n)
@@ -157,7 +158,8 @@ def broken_margins(row: dict, tracking: float = 0.05, speed_limit: float = 750.0
     """Which margins a run broke: ``saturation`` (a rotor at a bound of the allocation), ``rotor speed`` (the
     plant's peak above ``speed_limit``, w_max - m_gr [rad/s]), ``tracking`` (a coordinate off the plan by more
     than ``tracking`` [m or rad]), ``ground`` (a drone's centre of mass closer than ``clearance`` to the
-    ground [m]), ``lost``. A run that raised breaks none (its outcomes are unknown)."""
+    ground [m]), ``lost``. A run that raised breaks none (its outcomes are unknown).
+    """
     if row["error"]:
         return dict.fromkeys(("saturation", "rotor speed", "tracking", "ground", "lost"), False)
     worst = max(v for k, v in row.items() if k.startswith("max_error_"))
@@ -167,7 +169,8 @@ def broken_margins(row: dict, tracking: float = 0.05, speed_limit: float = 750.0
 
 def first_breaks(rows: list[dict], column: str, **limits) -> dict:
     """For a sweep of ``column``: the least value at which each margin of :func:`broken_margins` breaks (None:
-    it never does), so that the order of the values says which breaks first."""
+    it never does), so that the order of the values says which breaks first.
+    """
     first = {}
     for row in sorted(rows, key=lambda r: r[column]):
         for name, broken in broken_margins(row, **limits).items():

@@ -163,7 +163,8 @@ class SimulationLog:
     def summary(self) -> dict:
         """Tracking errors (RMS and max per planning coordinate), out-of-plane motion, rotor speeds
         against the limits, allocation saturations, closure error, real-time factor, and the failure (None
-        for a run that reached its end) with its time."""
+        for a run that reached its end) with its time.
+        """
         err = self.tracking_error
         out = {
             "tracking_rms": {c: float(np.sqrt(np.mean(err[:, i] ** 2))) for i, c in enumerate(self.chain)},
@@ -189,7 +190,8 @@ class SimulationLog:
 
     def save(self, path) -> None:
         """Write every array and the scalars to a NumPy ``.npz`` file (no failure: ``failure`` is stored as
-        an empty string and ``failure_time`` as NaN)."""
+        an empty string and ``failure_time`` as NaN).
+        """
         arrays = {k: v for k, v in vars(self).items() if isinstance(v, np.ndarray)}
         np.savez_compressed(path, robot_name=self.robot_name, coordinates=np.array(self.coordinates),
                             chain=np.array(self.chain), max_speed=self.max_speed, speed_limit=self.speed_limit,
@@ -211,7 +213,8 @@ class SimulationLog:
 
 def _scaled_robot(robot, scale: float):
     """The same robot with every mass (the kind's ``mass_parameters``) multiplied by ``scale`` (a
-    controller's wrong belief)."""
+    controller's wrong belief).
+    """
     if scale == 1.0:
         return robot
     overrides = {k: robot.parameters[k] * scale for k in robot.kind.mass_parameters}

@@ -1,5 +1,6 @@
 """Static poses of a robot and the rotor speeds that hold them (the simulator's usual start), from the planning
-model's inverse dynamics of a motionless chain."""
+model's inverse dynamics of a motionless chain.
+"""
 
 from __future__ import annotations
 

@@ -192,7 +192,8 @@ class MarginSeries:
 
 def _per_constraint(result, log):
     """(name, rows against the planning limit, rows against the physical limit, details) of each planned
-    constraint."""
+    constraint.
+    """
     _check(result, log)
     robot = result.robot
     floor = thrust_floor(result.report)

@@ -143,8 +143,7 @@ class Plant:
 
     def __init__(self, closed: ClosedChainModel, qc, vc=None, w=None, time: float = 0.0, reference=None,
                  rotor_constant_scale: float = 1.0):
-        """
-        Args:
+        """Args:
             closed: the closed-chain model (:func:`~fpr.model.constrained.build_closed_chain`).
             qc: its configuration, shape (model.nq,).
             vc: its velocity, shape (model.nv,); zero by default.
@@ -344,7 +343,8 @@ class Plant:
 
     def drone_speeds(self) -> tuple[np.ndarray, np.ndarray]:
         """Speed of each drone's hinge [m/s] and its angular speed [rad/s], each shape (n_d,) (norms of the
-        free flyers' twists)."""
+        free flyers' twists).
+        """
         linear = np.array([np.linalg.norm(self.vc[iv:iv + 3]) for _, iv, _ in self._freeflyers])
         angular = np.array([np.linalg.norm(self.vc[iv + 3:iv + 6]) for _, iv, _ in self._freeflyers])
         return linear, angular
@@ -502,7 +502,8 @@ class Plant:
     def _lean_constants(self, dt: float) -> tuple:
         """What :meth:`_python_steps` and :meth:`_native_steps` read, looked up once per dt: the lag's decay at
         (0, dt/2, dt), dt/2, the RK4 weights (dt/6, dt/3, dt/3, dt/6), G^T, the Pinocchio objects and functions,
-        two stage buffers, G^T in C order."""
+        two stage buffers, G^T in C order.
+        """
         constants = self._step_constants.get(dt)
         if constants is None:
             lag = self.robot.rotor_constants.time_constant
@@ -519,7 +520,8 @@ class Plant:
 
     def _compiles_forces(self) -> bool:
         """Whether the native steps compute this plant's forces: the rotors' as one constant map, and no
-        subclass adds its own through :meth:`generalized_force` (a subclass that does says when it does not)."""
+        subclass adds its own through :meth:`generalized_force` (a subclass that does says when it does not).
+        """
         return self._rotor_map is not None and type(self).generalized_force is Plant.generalized_force
 
     def _checked_command(self, w) -> np.ndarray:
@@ -552,7 +554,8 @@ class Plant:
         """:meth:`_python_steps` natively (``fpr/_native/cpp/plant.cpp``): the same RKMK4 steps on the same
         Pinocchio calls (``constraintDynamics``, ``integrate``, ``dIntegrate``), with the wind's J^T F of each
         drone's centre at every stage when ``wind_forces`` (n_d, 3) is given. The native steps saturate w_cmd to
-        [0, w_max] as :meth:`saturate` does (a saturated command is unchanged)."""
+        [0, w_max] as :meth:`saturate` does (a saturated command is unchanged).
+        """
         decay = self._lean_constants(dt)[0]
         q, v, w, done, status = kernel.steps(self.qc, self.vc, self._w, w_cmd, self._max_speed, decay, dt, steps,
                                              wind_forces)

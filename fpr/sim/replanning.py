@@ -275,7 +275,8 @@ class InFlight:
 
     def attach(self, controller) -> None:
         """The closed loop's controller (:class:`controllers.ctc.CascadedController`): its observer's estimate
-        is the replanner's wind estimate (``estimate_wind``)."""
+        is the replanner's wind estimate (``estimate_wind``).
+        """
         self._controller = controller
 
     def make_plant(self, robot, q, v=None, w=None, rotor_constant_scale: float = 1.0) -> ForcedPlant:
@@ -340,7 +341,8 @@ class InFlight:
     def known_gusts(self) -> tuple:
         """The gusts the controller is told of now (module docstring), fed forward: the known ones, or the
         estimates the replanner assumed when they come from the tracking error (an observer's estimate is
-        fed forward by the controller itself)."""
+        fed forward by the controller itself).
+        """
         if not self.triggers.feed_forward:
             return ()
         if self.triggers.known_gusts:
@@ -351,7 +353,8 @@ class InFlight:
 
     def planned_gusts(self) -> tuple:
         """The gusts the plan's inputs are flown in (the roll feed-forward): the known ones, or those the
-        replanner planned against."""
+        replanner planned against.
+        """
         if self.observed and self.triggers.feed_forward:
             return tuple(self.replanner.gusts)
         return self.known_gusts()
@@ -360,7 +363,8 @@ class InFlight:
         """The controller's copy of an assumed estimate: the replanner's first estimate is fully on at once
         (the wind has built up), but until then the feedback held it, so a step in the fed force would count
         it twice for a while (a kick back past the plan: 788 rad/s on ``gust``); it ramps on over its rise
-        from the time it was taken up instead. None: not on yet."""
+        from the time it was taken up instead. None: not on yet.
+        """
         up = self._taken_up.get((gust.at, gust.force))
         if up is None or gust.at >= up:
             return gust
@@ -369,7 +373,8 @@ class InFlight:
 
     def known_force(self, t: float) -> tuple:
         """The known wind at t [s]: (force on the task point (3,), forces on the drones (n_d, 3)) [N], each
-        None when none pushes (:func:`planners.missions.events.gust_force` of :meth:`known_gusts`)."""
+        None when none pushes (:func:`planners.missions.events.gust_force` of :meth:`known_gusts`).
+        """
         gusts = self.known_gusts()
         return gust_force(gusts, t, self._n_drones) if gusts else self._no_force
 
@@ -381,7 +386,8 @@ class InFlight:
     def inputs(self, robot, ticks, motion):
         """The plan's inputs (:func:`fpr.model.inverse_dynamics.inverse_dynamics`) at ``ticks`` [s] of
         ``motion`` (its derivatives 0..MOTION_ORDER), flown in the known gusts (their Q_ext with its time
-        derivatives, :func:`planners.problem.disturbance.generalized_gust`); no gust known: the plan's own."""
+        derivatives, :func:`planners.problem.disturbance.generalized_gust`); no gust known: the plan's own.
+        """
         gusts = self.planned_gusts()
         self._inputs_for = gusts
         return inputs_in_gusts(robot, motion, ticks, gusts)
@@ -431,7 +437,8 @@ class InFlight:
 
     def _through(self, t: float) -> int | None:
         """``through`` of a replan in the wind at t: the travel after the next way point too when that way
-        point is less than ``wind_lead`` ahead (that travel is then not re-planned by a later trigger)."""
+        point is less than ``wind_lead`` ahead (that travel is then not re-planned by a later trigger).
+        """
         ahead = int(np.searchsorted(self._way_times, t + 1e-9, side="right"))  # 0-based: way point ahead + 1
         if ahead >= self._way_times.size or self._way_times[ahead] - t > self.triggers.wind_lead + 1e-9:
             return None
@@ -444,7 +451,8 @@ class InFlight:
 
     def _estimate(self, t: float, q, v, reference):
         """Update the wind estimate and plan against it once it has held long enough; the estimate (forces on
-        the task point (3,) and on the drones (n_d, 3) [N]) or None."""
+        the task point (3,) and on the drones (n_d, 3) [N]) or None.
+        """
         if self.observed:
             if self._controller is None:
                 return None
@@ -494,7 +502,8 @@ class InFlight:
     def _estimated_gust(self, t: float, forces, ramp_from: float | None = None) -> tuple:
         """The estimate as gusts (one per body it pushes, above a tenth of the threshold) blowing to past the end of
         the motion: fully on from t (the wind has built up), or ramping on from ``ramp_from`` (a newer
-        estimate blending from the last one)."""
+        estimate blending from the last one).
+        """
         end = float(np.sum(self.mission.times)) + 1e3
         rise = 0.5
         at = t - rise if ramp_from is None else ramp_from

@@ -59,7 +59,8 @@ class Watch:
 
     def _build_screen(self, plant) -> None:
         """Indices into the plant's state for :meth:`_may_be_lost`, as tuples of ints, and the bounds moved
-        1e-9 (relative) towards the safe side; the same as one float64 vector for the compiled screen."""
+        1e-9 (relative) towards the safe side; the same as one float64 vector for the compiled screen.
+        """
         flyers = plant._freeflyers
         self._screen = (
             tuple(iq + 2 for iq, _, _ in flyers),  # hinge heights z
@@ -100,7 +101,8 @@ class Watch:
 
     def _may_be_lost_python(self, plant, q, v, positions, closure_error: float, planned) -> bool:
         """:meth:`_may_be_lost` in plain Python on the state as lists (a small part of the full check's
-        cost): the reference of the compiled screen."""
+        cost): the reference of the compiled screen.
+        """
         if self._screen is None:
             self._build_screen(plant)
         hinge_z, linear, angular, quaternions, chain = self._screen

@@ -1,3 +1,4 @@
 """The thesis' planning studies with the toolkit's parameters (:mod:`fpr.studies.thesis`).
 
-``python -m fpr.studies`` runs them (:mod:`fpr.cli.studies`)."""
+``python -m fpr.studies`` runs them (:mod:`fpr.cli.studies`).
+"""

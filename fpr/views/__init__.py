@@ -1,2 +1,3 @@
 """The views layer: the thesis' figures (matplotlib) and the meshcat scene. Views read plans and logs; nothing
-below imports them."""
+below imports them.
+"""

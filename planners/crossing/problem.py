@@ -39,7 +39,6 @@ from fpr.robots.prototype_singularity import (
     min_thrust,
     nearest_criterion_acceleration,
 )
-from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial, Segment, with_via_points
 from planners.problem.motion import (
     CONSTRAINT_BACKOFF,
     Evaluation,
@@ -48,6 +47,7 @@ from planners.problem.motion import (
     entry_scales,
     point_time_scales,
 )
+from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial, Segment, with_via_points
 
 #: Half-width of the band the 5th derivative's jump at the crossing is kept in, in Taylor units of the
 #: local time scale (s^(5) T^5 / 5!), the optimiser's back-off (1e-3) included: the polynomials are
@@ -91,7 +91,8 @@ def add_via_points(trajectory: PiecewisePolynomial, n_via) -> PiecewisePolynomia
 def jump_weights(durations, index: int) -> np.ndarray:
     """Weights W (3, 5) with s^(5)(t-) - s^(5)(t+) = sum_jk W[j, k] points[index - 1 + j, k] (each
     coordinate) at knot ``index``: the jump of the 5th derivative there, linear in the 3 points around it
-    (the segments are C4 at their knots, not C5) [1/s^(5-k)]."""
+    (the segments are C4 at their knots, not C5) [1/s^(5-k)].
+    """
     def basis(duration, t):
         blank = np.zeros((N_DERIVS, 1))
         return Segment(blank, blank, float(duration)).basis(t, order=5)[5, 0]  # (2 sides, 5)
@@ -204,7 +205,7 @@ class CrossingProblem:
         points = self.points.astype(x.dtype)
         times = self.times.astype(float).copy()
         mu = self._mu0
-        for value, (kind, target, scale) in zip(x, self.variables):
+        for value, (kind, target, scale) in zip(x, self.variables, strict=True):
             if kind == "entry":
                 points[target] = value * scale
             elif kind == "mu":
@@ -237,7 +238,8 @@ class CrossingProblem:
 
     def _extra_rows(self, points, times) -> tuple[np.ndarray, list[str]]:
         """Rows beside the motion's (scaled, >= 0): travel-time bounds, the crossing speed, and the
-        5th derivative continuous at the crossing (within +-:data:`JUMP_TOLERANCE` Taylor units)."""
+        5th derivative continuous at the crossing (within +-:data:`JUMP_TOLERANCE` Taylor units).
+        """
         lo, hi = self.time_bounds
         c = self.index
         jump = self._jump_scale * np.einsum("jk,jkn->n", jump_weights(segment_durations(times, self.n_via), c),

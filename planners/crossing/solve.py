@@ -44,9 +44,9 @@ from planners.crossing.problem import (
     crossing_motion,
     travel_times,
 )
-from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
-from planners.problem.report import MotionReport, evaluate_motion
 from planners.optimisation.solving import Grid, solve_refining, solve_stage
+from planners.problem.report import MotionReport, evaluate_motion
+from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
 
 #: The successive first guesses of :func:`optimise_crossing`: (drone polar angle at the crossing
 #: [rad], fraction of the mission's total time). The chain nearly upright, where gravity acts least
@@ -100,7 +100,8 @@ def designed_motion(start, end, duration: float, crossing_angle: float, t) -> np
 def first_guess(robot, start, end, duration: float, n_via, crossing_angle: float = 1.2) -> PiecewisePolynomial:
     """The :func:`designed_motion` as a crossing motion (travels of ``duration``/2, ``n_via`` via
     points each), its crossing acceleration moved onto the criterion's line (along n: the drone's
-    acceleration is kept)."""
+    acceleration is kept).
+    """
     half = 0.5 * float(duration)
     d = designed_motion(start, end, duration, crossing_angle, [half])[:, 0]
     point = np.array(d[:N_DERIVS])
@@ -206,7 +207,8 @@ class CrossingOutcome:
 def crossing_report(robot, trajectory: PiecewisePolynomial, n_via, rate: float = 500.0) -> MotionReport:
     """:func:`planners.problem.report.evaluate_motion` of a crossing motion laid out by
     :func:`~planners.crossing.problem.crossing_layout` with ``n_via``: the assembly-mode bounds on
-    each side of the crossing, and the least thrust (:func:`~fpr.robots.prototype_singularity.min_thrust`)."""
+    each side of the crossing, and the least thrust (:func:`~fpr.robots.prototype_singularity.min_thrust`).
+    """
     index, _ = crossing_layout(n_via)
     return evaluate_motion(robot, trajectory, rate, crossing_time=float(trajectory.knots[index]),
                            min_thrust=min_thrust(robot))

@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from fpr.model.errors import MissionError
+from planners.crossing.problem import crossing_layout
 from planners.crossing.solve import CrossingOutcome, crossing_report, optimise_crossing
 from planners.crossing.solve import first_guess as designed_first_guess
-from planners.crossing.problem import crossing_layout
 from planners.options import PlanOptions
 from planners.result import PlanResult
 

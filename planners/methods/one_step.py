@@ -16,12 +16,12 @@ from __future__ import annotations
 import numpy as np
 
 from planners.methods.way_points import WayPointTask
+from planners.optimisation.solving import Grid, solve_refining, solve_stage
 from planners.options import PlanOptions
-from planners.trajectory.polynomial import PiecewisePolynomial
 from planners.problem.motion import MotionProblem
 from planners.problem.report import evaluate_motion
 from planners.result import PlanResult
-from planners.optimisation.solving import Grid, solve_refining, solve_stage
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 
 def one_step_problem(task: WayPointTask, grid: Grid, normalisation=None) -> MotionProblem:

@@ -26,12 +26,12 @@ import numpy as np
 
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
+from planners.optimisation.solving import GRID_FEASIBILITY, Grid, solve_refining, solve_stage
 from planners.options import PlanOptions
-from planners.trajectory.polynomial import PiecewisePolynomial
 from planners.problem.motion import MotionProblem, NodeDerivatives
 from planners.problem.report import evaluate_motion
 from planners.result import PlanResult
-from planners.optimisation.solving import GRID_FEASIBILITY, Grid, solve_refining, solve_stage
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 
 def step1_problem(task: WayPointTask, grid: Grid, normalisation) -> MotionProblem:
@@ -44,7 +44,8 @@ def step1_problem(task: WayPointTask, grid: Grid, normalisation) -> MotionProble
 def travel_problem(task: WayPointTask, points, durations, begin: int, end: int, normalisation,
                    grid: Grid) -> MotionProblem:
     """Step 2 on one travel: the motion through ``points[begin:end + 1]`` (way point, via points, way
-    point; ``durations[begin:end]``), every entry of its via points free."""
+    point; ``durations[begin:end]``), every entry of its via points free.
+    """
     free = np.zeros(points[begin:end + 1].shape, dtype=bool)
     free[1:-1] = True
     return task.problem(points[begin:end + 1], durations[begin:end], free, normalisation, grid)
@@ -102,7 +103,8 @@ def _polish(task: WayPointTask, grid: Grid, points, stages: list, options: PlanO
     computed again); ``shared``: the travels' :class:`~planners.problem.motion.NodeDerivatives` (its first evaluation
     with derivatives, at the points where the travels ended, takes their numbers), or None. ``refining``: the
     points are a finished plan that failed the dense check, solved again on a finer grid: the result is kept
-    when it holds this grid's constraints, whatever its J."""
+    when it holds this grid's constraints, whatever its J.
+    """
     whole = one_step_problem(task, grid, normalisation)
     if shared is not None:
         whole.share_node_derivatives(shared)

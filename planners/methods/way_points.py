@@ -14,11 +14,11 @@ from functools import cached_property
 
 import numpy as np
 
-from planners.trajectory.polynomial import PiecewisePolynomial, stop_points, with_via_points
+from planners.optimisation.solving import Grid
 from planners.problem.motion import MotionProblem
 from planners.problem.report import MotionReport
 from planners.result import PlanResult, normalisation
-from planners.optimisation.solving import Grid
+from planners.trajectory.polynomial import PiecewisePolynomial, stop_points, with_via_points
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,7 +59,8 @@ class WayPointTask:
     @cached_property
     def via_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(points, durations, is_way) of the stop motion cut at the via times
-        (:func:`planners.trajectory.polynomial.with_via_points`): the layout of every motion with via points."""
+        (:func:`planners.trajectory.polynomial.with_via_points`): the layout of every motion with via points.
+        """
         return with_via_points(self.stop, self.way_times, self.n_via)
 
     def with_via_points(self, trajectory: PiecewisePolynomial) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

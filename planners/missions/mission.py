@@ -341,7 +341,8 @@ class Mission:
 
     def _check_arm_signs(self) -> None:
         """Joint space: each way point must be in the assembly mode ``arm_of`` it (a pose on a mode's
-        border, such as the prototype's q2 = 0, is left to the singularity check)."""
+        border, such as the prototype's q2 = 0, is left to the singularity check).
+        """
         kind = self.kind
         if not kind.assembly_modes or self.space != "joint":
             return

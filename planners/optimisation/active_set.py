@@ -99,7 +99,8 @@ def _dense_rows(rows, index) -> np.ndarray:
 
 def _disjoint(rows, order, n: int) -> list[int]:
     """The rows of ``order`` (indices, by priority) that share no variable with a row before them that was kept:
-    rows of different segments do not interact, and changing them together costs one factorisation."""
+    rows of different segments do not interact, and changing them together costs one factorisation.
+    """
     used = np.zeros(n, dtype=bool)
     out = []
     for k in order:

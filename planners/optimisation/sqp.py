@@ -1,4 +1,4 @@
-"""A small trust-region SQP for the planning NLP: elastic QPs, the KKT residual.
+r"""A small trust-region SQP for the planning NLP: elastic QPs, the KKT residual.
 
 Gauss-Newton curvature, the "smoothed" model of J_e's absolute values (:mod:`planners.optimisation.curvature`, the
 planner's default), or a composite model of them with a damped BFGS correction. The step QP is solved exactly by
@@ -14,8 +14,8 @@ hundreds of iterations on these problems, this method a handful).
 
 Each iteration solves the elastic (S-l1-QP) subproblem
 
-.. math:: \\min_{d, s} \\tfrac12 d^T H d + g^T d + \\rho \\mathbf 1^T s \\quad
-          \\text{s.t.}\\; c + A d + s \\ge 0,\\; s \\ge 0,\\; |d|_\\infty \\le \\Delta,
+.. math:: \min_{d, s} \tfrac12 d^T H d + g^T d + \rho \mathbf 1^T s \quad
+          \text{s.t.}\; c + A d + s \ge 0,\; s \ge 0,\; |d|_\infty \le \Delta,
 
 with slacks s only on the constraints violated at x (always feasible), and accepts the step by the ratio of actual to predicted decrease of the exact l1 merit
 J + rho * sum(max(0, -c)). Constraints that cannot become active inside the trust region

@@ -38,7 +38,6 @@ import numpy as np
 from fpr.model.inverse_dynamics import inverse_dynamics
 from fpr.model.jets import Jet
 from planners.missions.events import smooth_ramp
-from planners.trajectory.polynomial import PiecewisePolynomial
 from planners.problem.motion import (
     CONSTRAINT_KINDS,
     MotionProblem,
@@ -46,6 +45,7 @@ from planners.problem.motion import (
     constraint_rows,
 )
 from planners.problem.report import FEASIBILITY_TOLERANCE, evaluate_motion
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 _STEP = 1e-30
 
@@ -76,7 +76,8 @@ def gust_profile(gust, t, rise: float = RISE) -> np.ndarray:
 
     A gust with its own onset (``gust.rise`` > 0) is planned as it blows (:meth:`GustEvent.strength`);
     a step gust as a box from ``at`` to ``at + duration`` smoothed by a C2 ramp of ``rise`` [s] at both
-    ends, lagging the true force (``rise`` 0: the box itself)."""
+    ends, lagging the true force (``rise`` 0: the box itself).
+    """
     t = np.asarray(t, dtype=float)
     if gust.rise > 0.0 or rise <= 0:  # its own onset, or the box itself (a step gust's strength)
         return gust.strength(t)
@@ -146,7 +147,8 @@ class DisturbedProblem(MotionProblem):
 
     def _quantities(self, motion):
         """:meth:`MotionProblem._quantities` with the rotors kept :data:`CONTROL_HEADROOM` above 0 when a
-        gust pushes (the scaled rows w^2 / w_lim^2 become (w^2 - w_h^2) / w_lim^2)."""
+        gust pushes (the scaled rows w^2 / w_lim^2 become (w^2 - w_h^2) / w_lim^2).
+        """
         integrands, rows = super()._quantities(motion)
         if self.external is not None and self.external.any() and self.headroom > 0:
             low = [i for i, name in enumerate(self._rows_names) if name.startswith("rotor_speed_low")]
@@ -179,7 +181,8 @@ def dense_check(robot, part: PiecewisePolynomial, rate: float, start_time: float
 def inputs_in_gusts(robot, motion, t, gusts=()):
     """:func:`fpr.model.inverse_dynamics.inverse_dynamics` of ``motion`` (its derivatives at absolute times t
     [s]) flown in the ``gusts`` (their Q_ext and its time derivatives, :func:`generalized_gust`); no gust
-    pushing: the motion's own inputs."""
+    pushing: the motion's own inputs.
+    """
     external = generalized_gust(robot, gusts, t, motion[0]) if gusts else None
     return inverse_dynamics(robot, motion, external=None if external is None else Jet(external))
 

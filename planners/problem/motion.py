@@ -44,8 +44,8 @@ from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from planners.problem.banded import Banded
 from planners.problem.evaluation import Evaluation, NodeDerivatives, cached_evaluation
-from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
 from planners.problem.sensitivities import by_complex_step, by_dual_numbers
+from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
 
 #: The step h of the complex step (:attr:`MotionProblem.derivatives` "complex", the reference).
 COMPLEX_STEP = 1e-30
@@ -107,7 +107,8 @@ def constraint_kind(name: str) -> str:
 
 def _workspace(robot, s, crossing_sign=None) -> dict:
     """The robot kind's workspace margins of the motion's samples s (N, n_s): in the assembly mode the
-    motion starts in (seed 3.46), or, with ``crossing_sign``, those of a single singularity crossing."""
+    motion starts in (seed 3.46), or, with ``crossing_sign``, those of a single singularity crossing.
+    """
     if crossing_sign is None:
         return robot.kind.workspace_margins(s)
     return robot.kind.crossing_margins(s, crossing_sign)
@@ -242,7 +243,8 @@ def point_time_scales(durations) -> np.ndarray:
 
 def entry_scales(durations) -> np.ndarray:
     """k! / T_p^k for derivative order k of point p, shape (m+1, 5): one unit of a decision variable
-    is one Taylor coefficient of s in units of the local time scale T_p (:func:`point_time_scales`)."""
+    is one Taylor coefficient of s in units of the local time scale T_p (:func:`point_time_scales`).
+    """
     orders = np.arange(N_DERIVS)
     factorial = np.cumprod(np.maximum(orders, 1))  # k!
     return factorial * point_time_scales(durations)[:, None] ** -orders
@@ -337,7 +339,7 @@ class MotionProblem:
             self.crossing_sign = sign
         # windows: contiguous node ranges inside each segment
         bounds = np.linspace(0, k - 1, int(windows_per_segment) + 1).round().astype(int)
-        self.windows = [(i * k + a, i * k + b + 1) for i in range(m) for a, b in zip(bounds[:-1], bounds[1:])]
+        self.windows = [(i * k + a, i * k + b + 1) for i in range(m) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
         # variable scaling by the local time scale
         scale = entry_scales(self.durations)[:, :, None] * np.ones((1, 1, n))
         self.scale = scale[self.free]
@@ -360,7 +362,8 @@ class MotionProblem:
         must be of the same robot and grid: an evaluation with derivatives keeps its nodes' numbers there, and
         takes a motion's from there when every segment is in it. Only this class's own evaluation shares
         (not a subclass's, whose quantities may depend on more than the motion), without a crossing or a
-        thrust bound."""
+        thrust bound.
+        """
         self.node_store, self._store_owner = store, store.owner()
 
     # ------------------------------------------------------------------ x <-> points
@@ -389,13 +392,15 @@ class MotionProblem:
     # ------------------------------------------------------------------ evaluation
     def _inputs(self, motion) -> MotionInputs:
         """The inverse-dynamics inputs of ``motion`` (5, N, n): the hook a problem with external forces
-        overrides (:class:`planners.problem.disturbance.DisturbedProblem`); here the free flight."""
+        overrides (:class:`planners.problem.disturbance.DisturbedProblem`); here the free flight.
+        """
         return inverse_dynamics(self.robot, motion)
 
     @property
     def _half_step_columns(self) -> int:
         """How many of the rows' first columns (the workspace margins) hold their value half a spacing after
-        each node already (:meth:`_between_nodes`; none for a crossing)."""
+        each node already (:meth:`_between_nodes`; none for a crossing).
+        """
         if self.crossing_sign is not None:
             return 0
         if self._rows_names is None:
@@ -439,7 +444,8 @@ class MotionProblem:
 
     def _half_step_powers(self, copies: int) -> list:
         """(h/2)^k, k = 0..4, of every node (h its segment's node spacing), tiled for ``copies`` copies of the
-        nodes: (N copies, 1) each, computed once per copy count."""
+        nodes: (N copies, 1) each, computed once per copy count.
+        """
         cache = self.__dict__.setdefault("_half_steps", {})
         if copies not in cache:
             step = np.tile(0.5 * self.durations[self.segment] / (self.samples_per_segment - 1), copies)[:, None]
@@ -458,7 +464,7 @@ class MotionProblem:
         a_e, a_phi = self._weights()
         if not derivatives:
             raw, rows = self._quantities(motion)
-            grad = jac = hess = None
+            grad = hess = None
         else:
             raw, rows, sens_raw, sens_rows = self._node_derivatives(points, motion)
             local = _chain_basis(sens_raw, self._basis_by_node).reshape(n_s, raw.shape[1], -1)
@@ -526,7 +532,8 @@ class MotionProblem:
         """d (row ``column`` at node ``sample``, its value between nodes :func:`between_node_minima`) / d (the
         entries of the node's segment's two points), (K, 2 * 5 * n): the Lagrange weights at tau of the node's
         and its neighbours' derivatives (the value is the interpolating parabola's, the weights its
-        derivatives with respect to the three nodes' values)."""
+        derivatives with respect to the three nodes' values).
+        """
         basis = self._basis_by_node
         local = _chain_basis(sens_rows[sample, column][:, None], basis[sample])[:, 0]
         bent = np.flatnonzero(tau)
@@ -541,7 +548,8 @@ class MotionProblem:
     def _node_derivatives(self, points, motion):
         """Every node's quantities and their sensitivities to its motion jet (:attr:`derivatives`, module docstring):
         (raw (N, Q), rows (N, R), d raw / d X (N, Q, r, j), d rows / d X (N, R, r, j)), X[r, i, j] the r-th
-        derivative of coordinate j at node i; from ``node_store`` when it holds every segment."""
+        derivative of coordinate j at node i; from ``node_store`` when it holds every segment.
+        """
         store = self.node_store if (type(self) is MotionProblem and self.crossing_sign is None
                                     and self.min_thrust is None) else None
         k = self.samples_per_segment
@@ -563,7 +571,8 @@ class MotionProblem:
 
     def _dual_derivatives(self, motion) -> bool:
         """Whether :meth:`_node_derivatives` takes dual numbers (:attr:`derivatives`) at this motion: not with
-        "complex", nor for a complex motion (a caller's own complex step through the problem)."""
+        "complex", nor for a complex motion (a caller's own complex step through the problem).
+        """
         if self.derivatives not in DERIVATIVES:
             raise PlannerArgumentError("derivatives", self.derivatives, f"derivatives = {self.derivatives!r}: "
                                        f"give {' or '.join(map(repr, DERIVATIVES))}")
@@ -611,7 +620,8 @@ class MotionProblem:
         """What :meth:`_assemble` scatters by, the same at every evaluation: the entries of the segments'
         blocks (m, 10 n, 10 n) that are free in both indices and on or above the diagonal, their flat index in
         the band, their scales' products, and the band's width (the largest x-index distance of two entries of
-        one segment)."""
+        one segment).
+        """
         cols = self._segment_columns  # (m, 10 n), -1 where fixed
         both = (cols[:, :, None] >= 0) & (cols[:, None, :] >= 0)
         bandwidth = int(np.max(np.abs(cols[:, :, None] - cols[:, None, :])[both], initial=0))

@@ -16,8 +16,8 @@ import numpy as np
 
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from fpr.model.kinematics import singularity_margin
-from planners.trajectory.polynomial import PiecewisePolynomial
 from planners.problem.motion import CONSTRAINT_KINDS, constraint_kind, constraint_rows, objective_rates
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 #: Largest violation of a constraint still counted as satisfied on the dense grid, per unit.
 FEASIBILITY_TOLERANCE = {"m": 1e-6, "rad": 1e-6, "rad/s": 1e-3, "N": 1e-6}

@@ -24,7 +24,8 @@ def _arranged(per_direction, n_r, n, n_s):
 
 def seeded_motion(motion, step: float | None = None):
     """What the quantities take: the Dual motion seeded with the D directions, or with a ``step``, the
-    complex-step copies (5, D N, n) (module docstring)."""
+    complex-step copies (5, D N, n) (module docstring).
+    """
     n_r, _, n = motion.shape
     directions = list(product(range(n_r), range(n)))
     if step is None:

@@ -91,7 +91,8 @@ class LatencyModel:
     @classmethod
     def from_dict(cls, document: dict) -> LatencyModel:
         """The model of :meth:`to_dict`'s ``document`` (its costs and source: the same model whichever file it
-        was read from, so that a run pinned to it writes the same bytes)."""
+        was read from, so that a run pinned to it writes the same bytes).
+        """
         return cls(tuple(document["costs"]), str(document.get("source", "given")))
 
 

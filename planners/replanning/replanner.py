@@ -53,21 +53,20 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from scipy.optimize import nnls
 
 from fpr.model.errors import PlannerArgumentError
-from planners.problem.disturbance import CONTROL_HEADROOM, RISE, DisturbedProblem, dense_check
-from planners.missions.events import moved_positions
 from planners.methods.way_points import WayPointTask
-from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
-from planners.problem.motion import MotionProblem
+from planners.missions.events import moved_positions
 from planners.missions.mission import Mission
 from planners.optimisation.solving import Grid
 from planners.optimize import plan
+from planners.problem.disturbance import CONTROL_HEADROOM, RISE, DisturbedProblem, dense_check
+from planners.problem.motion import MotionProblem
 from planners.replanning.check import evaluate_and_check
 from planners.replanning.latency import FEATURES, LatencyModel, machine_latency
 from planners.replanning.solver import solve_warm
+from planners.trajectory.polynomial import N_DERIVS, PiecewisePolynomial
 
 TIMINGS = ("work", "wall")
 
@@ -478,7 +477,8 @@ class Replanner:
 
     def _first_ready(self, t_0: float, start, through):
         """The splice time and the horizon's NLP: t_0 + deadline, or later until the first iteration's
-        modelled latency fits (rounded up to the ms); (t_s, built) with built as :meth:`problem` returns."""
+        modelled latency fits (rounded up to the ms); (t_s, built) with built as :meth:`problem` returns.
+        """
         t_s = t_0 + self.options.deadline
         built = self.problem(t_s, start, through)
         for _ in range(4):  # a later splice shortens the horizon: a few rounds reach the fixed point
@@ -578,7 +578,8 @@ class Replanner:
 
 def calibration_mission(robot) -> Mission:
     """The mission :func:`measure_latency` replans: a square of 0.3 (m or rad) in the first two chain
-    coordinates around the robot kind's ``reference_chain``, in joint space, 2 s per travel."""
+    coordinates around the robot kind's ``reference_chain``, in joint space, 2 s per travel.
+    """
     s0 = np.array(robot.kind.reference_chain, dtype=float)
     e0 = np.eye(s0.size)[0] * 0.3
     e1 = np.eye(s0.size)[min(1, s0.size - 1)] * 0.3

@@ -294,7 +294,8 @@ class PiecewisePolynomial:
 
     def evaluate_held(self, t, order: int = 4) -> np.ndarray:
         """:meth:`evaluate`, extended past the end: the motion rests at its last point there (its
-        derivatives 1..order are 0). For tracking and animation beyond the plan; shape (order+1, N, n)."""
+        derivatives 1..order are 0). For tracking and animation beyond the plan; shape (order+1, N, n).
+        """
         t = np.asarray(t, dtype=float)
         values = self.evaluate(np.minimum(t, self.total_duration), order)
         values[1:, t > self.total_duration] = 0.0
@@ -368,7 +369,8 @@ def stop_points(positions) -> np.ndarray:
 
 def via_point_times(trajectory: PiecewisePolynomial, begin: float, duration: float, count: int) -> np.ndarray:
     """Value and derivatives 0..4 of ``trajectory`` at ``count`` evenly spaced times inside
-    [begin, begin + duration] [s], shape (count, 5, n)."""
+    [begin, begin + duration] [s], shape (count, 5, n).
+    """
     if count == 0:
         return np.zeros((0,) + trajectory.points.shape[1:])
     t = begin + duration * np.arange(1, count + 1) / (count + 1)
@@ -391,7 +393,7 @@ def with_via_points(trajectory: PiecewisePolynomial, way_times,
     """
     knots = np.concatenate([[0.0], np.cumsum(way_times)])
     points, durations, is_way = [trajectory.points[0]], [], [True]
-    for j, (duration, count) in enumerate(zip(way_times, n_via)):
+    for j, (duration, count) in enumerate(zip(way_times, n_via, strict=True)):
         for via in via_point_times(trajectory, knots[j], duration, int(count)):
             points.append(via)
             is_way.append(False)

@@ -75,7 +75,8 @@ def replay(robot, calls: list[tuple], passes: int, compiled: bool | None = None)
 
 def replay_paths(robot, calls: list[tuple], passes: int, paths) -> list[dict]:
     """:func:`replay` for several ``compiled`` settings, interleaved pass by pass (an A/B on a shared machine:
-    the load changes both alike); one :func:`replay` dict per setting."""
+    the load changes both alike); one :func:`replay` dict per setting.
+    """
     best = [np.full(len(calls), np.inf) for _ in paths]
     routes = [[] for _ in paths]
     names = []

@@ -48,7 +48,8 @@ def random_states(robot, rng, count: int) -> list[tuple]:
 
 def smooth_motion(robot, samples: int, duration: float = 3.0) -> np.ndarray:
     """s(t) = s_0 + 0.2 sin(w t + p) and its derivatives 0..4, shape (5, N, n_s) (tests' smooth_motion), s_0 the
-    kind's reference chain."""
+    kind's reference chain.
+    """
     s0 = np.array(robot.kind.reference_chain)
     omega, phase = np.linspace(1.0, 2.0, len(s0)), np.linspace(0.0, 1.0, len(s0))
     arg = omega * np.linspace(0.0, duration, samples)[:, None] + phase
@@ -63,7 +64,7 @@ def run_timings(bench: Bench) -> None:
     states = []  # (q, v, thrust, torque, q_pin, v_pin, fext)
     for q, v, f, tau in random_states(r, rng, 64):
         fext = pin.StdVec_Force([pin.Force.Zero() for _ in range(model.njoints)])
-        for w, fid in zip(r.input_wrenches(f, tau), fids):  # wrenches moved to the joints, as r.forward_dynamics
+        for w, fid in zip(r.input_wrenches(f, tau), fids, strict=True):  # wrenches moved to the joints, as r.forward_dynamics
             fext[model.frames[fid].parentJoint] += model.frames[fid].placement.act(pin.Force(w))
         states.append((q, v, f, tau, r.to_pinocchio(q), r.to_pinocchio(v), fext))
     zero = np.zeros(model.nv)

@@ -17,8 +17,8 @@ from planners.methods import METHODS
 from planners.methods.one_step import one_step_problem
 from planners.methods.way_points import WayPointTask
 from planners.missions.mission import load_mission
-from planners.options import PlanOptions
 from planners.optimisation.solving import Grid, kkt_with_best_multipliers
+from planners.options import PlanOptions
 
 #: The best J known per mission: peer solvers (scipy's SLSQP with the planner's exact derivatives, tight
 #: tolerances, several starts; IPOPT confirming a KKT point), every result feasible on the 500 Hz

@@ -39,19 +39,19 @@ import time
 
 import numpy as np
 
+from fpr.bench.baseline import plan_baseline
 from fpr.cli.bench.families import families_table, run_families
 from fpr.cli.bench.optimality import optimality_table, run_optimality
 from fpr.cli.bench.timing import fmt
-from fpr.bench.baseline import plan_baseline
 from planners.methods.one_step import one_step_problem
 from planners.methods.two_step import travel_problem
 from planners.methods.way_points import WayPointTask
 from planners.missions.mission import load_mission
-from planners.optimize import plan
-from planners.trajectory.polynomial import PiecewisePolynomial
-from planners.problem.report import evaluate_motion
 from planners.optimisation.solving import GRID_FEASIBILITY, Grid
 from planners.optimisation.sqp import SqpOptions, solve_sqp
+from planners.optimize import plan
+from planners.problem.report import evaluate_motion
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 PLANNING_MISSION = "square"
 PLANNING_SETTINGS = {  # quick / full
@@ -105,7 +105,8 @@ def _baseline(mission, robot, cap: float, targets: dict, progress: bool) -> dict
 def sensitivities(mission, robot, repeats: int) -> dict:
     """The node sensitivities both ways side by side: one evaluation with derivatives of ``mission``'s one-step
     NLP (its start, the cache bypassed) by dual numbers and by the complex step, alternating, median of
-    ``repeats`` each [s], and their ratio."""
+    ``repeats`` each [s], and their ratio.
+    """
     problem = one_step_problem(WayPointTask.of(mission, robot), Grid())
     x = problem.x_of(problem.points)
     times = {"dual": [], "complex": []}
@@ -203,7 +204,7 @@ def run_planning(quick: bool, progress: bool) -> dict:
     optimality = run_optimality(quick, progress)
     families = run_families(quick, progress)
     speedups = {}
-    for key, item in zip(("two-step", "one-step", "slsqp"), items[:3]):
+    for key, item in zip(("two-step", "one-step", "slsqp"), items[:3], strict=True):
         reached = base["time_to_J_s"][key]
         baseline_time = reached if reached is not None else base["wall_time_s"]
         speedups[key] = dict(ratio=baseline_time / item["wall_time_s"], lower_bound=reached is None,

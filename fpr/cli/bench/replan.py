@@ -76,7 +76,8 @@ def _stats(values) -> dict:
 
 def distribution(values) -> dict:
     """The latency distribution of ``values`` [s]: count, percentiles, mean, worst, and a histogram in
-    :data:`BIN` bins (``edges_s`` n + 1, ``counts`` n)."""
+    :data:`BIN` bins (``edges_s`` n + 1, ``counts`` n).
+    """
     v = np.asarray(values, dtype=float)
     edges = np.arange(0.0, max(float(v.max()), BIN) + BIN, BIN)
     counts, edges = np.histogram(v, bins=edges)

@@ -17,11 +17,11 @@ import numpy as np
 
 from fpr.model.inverse_dynamics import inverse_dynamics
 from planners.problem.disturbance import dense_check
-from planners.trajectory.polynomial import PiecewisePolynomial
-from planners.replanning.replanner import Replanner, ReplanOptions
-from planners.replanning.check import evaluate_and_check
-from planners.replanning.solver import qp_step
 from planners.problem.sensitivities import seeded_motion
+from planners.replanning.check import evaluate_and_check
+from planners.replanning.replanner import Replanner, ReplanOptions
+from planners.replanning.solver import qp_step
+from planners.trajectory.polynomial import PiecewisePolynomial
 
 
 def _least(call, repeats: int) -> float:

@@ -1,6 +1,7 @@
 """How the benchmark times things: :class:`Bench` (loops sized to a target duration, repeated, garbage
 collector off; median and min per call), :func:`time_part` (only a part of each call timed) and
-:func:`fmt` (durations for people)."""
+:func:`fmt` (durations for people).
+"""
 
 from __future__ import annotations
 

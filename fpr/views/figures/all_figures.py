@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 
 from fpr.model.errors import FigureError
+from fpr.sim.margins import thrust_floor
 from fpr.views.figures.planning import PLAN_FIGURES, plan_figures
 from fpr.views.figures.sampled import _traces
 from fpr.views.figures.simulation import SIMULATION_FIGURES, _simulated, simulation_figures
-from fpr.sim.margins import thrust_floor
 from planners.optimize import SampledPlan
 
 #: File names written by :func:`figure_set` with a simulation log, in order.

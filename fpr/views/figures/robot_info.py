@@ -80,7 +80,8 @@ def _title(robot, which: str) -> str:
 
 def _applicable_bounds(bounds, values: np.ndarray):
     """The bounds of a coordinate that apply to a motion taking ``values``: all of them, except, for a motion
-    that crosses its singularity on purpose (:func:`figure_context`), those it crosses."""
+    that crosses its singularity on purpose (:func:`figure_context`), those it crosses.
+    """
     if not bounds:
         return ()
     if not _context("crossing"):

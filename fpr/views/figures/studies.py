@@ -1,5 +1,6 @@
 """The parameter studies of seed 3.2.5 (Fig. 3.7-3.10): the indices against the number of via points and
-against the weight alpha of the objective (3.26)."""
+against the weight alpha of the objective (3.26).
+"""
 
 from __future__ import annotations
 
@@ -33,7 +34,8 @@ def _study_arrays(x_name: str, x, energy_ratio, perturbation_ratio) -> tuple[np.
 
 def _value_labels(values) -> list[str]:
     """Bar labels with enough decimals to tell the bars apart and from 1 (0.9996 is not "1"): at least 3
-    significant digits, and as many decimals as the smallest difference between two values or from 1 needs."""
+    significant digits, and as many decimals as the smallest difference between two values or from 1 needs.
+    """
     v = np.asarray(values, dtype=float)
     gaps = np.abs(np.diff(np.sort(np.append(v, 1.0))))
     gaps = gaps[gaps > 0]

@@ -1,5 +1,6 @@
 """The public API of the meshcat scenes: :func:`view`, :func:`write_scene`, :func:`serve` (see
-:mod:`fpr.views.scene`), and the checks of what they are given."""
+:mod:`fpr.views.scene`), and the checks of what they are given.
+"""
 
 from __future__ import annotations
 
