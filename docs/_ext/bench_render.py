@@ -346,17 +346,15 @@ def part_replan_phases(doc: dict) -> list[Table]:
     return list_table([title, "CPU time"], [[name.strip(), fmt_time(t)] for name, t in cpu.items()])
 
 
-def part_work_cost(doc: dict) -> list[Table]:
-    """The replanner's work model: the costs in use and those fitted to this run."""
+def part_latency_model(doc: dict) -> list[Table]:
+    """The replanner's latency model: each robot's costs as measured on the run's machine, and the modelled over
+    the measured latency of the run's replans."""
     replan = need(doc, "replan")
-    names = ("per derivative evaluation and node", "per value evaluation and node", "per second of horizon")
-    rows = []
-    for key, label in (("work_cost_in_use", "in use"), ("work_cost_fitted", "fitted to this run, wall clock"),
-                       ("work_cost_fitted_cpu", "fitted to this run, CPU time")):
-        if isinstance(replan.get(key), list):
-            rows.append([label, *(fmt_time(x) for x in replan[key][:3])])
+    robots = need(replan, "calibration")["robots"]
+    features = next(iter(robots.values()))["features"]
+    rows = [[name, *(fmt_time(x) for x in robot["costs"])] for name, robot in robots.items()]
+    lines = list_table(["robot", *features], rows)
     ratio = replan.get("model_over_wall")
-    lines = list_table(["work cost", *names], rows)
     if isinstance(ratio, dict):
         lines += list_table(["modelled / measured latency", "median", "least", "largest"],
                             [["ratio", fmt_num(ratio.get("median"), 3), fmt_num(ratio.get("min"), 3),
@@ -370,7 +368,7 @@ PARTS = {
     "families": part_families, "scaling": part_scaling, "allocation": part_allocation,
     "allocation-loops": part_allocation_loops,
     "simulation": part_simulation, "native": part_native, "replan": part_replan, "replan-phases": part_replan_phases,
-    "work-cost": part_work_cost,
+    "latency-model": part_latency_model,
 }
 
 
