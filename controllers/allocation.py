@@ -18,11 +18,11 @@ N_tau = I - A_tau^+ A_tau projects on the torques that do not change the attitud
 active bounds the first two terms vanish at the thesis' law (2.24), f = f_d and
 tau = A_tau^+ (u_a + M_inv,a c - M_inv,a J_f^T f_d), whose torque has no component along N_tau:
 that law is then *the* minimiser, to the solver's accuracy. Penalising only the null-space
-component (rather than all of tau with a tiny weight) keeps the QP well conditioned. With bounds active the QP returns the closest command the rotors can
-produce in the weighted sense (W_a = 1 per rad/s^2 and W_f = 1 per N by default, so that one
-rotor's full range weighs about 30 times more on the attitude rows: a drone that cannot hold its
-attitude loses its thrust direction anyway), and says which rotors are at a bound. ProxQP solves
-for z / w_max^2 in [0, 1], which keeps the problem well scaled.
+component (rather than all of tau with a tiny weight) keeps the QP well conditioned. With bounds active the QP
+returns the closest command the rotors can produce in the weighted sense (W_a = 1 per rad/s^2 and W_f = 1 per N by
+default, so that one rotor's full range weighs about 30 times more on the attitude rows: a drone that cannot hold
+its attitude loses its thrust direction anyway), and says which rotors are at a bound. ProxQP solves for
+z / w_max^2 in [0, 1], which keeps the problem well scaled.
 
 :func:`allocation_qp` builds the QP matrices (testable without a solver); :class:`Allocator`
 holds one ProxQP workspace, built once and warm-started at every call.
@@ -121,7 +121,8 @@ def allocation_qp(attitude, s_f, s_tau, thrust_desired, attitude_desired, attitu
 
     Args:
         attitude: the :class:`fpr.model.robot.AttitudeModel` at the measured state.
-        s_f, s_tau: :func:`selectors`.
+        s_f: S_f, the thrusts from all w^2, shape (n_d, 4 n_d) [N/(rad/s)^2] (:func:`selectors`).
+        s_tau: S_tau, the torques from all w^2, shape (3 n_d, 4 n_d) [N m/(rad/s)^2] (:func:`selectors`).
         thrust_desired: f_d, shape (n_d,) [N].
         attitude_desired: u_a, shape (n_a,) [rad/s^2].
         attitude_weight: W_a diagonal, shape (n_a,) or scalar [1/(rad/s^2)].
@@ -189,8 +190,9 @@ class Allocator:
        QP is solved exactly by an active-set method (:func:`controllers.box_qp.solve_box_qp_state`),
        warm-started from the previous tick's active bounds (or, after a tick without, from the bounds the law
        crosses): usually one solve, in plain Python for up to two free rotors. Thrusts and torques come from
-       one product, the saturation mask is one read-only array per pattern met. A tick after one with a bound active comes here directly, without trying
-       the closed form: the method releases the bounds that no longer bind (its minimiser is then the law's).
+       one product, the saturation mask is one read-only array per pattern met. A tick after one with a bound
+       active comes here directly, without trying the closed form: the method releases the bounds that no longer
+       bind (its minimiser is then the law's).
     3. Should the active-set method cycle (not seen on the reference missions), ProxQP: one dense workspace,
        initialised at its first use, then updated (H, g only) and solved warm from its previous result.
 

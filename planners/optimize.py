@@ -36,6 +36,9 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
          one_step_start: str = "way-points") -> PlanResult:
     """Plan ``mission`` with ``method`` (see the module docstring).
 
+    Every keyword after ``robot`` is the field of the same name of the :class:`~planners.options.PlanOptions`
+    given to the method, where each is described in full.
+
     Args:
         mission: a :class:`planners.missions.mission.Mission`.
         method: a name of :data:`planners.methods.METHODS` (``"two-step"``, ``"one-step"``, ``"none"``,
@@ -43,12 +46,26 @@ def plan(mission, method: str = "two-step", *, robot=None, progress=None, sample
             optimisation is asked, and ``"none"`` gives its first guess
             (:func:`planners.methods.method_for`).
         robot: the robot (default ``mission.load_robot()``).
-        progress: with the other keywords (samples_per_segment, windows_per_segment, max_iterations,
-            tolerance, dense_rate, solver, max_refinements, stop, kkt_tolerance, curvature, polish,
-            one_step_start), the fields of the :class:`~planners.options.PlanOptions`
-            given to the method (``curvature="composite", stop="kkt"``: closer to the optimum, slower;
-            ``polish=False``: the thesis' two-step method without the final one-step solve;
-            ``one_step_start="stop"``: the thesis' one-step method, from the stop motion).
+        progress: called as ``progress(stage_name, iteration, J, violation)`` after every solver iteration,
+            or None.
+        samples_per_segment: odd number of grid nodes per segment for J and the constraints.
+        windows_per_segment: constraint windows per segment.
+        max_iterations: iteration limit per NLP solve.
+        tolerance: stop when an iteration improves J (normalised, about 1) by less than this.
+        dense_rate: sampling rate of the final check on the dense grid [Hz].
+        solver: ``"sqp"`` (the trust-region SQP) or ``"slsqp"`` (scipy's SLSQP with the same exact
+            gradients).
+        max_refinements: how many times at most a result that holds the optimisation grid's constraints but
+            not the dense grid's is solved again on a grid twice as fine.
+        stop: the SQP's stopping rule, ``"progress"`` (the merit decrease below ``tolerance``) or ``"kkt"``
+            (the KKT residual at most ``kkt_tolerance``).
+        kkt_tolerance: the KKT residual at which the SQP converges with ``stop="kkt"``.
+        curvature: the SQP's Hessian model, ``"smoothed"``, ``"gauss-newton"`` or ``"composite"``
+            (``curvature="composite", stop="kkt"``: closer to the optimum, slower).
+        polish: ``"two-step"`` only: finish with a one-step solve from the two-step motion, kept when its grid
+            J is lower; False gives the thesis' two-step method alone.
+        one_step_start: ``"one-step"`` only: ``"way-points"`` (from the motion whose way-point derivatives
+            were optimised first) or ``"stop"`` (the thesis' one-step method, from the stop motion).
 
     Returns:
         the :class:`PlanResult`, its ``wall_time`` the whole call's (check ``feasible``; nothing is

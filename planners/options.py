@@ -44,9 +44,9 @@ class PlanOptions:
             ``"kkt"`` (the KKT residual at most ``kkt_tolerance``), see :mod:`planners.optimisation.sqp`; the KKT
             residual is reported either way (``StageReport.kkt``).
         kkt_tolerance: the KKT residual at which the SQP converges with ``stop="kkt"``.
-        curvature: the SQP's Hessian model: ``"smoothed"`` (default, :mod:`planners.optimisation.curvature`: J_e's ``|P|``
-            with a wider smoothing), ``"gauss-newton"`` (the earlier default: stops
-            about 1 % above the optimum) or ``"composite"`` (J_e's ``|P|`` piecewise linear in the QP, a
+        curvature: the SQP's Hessian model: ``"smoothed"`` (default, :mod:`planners.optimisation.curvature`:
+            J_e's ``|P|`` with a wider smoothing), ``"gauss-newton"`` (the earlier default: stops about 1 % above
+            the optimum) or ``"composite"`` (J_e's ``|P|`` piecewise linear in the QP, a
             damped BFGS correction: converges to the optimum in far fewer iterations, each far slower),
             see :mod:`planners.optimisation.sqp`.
         polish: ``"two-step"`` only: after both steps (when they hold the grid's constraints and the

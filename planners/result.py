@@ -2,8 +2,9 @@
 normalisation of the objective J (3.26).
 
 Every method of :data:`planners.methods.METHODS` returns a :class:`PlanResult`: the motion (a
-:class:`~planners.trajectory.polynomial.PiecewisePolynomial`), its dense-grid :class:`~planners.problem.report.MotionReport`,
-the reference that normalises J (3.26), and the NLP solves (:class:`~planners.optimisation.solving.StageReport`).
+:class:`~planners.trajectory.polynomial.PiecewisePolynomial`), its dense-grid
+:class:`~planners.problem.report.MotionReport`, the reference that normalises J (3.26), and the NLP solves
+(:class:`~planners.optimisation.solving.StageReport`).
 
 The normalisation (:func:`normalisation`). The seed divides each term of J by its value on the
 stop-at-every-way-point motion: J = alpha J_e / J_e0 + (1 - alpha) J_phi / J_phi0, so that J = 1 there. A

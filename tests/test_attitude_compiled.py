@@ -65,8 +65,8 @@ def test_compiled_attitude_model_is_the_python_path(name, spread):
         # another order, with FMA, on another CPU)
         np.testing.assert_allclose(compiled.j_f, reference.j_f, rtol=0, atol=1e-15)
         np.testing.assert_allclose(compiled.j_tau, reference.j_tau, rtol=0, atol=1e-15)
-        own = dict(zip(robot_module._ATTITUDE_FIELDS,
-                       kernel.post(*_pinocchio_outputs(robot, q, v), robot._build_attitude_constants()[-1]), strict=True))
+        outputs = kernel.post(*_pinocchio_outputs(robot, q, v), robot._build_attitude_constants()[-1])
+        own = dict(zip(robot_module._ATTITUDE_FIELDS, outputs, strict=True))
         for name in ("j_f", "j_tau"):
             want = getattr(reference, name)
             np.testing.assert_allclose(own[name], want, rtol=1e-13, atol=1e-13 * np.abs(want).max(), err_msg=name)

@@ -27,7 +27,7 @@ def test_every_branch_meets_the_kkt_conditions_and_is_proxqps_minimiser():
     """
     rng = np.random.default_rng(21)
     free_counts = set()
-    for trial in range(400):
+    for _trial in range(400):
         a = rng.normal(size=(8, 8))
         h = a @ a.T + 0.1 * np.eye(8)
         g = (0.5 + 10.0 * rng.random()) * rng.normal(size=8) - 0.5 * h.sum(axis=1) * rng.random()

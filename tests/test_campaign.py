@@ -1,5 +1,5 @@
 """Robustness campaigns without a cluster: distributions, seeds, campaign files, one run's row, the store,
-the Wilson interval, the command line's refusals. (The runs on Dask: tests/test_campaign_dask.py.)
+the Wilson interval, the command line's refusals; the runs on Dask are in tests/test_campaign_dask.py.
 """
 
 from __future__ import annotations
@@ -72,7 +72,8 @@ def test_vectors_take_one_distribution_per_component():
 
 
 def test_a_run_draws_from_its_own_child_of_the_campaign_seed():
-    base = Campaign(runs=10, seed=42).with_vary("model_mass_scale", "uniform(0.9, 1.1)").with_vary("wind", "normal(0, 1)")
+    base = (Campaign(runs=10, seed=42).with_vary("model_mass_scale", "uniform(0.9, 1.1)")
+            .with_vary("wind", "normal(0, 1)"))
     children = np.random.SeedSequence(42).spawn(10)  # what SeedSequence.spawn gives, independently
     for i in (0, 3, 9):
         rng = np.random.default_rng(children[i].spawn(1)[0])  # spawn_key (i, 0)
@@ -118,7 +119,8 @@ def test_a_run_row_says_what_happened(short_mission):
     storm = fly(flight, 1, {"wind_y": 300.0}, 1)  # 300 N sideways on a 1 kg drone
     assert not storm["success"] and storm["lost"] and storm["simulated_s"] < 1.0
     assert storm["failure_time_s"] == pytest.approx(storm["simulated_s"] + 0.0, abs=2e-3)
-    broken = fly(flight, 2, {"wind_y": 0.0, "model_mass_scale": -1.0}, 1)  # a value out of its range: a row with its error
+    # a value out of its range: a row with its error
+    broken = fly(flight, 2, {"wind_y": 0.0, "model_mass_scale": -1.0}, 1)
     assert not broken["success"] and broken["error"].startswith("ModelArgumentError") and broken["index"] == 2
     summary = summarise([calm, storm, broken], ["wind_y"], list(flight.columns))
     assert summary["successes"] == 1 and summary["lost"] == 1 and summary["errors"] == 1

@@ -76,7 +76,8 @@ def test_two_workers_give_the_same_table_and_a_rerun_reuses_every_run(mission, r
 
 def test_a_killed_worker_costs_only_its_runs(mission, reference, tmp_path):
     campaign = Campaign(mission=mission, method="none", runs=RUNS, seed=11, hold=0.2)
-    for name, text in (("wind", "normal(0, 1)"), ("model_mass_scale", "uniform(0.9, 1.1)"), ("noise", "[0.0005, 0.005]")):
+    for name, text in (("wind", "normal(0, 1)"), ("model_mass_scale", "uniform(0.9, 1.1)"),
+                       ("noise", "[0.0005, 0.005]")):
         campaign = campaign.with_vary(name, text)
     flight, _ = make_flight(campaign)
     store = RunStore(tmp_path / "c", campaign.key(mission_of(campaign).to_toml()), {})

@@ -129,7 +129,8 @@ def test_bad_option_leaves_the_previous_folder(previous, capsys):
 
 
 @pytest.mark.parametrize("edit, words", [
-    (lambda t: t.replace("via_points = 1", "via_points = 1000"), ["field 'via_points' = 1000", "segments", "limit is 64"]),
+    (lambda t: t.replace("via_points = 1", "via_points = 1000"),
+     ["field 'via_points' = 1000", "segments", "limit is 64"]),
     (lambda t: t.replace("times = [3.0]", "times = [1e9]"), ["field 'times' = 1e+09", "limit"]),
     (lambda t: t.replace("[robot_parameters]", "[robot_parameters]\ndrone_mass = 0.0"),
      ["robot_parameters.drone_mass", "range"]),

@@ -136,7 +136,8 @@ def _check_outcome(code: int, err: str, elapsed: float) -> None:
     assert elapsed < TIME_BOUND, elapsed
 
 
-@settings(max_examples=40, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(max_examples=40, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(text=mission_text(), argv=options())
 def test_mission_files_and_options(capsys, text, argv):
     with tempfile.TemporaryDirectory() as folder:
@@ -153,7 +154,8 @@ def test_mission_files_and_options(capsys, text, argv):
         assert not leftovers
 
 
-@settings(max_examples=15, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(max_examples=15, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(mission=st.sampled_from(BUILTIN_MISSIONS), argv=options())
 def test_builtin_missions_and_options(capsys, mission, argv):
     with tempfile.TemporaryDirectory() as folder:

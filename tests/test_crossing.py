@@ -190,9 +190,10 @@ def test_crossing_problem_derivatives_match_central_differences(proto, smooth):
     exactly, the extra rows (time bounds, crossing speed, 5th-derivative continuity).
     """
     guess = crossing.first_guess(proto, singularity.SEED_START, singularity.SEED_END, 8.0, (1, 1))
-    problem = crossing_problem.CrossingProblem(proto, guess.points, crossing_problem.travel_times(guess, (1, 1)), (1, 1),
-                                       crossing_problem.GROUPS, 0.5, (30.0, 0.05), samples_per_segment=9,
-                                       windows_per_segment=2, smooth_crossing=smooth)
+    times = crossing_problem.travel_times(guess, (1, 1))
+    problem = crossing_problem.CrossingProblem(proto, guess.points, times, (1, 1),
+                                               crossing_problem.GROUPS, 0.5, (30.0, 0.05), samples_per_segment=9,
+                                               windows_per_segment=2, smooth_crossing=smooth)
     x = problem.x0() * (1 + 0.01 * np.random.default_rng(2).normal(size=problem.n_x))  # off the template
     ev = problem.evaluate(x, True)
     n_extra = 9 if smooth else 5

@@ -69,8 +69,8 @@ def _square(out, **env_vars) -> dict[str, bytes]:
 def test_the_same_command_gives_the_same_bytes_with_or_without_the_allocator_tuning(tmp_path):
     """Two runs of ``python -m fpr.plan --mission square`` (different hash seeds) write the same plan.json and
     trajectory.csv, and so does a run that keeps glibc's allocator defaults (FPR_MALLOC_TUNING=0): where freed
-    memory goes changes the speed, not the result. (The number of BLAS threads may change the last bits: every
-    command line runs BLAS on one thread, fpr.tuning.)
+    memory goes changes the speed, not the result. The number of BLAS threads may change the last bits: every
+    command line runs BLAS on one thread (fpr.tuning).
     """
     first = _square(tmp_path / "a", PYTHONHASHSEED="1")
     assert _square(tmp_path / "b", PYTHONHASHSEED="2") == first

@@ -1,4 +1,6 @@
-"""The shortcuts of the complex-step evaluation (the planner's reference derivatives) give the same bits as the plain code."""
+"""The shortcuts of the complex-step evaluation (the planner's reference derivatives) give the same bits as the
+plain code.
+"""
 
 import numpy as np
 import pytest
@@ -25,7 +27,8 @@ def test_complex_step_sin_cos_is_numpys_bit_for_bit():
     # and the complex step it carries is the derivative: Im(sin(x + i h b)) / h = cos(x) b
     np.testing.assert_allclose(sin.imag / 1e-30, np.cos(z.real) * (z.imag / 1e-30), rtol=1e-15)
     real = z.real
-    assert all(a.tobytes() == b.tobytes() for a, b in zip(jets.sin_cos_value(real), (np.sin(real), np.cos(real)), strict=True))
+    assert all(a.tobytes() == b.tobytes()
+               for a, b in zip(jets.sin_cos_value(real), (np.sin(real), np.cos(real)), strict=True))
 
 
 def test_sincos_of_a_jet_uses_the_shortcut_bit_for_bit():

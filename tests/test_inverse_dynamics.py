@@ -95,7 +95,8 @@ def hand_prototype_model(q, v, p):
     il = ml * (3 * r**2 + L**2) / 12  # rod about a transverse axis through its middle
     ie = 0.4 * me * re**2
     c1, c2, c12 = np.cos(q[0]), np.cos(q[1]), np.cos(q[0] + q[1])
-    m11 = (ml * L**2 / 4 + il) + (ml * (5 * L**2 / 4 + L**2 * c2) + il) + (me * L**2 + ie) + md * (2 * L**2 + 2 * L**2 * c2)
+    m11 = ((ml * L**2 / 4 + il) + (ml * (5 * L**2 / 4 + L**2 * c2) + il) + (me * L**2 + ie)
+           + md * (2 * L**2 + 2 * L**2 * c2))
     m12 = ml * (L**2 / 4 + L**2 * c2 / 2) + il + ie + md * (L**2 + L**2 * c2)
     m22 = ml * L**2 / 4 + il + ie + md * L**2
     h = (ml / 2 + md) * L**2 * np.sin(q[1])

@@ -104,7 +104,7 @@ def test_inverse_is_numpy_s_and_singular_matrices_raise_as_numpy_does(reference)
     rng = np.random.default_rng(4)
     for n in (1, 2, 4, 7):
         a = rng.normal(size=(50, n, n))
-        want, got = reference(lambda: jets.inverse(a))
+        want, got = reference(lambda a=a: jets.inverse(a))
         scale = np.linalg.cond(a)[:, None, None] * np.abs(want).max(axis=(1, 2), keepdims=True)
         assert (np.abs(got - want) <= 1e-14 * scale).all()
     singular = rng.normal(size=(3, 4, 4))

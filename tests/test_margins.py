@@ -131,7 +131,8 @@ def test_a_log_of_another_robot_is_refused(study_plan):
 
 
 def test_the_command_line_exits_1_when_the_simulation_breaks_a_physical_limit(tmp_path, monkeypatch, capsys):
-    def sunk(result, settings=None, progress=None, in_flight=None):  # the drones' joints 5 cm under the ground at t = 1 s
+    def sunk(result, settings=None, progress=None, in_flight=None):
+        """The drones' joints 5 cm under the ground at t = 1 s."""
         log = follow(result)
         k = int(round(1.0 / TICK))
         log.q[k:k + 5, log.coordinates.index("z")] -= 2.0

@@ -1,7 +1,8 @@
 """The native plant's and measurement's entry points (fpr/_native/cpp/module.cpp) on inputs the Python side never
 builds: objects of the wrong type, a data or constraint datas of another model, frames and joints out of range,
 arrays of the wrong size, shape or type, a bad step. Each is refused with a Python exception (TypeError,
-ValueError; TypeError for an object that is not the model's), never a crash; the sanitizer job of CI runs these under AddressSanitizer and UBSan.
+ValueError; TypeError for an object that is not the model's), never a crash; the sanitizer job of CI runs these
+under AddressSanitizer and UBSan.
 """
 
 import numpy as np

@@ -117,7 +117,8 @@ assert len(results) == 4 and all(len(rows) == RUNS == 4 for *_, rows in results.
 assert all(plan_result.feasible for _, _, plan_result, _ in results.values())
 for name in ("square", "prototype-tour"):  # no wind: the plan flies, tracked within 1 cm
     calm = results[name, "wind_y"][3][0]
-    assert calm["wind_y"] == 0 and calm["success"] and max(v for k, v in calm.items() if k.startswith("max_error_")) < 0.01
+    assert calm["wind_y"] == 0 and calm["success"]
+    assert max(v for k, v in calm.items() if k.startswith("max_error_")) < 0.01
 for key, first in breaks.items():  # each margin breaks at a value of its sweep, or not at all
     values = [r[key[1]] for r in results[key][3]]
     assert all(v is None or v in values for v in first.values())

@@ -57,7 +57,8 @@ def _run(tmp_path, name, *extra):
 def runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("replan")
     return {
-        "replan": _run(tmp, "a", "--replan", "--replan-deadline", "0.25"),  # what a slow machine meets (guides/replanning)
+        # a deadline that a slow machine meets (guides/replanning)
+        "replan": _run(tmp, "a", "--replan", "--replan-deadline", "0.25"),
         "again": _run(tmp, "b", "--replan", "--replan-deadline", "0.25"),
         "plain": _run(tmp, "c"),
     }

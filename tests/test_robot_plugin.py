@@ -83,7 +83,8 @@ def _rod(sel, length, row):
     """Position and Jacobian of p + length u(row . q) (and its angle row), hand-written, q = [y z phi q21 phi1 phi2]."""
     def point(q):
         a = row @ q
-        return sel @ q + length * np.array([np.cos(a), np.sin(a)]), sel + length * np.outer([-np.sin(a), np.cos(a)], row)
+        return (sel @ q + length * np.array([np.cos(a), np.sin(a)]),
+                sel + length * np.outer([-np.sin(a), np.cos(a)], row))
     return point
 
 
@@ -110,7 +111,8 @@ def hand_model(robot, q):
         return point
 
     bodies = [  # (mass, inertia about x, centre of mass, angle row)
-        (p["end_effector_mass"], 0.4 * p["end_effector_mass"] * p["end_effector_radius"] ** 2, _rod(sel, 0.0, phi), phi),
+        (p["end_effector_mass"], 0.4 * p["end_effector_mass"] * p["end_effector_radius"] ** 2,
+         _rod(sel, 0.0, phi), phi),
         (p["link_mass"], rod_inertia(p["link_mass"], l1), _rod(sel, -l1 / 2, phi), phi),
         (XACRO["link_2_mass"], rod_inertia(XACRO["link_2_mass"], l2), _rod(sel, -l2 / 2, phi12), phi12),
         (p["drone_mass"], p["drone_ixx"], drone_centre(l1, phi, d1, phi1), phi1),

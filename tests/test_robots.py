@@ -213,7 +213,10 @@ def test_rotor_mixing_is_the_seeds_eq_3_10(robots):
     """R_f built from the URDF's rotor frames and the spin senses equals seed eq. 3.10, and inverts."""
     p = robots["fpr"].parameters
     c_t, c_q, d = p["rotor_thrust_coefficient"], p["rotor_drag_coefficient"], p["rotor_arm"]
-    seed = np.array([[c_t, c_t, c_t, c_t], [0, d * c_t, 0, -d * c_t], [-d * c_t, 0, d * c_t, 0], [-c_q, c_q, -c_q, c_q]])
+    seed = np.array([[c_t, c_t, c_t, c_t],
+                     [0, d * c_t, 0, -d * c_t],
+                     [-d * c_t, 0, d * c_t, 0],
+                     [-c_q, c_q, -c_q, c_q]])
     for r in robots.values():
         for rotor in r.rotors:
             np.testing.assert_allclose(rotor.mixing_matrix, seed, rtol=1e-12, atol=1e-15)

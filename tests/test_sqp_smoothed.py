@@ -1,8 +1,8 @@
 """The pieces behind the planner's default at the optimum.
 
-The active-set step QP (planners.optimisation.active_set), the "smoothed" curvature (planners.optimisation.curvature), the
-workspace rows between grid nodes (planners.problem.motion), the one-step method's start, and the default plans
-of the square against the best J known.
+The active-set step QP (planners.optimisation.active_set), the "smoothed" curvature
+(planners.optimisation.curvature), the workspace rows between grid nodes (planners.problem.motion), the one-step
+method's start, and the default plans of the square against the best J known.
 """
 
 from __future__ import annotations

@@ -38,7 +38,8 @@ def _reference(model, q, v):
     m = sum(b.mass * np.swapaxes(j, -1, -2) @ j + b.inertia * np.outer(b.angle_row, b.angle_row)
             for b, j in zip(model.bodies, jac, strict=True))
     g = np.array([0.0, -model.gravity])
-    c = sum(b.mass * np.einsum("...in,...i->...n", j, b.com.bias(q, v) - g) for b, j in zip(model.bodies, jac, strict=True))
+    c = sum(b.mass * np.einsum("...in,...i->...n", j, b.com.bias(q, v) - g)
+            for b, j in zip(model.bodies, jac, strict=True))
     return m, c
 
 

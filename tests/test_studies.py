@@ -1,4 +1,5 @@
-"""The thesis' studies (fpr.studies.thesis, fpr.cli.studies): reference ratios, the trends the maths guarantees, tables, files.
+"""The thesis' studies (fpr.studies.thesis, fpr.cli.studies): reference ratios, the trends the maths guarantees,
+tables, files.
 
 Small settings (n_vp in {0, 1}, alpha in {0, 1}) on the single-travel ``study`` mission.
 

@@ -65,7 +65,7 @@ class BaselineResult:
         return None
 
 
-def plan_baseline(mission, robot, time_cap: float, *, grid: Grid = Grid(), dense_rate: float = 500.0,
+def plan_baseline(mission, robot, time_cap: float, *, grid: Grid | None = None, dense_rate: float = 500.0,
                   progress=None) -> BaselineResult:
     """Plan ``mission`` like the thesis' fmincon runs (see the module docstring), for ``time_cap`` [s].
 
@@ -74,7 +74,7 @@ def plan_baseline(mission, robot, time_cap: float, *, grid: Grid = Grid(), dense
         robot: the robot.
         time_cap: the run stops at the first iteration after this much time [s] (it has no other
             stopping rule that a few minutes would meet).
-        grid: the optimisation grid (the default is ``plan``'s).
+        grid: the optimisation grid; None for ``plan``'s default, ``Grid()``.
         dense_rate: rate of the final check [Hz].
         progress: called as ``progress("baseline", iteration, grid J, grid violation)`` after every
             iteration, or None.
@@ -82,6 +82,7 @@ def plan_baseline(mission, robot, time_cap: float, *, grid: Grid = Grid(), dense
     Returns:
         the :class:`BaselineResult`.
     """
+    grid = Grid() if grid is None else grid
     task = WayPointTask.of(mission, robot)
     reference = evaluate_motion(robot, task.stop, dense_rate)
     problem = one_step_problem(task, grid)

@@ -48,7 +48,8 @@ def scaling_markdown(scaling: dict) -> str:
     for robot, count in dict.fromkeys((r["robot"], r["way_points"]) for r in scaling["robots"]):
         mine = {r["method"]: r for r in scaling["robots"] if (r["robot"], r["way_points"]) == (robot, count)}
         cells = [f"{_seconds(mine[m]['median_s'])} ({_seconds(mine[m]['p95_s'])})" for m in methods]
-        lines.append(f"| {robot} | {count} | " + " | ".join(cells) + f" | {sum(r['failures'] for r in mine.values())} |")
+        failures = sum(r["failures"] for r in mine.values())
+        lines.append(f"| {robot} | {count} | " + " | ".join(cells) + f" | {failures} |")
     for count in dict.fromkeys(r["way_points"] for r in scaling["loop"]):
         mine = {r["method"]: r for r in scaling["loop"] if r["way_points"] == count}
         cells = [_seconds(mine[m]["wall_time_s"]) for m in methods]

@@ -162,7 +162,8 @@ def _check_campaign(args, campaign: Campaign) -> None:
     tolerance = campaign.tracking_tolerance
     lost = SimulationSettings().max_tracking_error
     if tolerance is not None and tolerance > lost:
-        option = "--tracking-tolerance" if args.tracking_tolerance is not None else f"{where}field 'tracking_tolerance' ="
+        option = ("--tracking-tolerance" if args.tracking_tolerance is not None
+                  else f"{where}field 'tracking_tolerance' =")
         raise checks.CommandLineError(option, tolerance, f"give a tolerance in (0, {lost:g}] [m or rad]: past "
                                                          f"{lost:g} the simulation counts the robot lost anyway")
     if campaign.hold > checks.MAX_SIMULATED:

@@ -55,11 +55,13 @@ def parser() -> argparse.ArgumentParser:
     p = contract.Parser(prog="python -m fpr.campaign", description=DESCRIPTION,
                         formatter_class=contract.HelpFormatter, epilog=EXIT_CODES)
     p.add_argument("--campaign", type=Path, default=None,
-                   help="a campaign TOML file (see the documentation, guides/campaigns); the options below override its fields")
+                   help="a campaign TOML file (see the documentation, guides/campaigns); the options below "
+                        "override its fields")
     p.add_argument("--mission", default=None, help="built-in mission or mission TOML file (default: square)")
     p.add_argument("--method", default=None, choices=contract.LazyChoices(_method_names), metavar="METHOD",
                    help=f"planning method ({', '.join(HELP_METHODS)}; default: two-step)")
-    p.add_argument("--runs", type=int, default=None, help=f"number of closed-loop runs, 1 to {MAX_RUNS:,} (default: 100)")
+    p.add_argument("--runs", type=int, default=None,
+                   help=f"number of closed-loop runs, 1 to {MAX_RUNS:,} (default: 100)")
     p.add_argument("--seed", type=int, default=None, help="campaign seed, an integer >= 0 (default: 0)")
     p.add_argument("--vary", type=vary, action="append", default=[], metavar="NAME=DIST",
                    help="a quantity and its distribution: uniform(lo,hi), normal(mean,sd), truncnormal(mean,sd,"

@@ -162,7 +162,8 @@ def check_options(args) -> None:
                                                                     "(via points inside each travel)")
     for key, value in args.robot_parameters:
         _number("--set", value, low=0.0, meaning=f"robot parameter {key} [SI units]", shown=f"{key}={value:g}")
-    for option, dest in (("--model-mass-scale", "model_mass_scale"), ("--rotor-constant-scale", "rotor_constant_scale")):
+    for option, dest in (("--model-mass-scale", "model_mass_scale"),
+                         ("--rotor-constant-scale", "rotor_constant_scale")):
         value = getattr(args, dest, None)
         if value is not None:
             _number(option, value, low=1.0 / MAX_SCALE, high=MAX_SCALE,

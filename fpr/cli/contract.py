@@ -78,6 +78,7 @@ class Parser(argparse.ArgumentParser):
         self._negative_number_matcher = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
 
     def error(self, message):
+        """Exit with code 2 and ``message`` on one line of stderr, pointing at ``--help``."""
         self.exit(BAD_INPUT, f"error: {one_line(message)} (see {self.prog} --help)\n")
 
 

@@ -30,10 +30,11 @@ Every file goes into a temporary folder beside ``--out``, swapped in when comple
 timings); a failed or interrupted run leaves the previous folder as it was (:mod:`fpr.cli.output`).
 
 Exit codes (:mod:`fpr.cli.contract`): 0 every constraint holds; 1 the result breaks a limit (the planned
-motion violates a constraint, or the simulation lost the robot or broke a physical limit; the files are still written and the message
-names what broke); 2 bad input (mission file or option, unreachable way point, way point on a singularity,
-a robot parameter out of its range, work over the size limits of :mod:`fpr.cli.checks`, an ``--out`` that
-cannot be written); 3 internal error (a bug; ``--debug`` shows the traceback); 130 interrupted.
+motion violates a constraint, or the simulation lost the robot or broke a physical limit; the files are still
+written and the message names what broke); 2 bad input (mission file or option, unreachable way point, way
+point on a singularity, a robot parameter out of its range, work over the size limits of :mod:`fpr.cli.checks`,
+an ``--out`` that cannot be written); 3 internal error (a bug; ``--debug`` shows the traceback); 130
+interrupted.
 """
 
 from __future__ import annotations
@@ -234,9 +235,9 @@ def _simulation_table(log, robot) -> str:
                      f"  final {s['final_error'][name]:+.3e}")
     for name, value in s["max_abs_out_of_plane"].items():
         lines.append(f"  largest |{name}| {value:.3e}")
-    lines.append(f"  rotor speeds in the plant: {s['least_rotor_speed_rad_s']:.1f} .. {s['peak_rotor_speed_rad_s']:.1f} "
-                 f"rad/s (limits 0 .. {s['rotor_speed_limit_rad_s']:.0f}; planning limit "
-                 f"{s['planning_speed_limit_rad_s']:.0f})")
+    lines.append(f"  rotor speeds in the plant: {s['least_rotor_speed_rad_s']:.1f} .. "
+                 f"{s['peak_rotor_speed_rad_s']:.1f} rad/s (limits 0 .. {s['rotor_speed_limit_rad_s']:.0f}; "
+                 f"planning limit {s['planning_speed_limit_rad_s']:.0f})")
     lines.append(f"  allocation saturated on {s['saturated_ticks']} of {s['ticks']} control ticks")
     lines.append(f"  largest closure error {s['max_closure_error_m']:.2e} m; least height of a drone's centre "
                  f"of mass above the ground {s['least_drone_height_m'] - ground:.3f} m (ground at z = {ground:g} m)")

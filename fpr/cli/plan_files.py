@@ -1,4 +1,5 @@
-"""The files of ``python -m fpr.plan``: ``trajectory.csv`` (columns and units in the documentation, guides/plan-command) and ``plan.json``.
+"""The files of ``python -m fpr.plan``: ``trajectory.csv`` (columns and units in the documentation,
+guides/plan-command) and ``plan.json``.
 
 ``plan.json`` holds no wall-clock time (:func:`split_timings` moves them into ``manifest.json``), so that the
 same command gives the same bytes in ``plan.json`` and ``trajectory.csv``.
@@ -50,7 +51,8 @@ def _simulated_columns(robot, log, t) -> tuple[list[str], np.ndarray]:
 
 
 def write_csv(path: Path, robot, sampled, log=None) -> None:
-    """One row per sample of ``sampled`` (a :class:`planners.optimize.SampledPlan`); units in the documentation (guides/plan-command).
+    """One row per sample of ``sampled`` (a :class:`planners.optimize.SampledPlan`); units in the documentation
+    (guides/plan-command).
 
     With a :class:`fpr.sim.closed_loop.SimulationLog`, the simulated columns follow, prefixed ``sim_`` (empty,
     ``nan``, after the time a lost robot's log stops).

@@ -1,11 +1,11 @@
 """``python -m fpr.plan --simulate --replan``: the options, the closed loop's hooks, the files of replanning.
 
-* options (:mod:`fpr.cli.plan_options`): ``--replan``, ``--replan-deadline`` (default 0.05 s of simulated time), ``--replan-bound``
-  (tracking error that triggers a replan from the robot's state, default 0.05 m or rad), ``--replan-rate``
-  (an optional fixed rate [Hz]), ``--replan-wind`` (``known``, default: the replanner is told the force of
-  each gust with a ``rise`` as it starts, a step gust stays unknown; ``estimated``: it plans against the
-  controller's observer's estimate, or under ``--no-observer`` a steady wind estimated from the tracking error;
-  ``blind``),
+* options (:mod:`fpr.cli.plan_options`): ``--replan``, ``--replan-deadline`` (default 0.05 s of simulated time),
+  ``--replan-bound`` (tracking error that triggers a replan from the robot's state, default 0.05 m or rad),
+  ``--replan-rate`` (an optional fixed rate [Hz]), ``--replan-wind`` (``known``, default: the replanner is told
+  the force of each gust with a ``rise`` as it starts, a step gust stays unknown; ``estimated``: it plans
+  against the controller's observer's estimate, or under ``--no-observer`` a steady wind estimated from the
+  tracking error; ``blind``),
   ``--replan-timing`` (``work``: the modelled latency of the solver's work on this machine, default;
   ``wall``: the measured solve time, not reproducible bit for bit), ``--replan-calibration`` (the latency
   model: default this machine's calibration file, measured and written on first use; a file to pin a run
@@ -206,8 +206,9 @@ def summary(hooks, done, log=None) -> str:
     if late:
         need = max(r.latency_s for r in late)
         lines.append(
-            f"  {len(late)} of {plural(len(hooks.replans), 'replan')} {'was' if len(late) == 1 else 'were'} late: they need up to {need * 1e3:.0f} ms on this "
-            f"machine ({hooks.replanner.options.timing} timing); --replan-deadline {_rounded_up(1.2 * need):g} "
+            f"  {len(late)} of {plural(len(hooks.replans), 'replan')} {'was' if len(late) == 1 else 'were'} late: "
+            f"they need up to {need * 1e3:.0f} ms on this machine ({hooks.replanner.options.timing} timing); "
+            f"--replan-deadline {_rounded_up(1.2 * need):g} "
             "lets them in (documentation: guides/replanning, latency)"
         )
     if done is not None:

@@ -122,11 +122,13 @@ class Dual:
             self.tangents[(slice(None),) + key] = 0.0
 
     def reshape(self, *shape):
+        """The Dual with its value reshaped to ``shape`` (a tuple or the sizes), as ``ndarray.reshape``."""
         shape = shape[0] if len(shape) == 1 and isinstance(shape[0], (tuple, list)) else shape
         value = self.value.reshape(shape)
         return Dual(value, self.tangents.reshape(self.tangents.shape[:1] + value.shape), self.lo)
 
     def sum(self, axis=None, keepdims=False):
+        """The sum of the value over ``axis`` (an int, a tuple, or None for all), as ``ndarray.sum``."""
         if axis is None:
             axis = tuple(range(self.ndim))
         taxis = tuple(_tax(a) for a in axis) if isinstance(axis, tuple) else _tax(axis)
@@ -138,12 +140,19 @@ class Dual:
         return Dual(self.value.sum(axis=axis, keepdims=keepdims), tangents, self.lo)
 
     def swapaxes(self, a, b):
+        """The Dual with the value's axes ``a`` and ``b`` swapped, as ``ndarray.swapaxes``."""
         return Dual(np.swapaxes(self.value, a, b), np.swapaxes(self.tangents, _tax(a), _tax(b)), self.lo)
 
     def copy(self):
+        """A copy of the value and the tangents (the copy carries no ``bands``)."""
         return Dual(self.value.copy(), self.tangents.copy(), self.lo)
 
     def astype(self, dtype, copy=True):
+        """The Dual itself, or a copy of it with ``copy``, for a real ``dtype`` (the value keeps its float type).
+
+        Raises:
+            TypeError: ``dtype`` is not a real floating type.
+        """
         if np.dtype(dtype).kind != "f":
             raise TypeError(f"a Dual has real values: cannot cast it to {dtype}")
         return self.copy() if copy else self

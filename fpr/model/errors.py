@@ -138,7 +138,8 @@ def check_shape(argument: str, x, expected: tuple[int | None, ...]) -> np.ndarra
         return x
     a = np.asarray(x, dtype=float)
     if a.ndim != len(expected) or any(e is not None and e != s for e, s in zip(expected, a.shape, strict=True)):
-        shown = "(" + ", ".join("N" if e is None else str(e) for e in expected) + ("," if len(expected) == 1 else "") + ")"
+        sizes = ", ".join("N" if e is None else str(e) for e in expected)
+        shown = "(" + sizes + ("," if len(expected) == 1 else "") + ")"
         raise ShapeError(argument, a.shape, shown)
     return a
 

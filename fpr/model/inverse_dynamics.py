@@ -155,7 +155,9 @@ def roll_torques(robot, q, v, thrust, roll_acceleration, external=None) -> np.nd
 
     Args:
         robot: the robot.
-        q, v: planar configuration and velocity ([chain..., rolls...]), shape (N, n).
+        q: planar configuration [chain..., rolls...], shape (N, n), in the units of ``kind.chain_units``
+            for the chain coordinates [m or rad] and [rad] for the rolls.
+        v: planar velocity, the time derivative of ``q``, shape (N, n) [m/s or rad/s].
         thrust: f_i, shape (N, n_d) [N].
         roll_acceleration: phi_i'', shape (N, n_d) [rad/s^2].
         external: generalised force of external forces on the chain coordinates, shape (N, n_s), or None
@@ -233,8 +235,9 @@ def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
             link tension is a limit).
         external: generalised force Q_ext [N or N m] of known external forces (a gust) on the chain
             coordinates at each sample, shape (N, n_s) (constant), or a Jet of it with its time
-            derivatives (then the roll rates and accelerations follow its changes), or None (:func:`thrust_vectors`): the drones then
-            fly the motion against it (J_h^T F = M_s s'' + c_s - Q_ext, and in the torques' exact model).
+            derivatives (then the roll rates and accelerations follow its changes), or None
+            (:func:`thrust_vectors`): the drones then fly the motion against it (J_h^T F = M_s s'' + c_s - Q_ext,
+            and in the torques' exact model).
 
     Returns:
         the :class:`MotionInputs` at the N samples.

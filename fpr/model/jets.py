@@ -438,7 +438,7 @@ def exp(a):
 
 
 def log(a):
-    """Natural logarithm, from log(a)' = a' / a."""
+    """Natural logarithm, from the derivative (log a)' = a' / a."""
     if not isinstance(a, Jet):
         return np.log(a)
     if a.order == 0:

@@ -196,8 +196,8 @@ class PlanarModel:
             rot = placement.rotation
             t = placement.translation
             if abs(t[0]) > 1e-12 or not np.allclose(rot[0], [1, 0, 0], atol=1e-12):
-                raise RobotDefinitionError(robot.name, f"joint {model.names[j]} is not placed in the plane x = 0 about x: "
-                                                       "the planar model needs the chain in the (y, z) plane")
+                raise RobotDefinitionError(robot.name, f"joint {model.names[j]} is not placed in the plane x = 0 "
+                                                       "about x: the planar model needs the chain in the (y, z) plane")
             terms = list(terms)
             if np.any(np.abs(t[1:]) > 0):
                 terms.append((row.copy(), off, t[1:].copy()))
@@ -226,8 +226,8 @@ class PlanarModel:
             rows = np.array([r for r, _, _ in items]).reshape(-1, n_pin)
             for a in (sel, rows):
                 if np.any(np.abs(a @ robot.T[:, others]) > 1e-12):
-                    raise RobotDefinitionError(robot.name, "the planar model depends on a coordinate outside the plane: "
-                                                           "check the layout's chain and rolls")
+                    raise RobotDefinitionError(robot.name, "the planar model depends on a coordinate outside the "
+                                                           "plane: check the layout's chain and rolls")
             return PlanarPoint(
                 selector=sel @ to_planar,
                 rows=rows @ to_planar,

@@ -164,8 +164,9 @@ class Robot:
         self.hinge_joint_ids = tuple(self.model.getJointId(f"{d}_hinge") for d in self.layout.drones)
         for fid, jid, d in zip(self.drone_frame_ids, self.hinge_joint_ids, self.layout.drones, strict=True):
             if fid >= self.model.nframes or jid >= self.model.njoints:
-                raise RobotDefinitionError(self.name, f"the URDF has no frame '{d}_center' or no joint '{d}_hinge': "
-                                                      "make each drone with the quadrotor macro of urdf/quadrotor.xacro")
+                raise RobotDefinitionError(self.name, f"the URDF has no frame '{d}_center' or no joint "
+                                                      f"'{d}_hinge': make each drone with the quadrotor macro of "
+                                                      "urdf/quadrotor.xacro")
         self.kind = kind(self)
 
     # ------------------------------------------------------------------ coordinates
@@ -173,8 +174,8 @@ class Robot:
         names = self.layout.coordinates
         n = len(names)
         if self.model.nq != n or self.model.nv != n:
-            raise RobotDefinitionError(self.name, f"the Pinocchio model has nq={self.model.nq}, nv={self.model.nv}; the "
-                                                  f"layout expects {n} coordinates {names}")
+            raise RobotDefinitionError(self.name, f"the Pinocchio model has nq={self.model.nq}, "
+                                                  f"nv={self.model.nv}; the layout expects {n} coordinates {names}")
         t = np.zeros((n, n))
         if self.layout.euler_root:
             jid = self.model.getJointId(EULER_ROOT_NAME)
@@ -338,7 +339,8 @@ class Robot:
         qp = self._q(q)
         pin.computeJointJacobians(self.model, self.data, qp)
         pin.updateFramePlacements(self.model, self.data)
-        return np.array([pin.getFrameJacobian(self.model, self.data, f, pin.LOCAL) @ self.T for f in self.drone_frame_ids])
+        return np.array([pin.getFrameJacobian(self.model, self.data, f, pin.LOCAL) @ self.T
+                         for f in self.drone_frame_ids])
 
     def input_wrenches(self, thrust, torque) -> np.ndarray:
         """Drone wrenches w_i = [0, 0, f_i, tau_ix, tau_iy, tau_iz] (seed 2.1-2.2), shape (n_d, 6)."""

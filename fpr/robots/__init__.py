@@ -149,4 +149,15 @@ register(Prototype)
 BUILTIN: tuple[str, ...] = tuple(_REGISTRY)
 """The names of the robots that come with the library: ("fpr", "prototype")."""
 
-__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "PARAMETER_RANGES", "RobotKind", "check_parameters", "get", "load", "names", "register", "unregister"]
+__all__ = [
+    "BUILTIN",
+    "ENTRY_POINT_GROUP",
+    "PARAMETER_RANGES",
+    "RobotKind",
+    "check_parameters",
+    "get",
+    "load",
+    "names",
+    "register",
+    "unregister",
+]

@@ -14,8 +14,9 @@ The members come in two groups, in the manner of Pink's ``Task`` or Crocoddyl's 
   ``mass_parameters``, ``titles``, ``task_point_labels``, ``task_frame``, ``fixed_point``;
 * **methods** of the bound instance, which read the robot's geometry from its model: link lengths and
   ground, kinematics (``drone_joints``, ``drone_joint_velocities``, ``chain_jacobian``,
-  ``task_points``; for figures ``joint_legends``, ``height_panels``), workspace and assembly modes (``workspace_margins``, ``crossing_margins``,
-  ``planning_pose``, ``check_pose``, ``assembly_mode``, ``coordinate_axes``, ``mission_region``), thrust from motion
+  ``task_points``; for figures ``joint_legends``, ``height_panels``), workspace and assembly modes
+  (``workspace_margins``, ``crossing_margins``, ``planning_pose``, ``check_pose``, ``assembly_mode``,
+  ``coordinate_axes``, ``mission_region``), thrust from motion
   (``thrust_vectors``, ``needs_high_derivatives``), the closure of the plant (``closed_chain``,
   ``closure_reader``) and the controller's outer-loop solve (``outer_loop_forces``).
 

@@ -111,7 +111,8 @@ def fpr_direct_kinematics(r1, r2, link_length, mode: int = 1) -> np.ndarray:
     line r1 -> r2.
 
     Args:
-        r1, r2: drone joint positions, shape (..., 2) [m].
+        r1: (y, z) of the first drone's joint, the centre of the circle of radius L1, shape (..., 2) [m].
+        r2: (y, z) of the second drone's joint, the centre of the circle of radius L2, shape (..., 2) [m].
         link_length: L, or (L1, L2) [m].
         mode: +1 for sin(q21) > 0 (end-effector below the drones, the reference mode), -1 otherwise.
 

@@ -217,7 +217,7 @@ class Prototype(RobotKind):
 
     @classmethod
     def describe_mode(cls, mode: str) -> str:
-        """ "down (q2 > 0: ...)" / "up (q2 < 0: ...)"."""
+        """The mode in words: "down (q2 > 0: ...)" or "up (q2 < 0: ...)"."""
         where = "below" if mode == "down" else "above"
         return f"{mode} (q2 {'>' if mode == 'down' else '<'} 0: the elbow {where} the line from the fixed point " \
                "to the drone)"
@@ -262,7 +262,8 @@ class Prototype(RobotKind):
 
     def height_panels(self) -> tuple[tuple[str, str, str, int, int | None], ...]:
         """Joint 2 (the elbow) and joint 3 (the drone joint, with the drone's centre of mass) (Fig. 3.46-3.47)."""
-        return ((r"$z_{j2}$ [m]", "joint 2", "joint", 0, None), (r"$z_{j3}$ [m]", "joint 3 (drone joint)", "main", 0, 0))
+        return ((r"$z_{j2}$ [m]", "joint 2", "joint", 0, None),
+                (r"$z_{j3}$ [m]", "joint 3 (drone joint)", "main", 0, 0))
 
     # ------------------------------------------------------------------ workspace and assembly modes
     def workspace_margins(self, s, mode: str | None = None) -> dict[str, np.ndarray]:

@@ -18,7 +18,8 @@ Triggers (with a :class:`planners.replanning.replanner.Replanner`, ``--replan``)
   flies against: replanning every 0.25 s from the plan's state gave short, violent travels that
   saturated the rotors). A start from the robot's own state was tried (bumpless for the controller:
   measured s, s', the commanded acceleration) and left out: the plan in force would jump at the splice,
-  which a C4 piecewise polynomial cannot hold, and on a step gust it did not remove the saturation (documentation: guides/replanning);
+  which a C4 piecewise polynomial cannot hold, and on a step gust it did not remove the saturation
+  (documentation: guides/replanning);
 * **rate** (optional, ``rate`` Hz): from the plan in force's state, like an event;
 * **wind**: by default (``known_gusts``) the replanner is *told* each gust event's force and profile at
   the gust's start (a forecast, a wind sensor); with ``estimate_wind`` instead it plans against the wind it

@@ -51,10 +51,10 @@ File format (every key at the top level, except the optional ``[robot_parameters
     perturbation (roll rates) only. Default 0.5.
 ``cross_singularity`` (boolean, optional)
     Prototype only (a robot whose kind ``crosses_singularity``): ``true`` asks for a motion that
-    crosses the Type-2 singularity q2 = 0 exactly once (seed ch. 4, :mod:`planners.crossing.solve`). The mission then has 2 way points, the start in
-    the assembly mode ``arm`` and the end in the other one, and 2 travel times and via-point
-    counts: start -> crossing and crossing -> end (the times are first guesses; the planner
-    optimises them with the crossing state). Default ``false``.
+    crosses the Type-2 singularity q2 = 0 exactly once (seed ch. 4, :mod:`planners.crossing.solve`). The
+    mission then has 2 way points, the start in the assembly mode ``arm`` and the end in the other one, and
+    2 travel times and via-point counts: start -> crossing and crossing -> end (the times are first guesses;
+    the planner optimises them with the crossing state). Default ``false``.
 ``[robot_parameters]`` (table of numbers, optional)
     Overrides of the robot description's xacro arguments (keys of ``urdf/parameters.yaml`` that
     the URDF uses, e.g. ``link_length``), passed to ``fpr.load(robot, **robot_parameters)``.
@@ -279,7 +279,8 @@ class Mission:
     def _times(self, value, k: int, travels: int) -> np.ndarray:
         count = f"{self._travels_text(k, travels)}: give {travels} travel time(s) [s]"
         if not _is_sequence(value) or np.ndim(value) != 1:
-            raise self._error("times", f"{_short(value)} is not a list: {count}, e.g. times = {_short([3.0] * travels)}")
+            raise self._error("times", f"{_short(value)} is not a list: {count}, "
+                                       f"e.g. times = {_short([3.0] * travels)}")
         if len(value) != travels:
             raise self._error("times", f"has {len(value)} entries; {count}, one per travel")
         for i, t in enumerate(value):

@@ -7,8 +7,9 @@ The step QP of :mod:`planners.optimisation.sqp` at a feasible point is
 
 with H positive semi-definite and banded (:class:`planners.problem.banded.Banded`: a node's quantities depend
 on its segment's two points), sigma > 0 a small shift, b <= 0 (d = 0 is feasible) and A's rows scaled to unit
-infinity norm; at an infeasible point the violated rows are elastic (:func:`solve_step_qp`). Its trust-region box often binds on hundreds of variables at once (the model is flat along
-many directions: H's eigenvalues span 1e-7 to 1e2), and only a few of the rows.
+infinity norm; at an infeasible point the violated rows are elastic (:func:`solve_step_qp`). Its trust-region
+box often binds on hundreds of variables at once (the model is flat along many directions: H's eigenvalues span
+1e-7 to 1e2), and only a few of the rows.
 
 The solver keeps a guess of the *active set*: each variable is free or fixed at one of its bounds +-Delta,
 each row is in the working set W (held at its bound) or not. For a guess it solves the equality-constrained
@@ -24,12 +25,12 @@ row holds, and every multiplier is >= 0 (the KKT conditions of the QP, exactly, 
   count stops decreasing (block pivoting can cycle where H is far from diagonally dominant), the solver gives
   up: the caller solves the QP by :mod:`planners.optimisation.interior_point`;
 * **rows,** once the bounds agree with W: rows with a negative multiplier leave W, else rows that would
-  rather be violated (an elastic row whose multiplier exceeds its cap, :func:`solve_step_qp`) are relaxed, else relaxed rows
-  that hold come back, else violated rows join W, as in a primal active-set method; each such change takes,
-  in order of priority, every row that shares no variable with one taken before it (rows of different
-  segments do not interact: a long mission's changes do not wait for each other). A row of W that the free
-  variables cannot hold frees its fixed variable of least multiplier, or leaves W when it has none (it
-  depends on the others).
+  rather be violated (an elastic row whose multiplier exceeds its cap, :func:`solve_step_qp`) are relaxed, else
+  relaxed rows that hold come back, else violated rows join W, as in a primal active-set method; each such
+  change takes, in order of priority, every row that shares no variable with one taken before it (rows of
+  different segments do not interact: a long mission's changes do not wait for each other). A row of W that
+  the free variables cannot hold frees its fixed variable of least multiplier, or leaves W when it has none
+  (it depends on the others).
 
 Started from the active set of the step before (the SQP passes it), a few changes usually suffice. The
 row changes have no anti-cycling rule and are capped at :data:`MAX_CHANGES` changes in all; when the

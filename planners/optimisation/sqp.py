@@ -17,9 +17,9 @@ Each iteration solves the elastic (S-l1-QP) subproblem
 .. math:: \min_{d, s} \tfrac12 d^T H d + g^T d + \rho \mathbf 1^T s \quad
           \text{s.t.}\; c + A d + s \ge 0,\; s \ge 0,\; |d|_\infty \le \Delta,
 
-with slacks s only on the constraints violated at x (always feasible), and accepts the step by the ratio of actual to predicted decrease of the exact l1 merit
-J + rho * sum(max(0, -c)). Constraints that cannot become active inside the trust region
-(c_i > |A_i|_1 Delta) are left out of the QP, which keeps it small.
+with slacks s only on the constraints violated at x (always feasible), and accepts the step by the ratio of actual
+to predicted decrease of the exact l1 merit J + rho * sum(max(0, -c)). Constraints that cannot become active inside
+the trust region (c_i > |A_i|_1 Delta) are left out of the QP, which keeps it small.
 
 **Curvature** (``SqpOptions.curvature``). ``"smoothed"`` (:mod:`planners.optimisation.curvature`; the default of
 :class:`planners.options.PlanOptions`): J_phi's Gauss-Newton matrix plus, for
@@ -262,9 +262,9 @@ def _qp_step(ev, radius: float, penalty: float, hessian=None, start: ActiveSet |
     work is bounded: an inexact step is judged by the merit ratio anyway. ``hessian`` is the model's curvature
     (default the problem's Gauss-Newton matrix; banded or an array); the multipliers (m,) are >= 0, in the
     units of the constraints, 0 for the rows left out. ``interior_first``: go to the interior point directly
-    (the SQP's choice after the active set gave up twice in a row). The Jacobian's CSR copy (each row touches one segment:
-    a few per cent of its entries are non-zero on a long mission) stays a CSR matrix from the selection to the
-    solvers.
+    (the SQP's choice after the active set gave up twice in a row). The Jacobian's CSR copy (each row touches one
+    segment: a few per cent of its entries are non-zero on a long mission) stays a CSR matrix from the selection to
+    the solvers.
     """
     hess = ev.hessian if hessian is None else hessian
     n = ev.gradient.size
@@ -548,11 +548,12 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
         elif opt.curvature == "smoothed":
             hessian = smoothed_hessian(ev, opt.power_width, opt.majoriser_share)
 
-        def solve_qp(rho, ev=ev, hessian=hessian, composite=composite, radius=radius):
+        def solve_qp(rho, ev=ev, hessian=hessian, composite=composite, radius=radius, start=active_set,
+                     interior_first=give_ups >= 2):
             if composite:
                 return (*_composite_qp_step(ev, radius, rho, hessian), None)
             d, predicted, linear, multipliers, active, gave_up = _qp_step(
-                ev, radius, rho, hessian, start=active_set, interior_first=give_ups >= 2)
+                ev, radius, rho, hessian, start=start, interior_first=interior_first)
             return d, predicted, linear, multipliers, None, (active, gave_up)
 
         merit = ev.J + penalty * _violation(ev.constraints)

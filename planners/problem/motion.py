@@ -339,7 +339,8 @@ class MotionProblem:
             self.crossing_sign = sign
         # windows: contiguous node ranges inside each segment
         bounds = np.linspace(0, k - 1, int(windows_per_segment) + 1).round().astype(int)
-        self.windows = [(i * k + a, i * k + b + 1) for i in range(m) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        self.windows = [(i * k + a, i * k + b + 1)
+                        for i in range(m) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
         # variable scaling by the local time scale
         scale = entry_scales(self.durations)[:, :, None] * np.ones((1, 1, n))
         self.scale = scale[self.free]
@@ -611,7 +612,9 @@ class MotionProblem:
 
     @functools.cached_property
     def _basis_by_node(self) -> np.ndarray:
-        """The Hermite weights node by node, (N, r, 2 * 5) (r: the derivative orders of ``basis``): :func:`_chain_basis`'s layout of ``basis``."""
+        """The Hermite weights node by node, (N, r, 2 * 5) (r: the derivative orders of ``basis``):
+        :func:`_chain_basis`'s layout of ``basis``.
+        """
         b = self.basis
         return np.ascontiguousarray(b.transpose(1, 0, 2, 3).reshape(b.shape[1], b.shape[0], -1))
 
@@ -626,7 +629,8 @@ class MotionProblem:
         both = (cols[:, :, None] >= 0) & (cols[:, None, :] >= 0)
         bandwidth = int(np.max(np.abs(cols[:, :, None] - cols[:, None, :])[both], initial=0))
         hit = both & (cols[:, :, None] <= cols[:, None, :])
-        rows, columns = np.broadcast_to(cols[:, :, None], hit.shape)[hit], np.broadcast_to(cols[:, None, :], hit.shape)[hit]
+        rows = np.broadcast_to(cols[:, :, None], hit.shape)[hit]
+        columns = np.broadcast_to(cols[:, None, :], hit.shape)[hit]
         flat = Banded.flat_index(rows, columns, self.n_x, bandwidth)
         return hit, flat, self.scale[rows] * self.scale[columns], bandwidth
 

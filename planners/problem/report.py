@@ -107,7 +107,9 @@ def evaluate_motion(robot, trajectory: PiecewisePolynomial, rate: float = 500.0,
     """Sample ``trajectory`` at ``rate`` [Hz] (plus every knot) and check every constraint.
 
     Args:
-        robot, trajectory, rate: what to check, and how densely [Hz].
+        robot: the robot that flies the motion.
+        trajectory: the planned motion of the planning coordinates s(t).
+        rate: sampling rate of the check [Hz]; the knots are sampled as well.
         crossing_time: for a prototype motion that crosses its Type-2 singularity once
             (:mod:`planners.crossing.solve`), the time of the crossing [s]: the assembly-mode bounds are
             then checked on each side of it.

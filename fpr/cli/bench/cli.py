@@ -51,8 +51,8 @@ def parser() -> contract.Parser:
     p.add_argument("--quick", action="store_true",
                    help="3 repeats of ~20 ms loops instead of 7 of ~50 ms; planning: 1 run per item, "
                         "baseline capped at 15 s instead of 120 s; control: 32 states instead of 64, "
-                        "1 simulation run instead of 3; planning: 6 random missions a robot instead of 20; scaling: 2 a "
-                        "robot and length instead of 6")
+                        "1 simulation run instead of 3; planning: 6 random missions a robot instead of 20; "
+                        "scaling: 2 a robot and length instead of 6")
     p.add_argument("--section", choices=("all", "model", "planning", "control", "replan", "scaling"),
                    default="all", help="which part to run")
     contract.add_debug(p)

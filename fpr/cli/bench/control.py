@@ -1,7 +1,8 @@
-"""Control section of the benchmark (``python -m fpr.bench --section control``), side by side in one run
-for the FPR (8 rotor variables) and the prototype (4), at states near hover (q and v perturbed by 0.01,
-small wanted attitude accelerations u_a), in two cases: hover thrusts (no rotor bound active) and 3 times
-the hover thrusts (bounds active):
+"""Control section of the benchmark (``python -m fpr.bench --section control``).
+
+Side by side in one run for the FPR (8 rotor variables) and the prototype (4), at states near hover (q and v
+perturbed by 0.01, small wanted attitude accelerations u_a), in two cases: hover thrusts (no rotor bound active)
+and 3 times the hover thrusts (bounds active):
 
 1. the full :meth:`controllers.allocation.Allocator.solve` call (its closed form when no bound is active,
    else its bounded route; the states cycled, so not warm from a neighbouring tick: the loop's figure is

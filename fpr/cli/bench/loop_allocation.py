@@ -63,6 +63,10 @@ def replay(robot, calls: list[tuple], passes: int, compiled: bool | None = None)
     """Time every call of a recorded sequence through fresh allocators (module docstring).
 
     Args:
+        robot: the robot the calls were recorded on (each pass builds fresh allocators for it).
+        calls: the recorded (attitude model, wanted thrusts [N], wanted attitude accelerations u_a) of every
+            ``Allocator.solve`` call, in order (:func:`record_allocations`).
+        passes: how many times the sequence is replayed; each call keeps its least time.
         compiled: :mod:`fpr._native`'s part ``allocation`` switched on (True) or off (False) for the replay's
             allocators; None: as the switch is.
 

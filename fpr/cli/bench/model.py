@@ -26,6 +26,8 @@ with tolerances, in tests/test_constrained.py and tests/test_inverse_dynamics.py
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pinocchio as pin
 
@@ -64,7 +66,8 @@ def run_timings(bench: Bench) -> None:
     states = []  # (q, v, thrust, torque, q_pin, v_pin, fext)
     for q, v, f, tau in random_states(r, rng, 64):
         fext = pin.StdVec_Force([pin.Force.Zero() for _ in range(model.njoints)])
-        for w, fid in zip(r.input_wrenches(f, tau), fids, strict=True):  # wrenches moved to the joints, as r.forward_dynamics
+        # the wrenches moved to the joints, as r.forward_dynamics does
+        for w, fid in zip(r.input_wrenches(f, tau), fids, strict=True):
             fext[model.frames[fid].parentJoint] += model.frames[fid].placement.act(pin.Force(w))
         states.append((q, v, f, tau, r.to_pinocchio(q), r.to_pinocchio(v), fext))
     zero = np.zeros(model.nv)
@@ -97,19 +100,24 @@ def run_timings(bench: Bench) -> None:
     bench.time("prototype r.forward_dynamics", cycling(proto.forward_dynamics, random_states(proto, rng, 64)))
     for robot in (r, proto):
         motion = smooth_motion(robot, 2000)
-        bench.time(f"{robot.name} inverse_dynamics, N=2000", lambda: inverse_dynamics(robot, motion), n=2000,
-                   ref=(f"{robot.name} r.forward_dynamics",))
+        bench.time(f"{robot.name} inverse_dynamics, N=2000", functools.partial(inverse_dynamics, robot, motion),
+                   n=2000, ref=(f"{robot.name} r.forward_dynamics",))
     for robot in (r, proto):
         closed = build_closed_chain(robot)
         args = []  # (q_c, v_c, thrust, torque, J_c^T w)
         for q, v, f, tau in random_states(robot, rng, 64):
             qc, vc = closed.from_minimal(q, v)
             args.append((qc, vc, f, tau, closed.generalized_input(qc, f, tau)))
-        for name, fn in (("generalized_input", lambda qc, vc, f, tau, g: closed.generalized_input(qc, f, tau)),
-                         ("forward_dynamics", lambda qc, vc, f, tau, g: closed.forward_dynamics(qc, vc, g)),
-                         ("generalized_input+forward_dynamics", lambda qc, vc, f, tau, g: closed.forward_dynamics(
-                             qc, vc, closed.generalized_input(qc, f, tau)))):
+        for name, fn in _closed_chain_calls(closed):
             bench.time(f"{robot.name} closed {name}", cycling(fn, args), ref=(f"{robot.name} r.forward_dynamics",))
+
+
+def _closed_chain_calls(closed) -> tuple:
+    """The closed chain's timed items: (name, function of (q_c, v_c, thrust, torque, J_c^T w)) pairs."""
+    return (("generalized_input", lambda qc, vc, f, tau, g: closed.generalized_input(qc, f, tau)),
+            ("forward_dynamics", lambda qc, vc, f, tau, g: closed.forward_dynamics(qc, vc, g)),
+            ("generalized_input+forward_dynamics", lambda qc, vc, f, tau, g: closed.forward_dynamics(
+                qc, vc, closed.generalized_input(qc, f, tau))))
 
 
 #: goal of the FPR mass matrix M(q) in thesis coordinates, one call [s]

@@ -1,5 +1,6 @@
-"""Planning section of the benchmark (``python -m fpr.bench --section planning``), on the built-in
-``square`` mission (n_vp = 1, alpha = 0.5), side by side in one run:
+"""Planning section of the benchmark (``python -m fpr.bench --section planning``).
+
+On the built-in ``square`` mission (n_vp = 1, alpha = 0.5), side by side in one run:
 
 a. ``plan(mission, "two-step")`` and b. ``plan(mission, "one-step")``: our exact-gradient trust-region
    SQP (median of 3 runs, 1 with ``--quick``);
@@ -231,7 +232,8 @@ def run_planning(quick: bool, progress: bool) -> dict:
     ]
     targets += families["targets"]
     return dict(mission=PLANNING_MISSION, settings=settings, items=items, speedups=speedups, targets=targets,
-                optimality=optimality, families=families, sensitivities=sensitivities(mission, robot, settings["segment_repeats"]),
+                optimality=optimality, families=families,
+                sensitivities=sensitivities(mission, robot, settings["segment_repeats"]),
                 one_step_problem_matches_plan=consistent, load_average_before=load_before,
                 load_average_after=os.getloadavg(),
                 blas_threads_env={k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")})

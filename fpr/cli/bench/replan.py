@@ -162,7 +162,8 @@ def replan_table(doc: dict) -> str:
         lines.append(f"{name:<34} {item['runs']:>4} {item['used']!s:>4} {item['delayed']!s:>5}  "
                      f"{ms(w['median_s']):>11} {ms(w['p95_s'])} {ms(w['worst_s'])}  {ms(m['p95_s'])}  {ms(c['p95_s'])}")
     wall = doc["distribution"]["wall"]
-    lines.append("latency distribution (wall): " + ", ".join(f"p{p} {wall[f'p{p}_s'] * 1e3:.1f} ms" for p in PERCENTILES)
+    lines.append("latency distribution (wall): "
+                 + ", ".join(f"p{p} {wall[f'p{p}_s'] * 1e3:.1f} ms" for p in PERCENTILES)
                  + f", worst {wall['worst_s'] * 1e3:.1f} ms over {wall['n']} replans")
     lines.append("  " + "  ".join(f"{a * 1e3:.0f}-{b * 1e3:.0f} ms: {n}"
                                   for a, b, n in zip(wall["edges_s"], wall["edges_s"][1:], wall["counts"], strict=False)

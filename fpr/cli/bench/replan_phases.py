@@ -1,8 +1,8 @@
 """Where a replan's time goes: its phases timed one by one (part of ``python -m fpr.bench --section replan``).
 
 The moving-target replan (the move event at 4 s, 28 grid nodes) is taken apart: the NLP's set-up
-(:meth:`planners.replanning.replanner.Replanner.problem`), a derivative evaluation and its inverse dynamics alone, a value
-evaluation, one step QP (:func:`planners.replanning.solver.qp_step`), the dense check
+(:meth:`planners.replanning.replanner.Replanner.problem`), a derivative evaluation and its inverse dynamics
+alone, a value evaluation, one step QP (:func:`planners.replanning.solver.qp_step`), the dense check
 (:func:`planners.problem.disturbance.dense_check`) and the value evaluation fused with it
 (:func:`planners.replanning.check.evaluate_and_check`). Each phase is repeated and its **minimum** CPU time
 (``time.process_time``) kept: the least the phase takes on this machine, which the other jobs of a shared

@@ -111,7 +111,8 @@ def chain_animation(path: str | Path, robot, log, fps: float = 20.0, speed: floa
 
     Args:
         path: the ``.gif`` (or ``.mp4``) file to write.
-        robot, log: as :func:`strobe_figure`.
+        robot: the simulated robot.
+        log: its :class:`fpr.sim.closed_loop.SimulationLog` (of that robot, at least 2 samples).
         fps: frames per second of the file.
         speed: simulated seconds per second of the file.
         title: shown above the chain (default: the robot's name), with the time.

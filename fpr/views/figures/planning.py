@@ -264,8 +264,12 @@ def plan_figures(out_dir: str | Path, robot, plan: SampledPlan,
         robot: the :class:`~fpr.model.robot.Robot` the plan is for (``robot.name`` "fpr" or "prototype").
         plan: the sampled plan to show (see :mod:`fpr.views.figures`).
         reference: an optional sampled plan to compare with.
-        figure_numbers, crossing, min_thrust: what the motion is (:func:`figure_context`): the thesis figure
-            numbers of its titles, a singularity crossing (the bounds it crosses are not drawn), its thrust floor.
+        figure_numbers: the thesis figure number(s) the motion reproduces, written in the titles instead of the
+            robot's default ones: one text for every figure, or figure name -> text, or None
+            (:func:`figure_context`).
+        crossing: the motion crosses the Type-2 singularity on purpose: the assembly-mode bounds it crosses are
+            not drawn.
+        min_thrust: the thrust floor the motion was planned with [N], drawn on the thrust figure, or None.
 
     Returns:
         The paths of the written PNG files.

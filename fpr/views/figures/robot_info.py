@@ -35,8 +35,8 @@ def _robot_sizes(robot) -> tuple[int, int]:
     return len(robot.layout.chain), robot.n_drones
 
 
-#: What the figures being drawn show besides the robot (:func:`figure_context`).
-_CONTEXT: contextvars.ContextVar[dict] = contextvars.ContextVar("figure_context", default={})
+#: What the figures being drawn show besides the robot (:func:`figure_context`); None outside one.
+_CONTEXT: contextvars.ContextVar[dict | None] = contextvars.ContextVar("figure_context", default=None)
 
 
 @contextlib.contextmanager
@@ -61,7 +61,8 @@ def figure_context(figure_numbers: Mapping[str, str] | str | None = None, crossi
 
 def _context(key: str):
     """A value of the current :func:`figure_context` (None / False outside one)."""
-    return _CONTEXT.get().get(key)
+    context = _CONTEXT.get()
+    return None if context is None else context.get(key)
 
 
 def _title(robot, which: str) -> str:

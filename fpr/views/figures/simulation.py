@@ -395,7 +395,11 @@ def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None
         log: the :class:`fpr.sim.closed_loop.SimulationLog`.
         plan: the sampled plan that was tracked (optional): adds its rotor speeds, rotor forces,
             J_e(t), J_phi(t) and way/via points to the figures.
-        figure_numbers, crossing: what the motion is (:func:`fpr.views.figures.robot_info.figure_context`).
+        figure_numbers: the thesis figure number(s) the motion reproduces, written in the titles instead of the
+            robot's default ones: one text for every figure, or figure name -> text, or None
+            (:func:`fpr.views.figures.robot_info.figure_context`).
+        crossing: the motion crosses the Type-2 singularity on purpose: the assembly-mode bounds it crosses are
+            not drawn.
 
     Returns:
         The paths of the written PNG files.

@@ -131,7 +131,8 @@ def _appendix(path: str, coordinates: str, energy: str, perturbation: str) -> di
     other = "Appendix (cf. 3.2.6, Fig. 3.15-3.18)"
     return {"path": f"Appendix, Fig. {path}", "coordinates": f"Appendix, Fig. {coordinates}",
             "energy": f"Appendix, Fig. {energy}", "perturbation": f"Appendix, Fig. {perturbation}",
-            "thrust": other, "roll": other, "rotor_speeds": "Appendix (eq. 3.48)", "rotor_forces": "Appendix (eq. 3.48)"}
+            "thrust": other, "roll": other,
+            "rotor_speeds": "Appendix (eq. 3.48)", "rotor_forces": "Appendix (eq. 3.48)"}
 
 
 #: The thesis figures of the appendix' comparison (the square mission planned by the original 1-step method and by
