@@ -348,7 +348,8 @@ def part_replan_phases(doc: dict) -> list[Table]:
 
 def part_latency_model(doc: dict) -> list[Table]:
     """The replanner's latency model: each robot's costs as measured on the run's machine, and the modelled over
-    the measured latency of the run's replans."""
+    the measured latency of the run's replans.
+    """
     replan = need(doc, "replan")
     robots = need(replan, "calibration")["robots"]
     features = next(iter(robots.values()))["features"]
