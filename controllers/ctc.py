@@ -16,6 +16,23 @@ model that term lies across the thrust axis, where a thrust cannot cancel it; DE
 An integral term K_ip int(s - s_d) dt (not in the thesis) removes the steady error a wrong model
 leaves (mass or rotor-constant mismatch, a small wind).
 
+**What the feedback measures** (``momentum_feedback``, on by default; not in the thesis). A drone's joint sits
+d_i below its centre of mass, so the torque that rolls a drone pushes its joint, and the chain, the other way
+before the tilted thrust pulls it along: from the roll torque to the chain there is a right-half-plane zero
+near sqrt(f_i / (m_i d_i)) rad/s (the planar VTOL's coupling, Hauser, Sastry and Meyer 1992), sqrt(g / d_i)
+at hover and lower when a push takes thrust off a drone. Fed back through s and s', it closes a loop with the
+attitude loop that rings and, at low thrust, diverges. The drones' torques act on their absolute rolls only
+(the chain rows of J_tau are zero), so the chain's rows of the full model's momentum M(q) q' do not feel them
+at once: the outer loop feeds back the chain velocity that momentum stands for, and its position analogue,
+
+.. math:: \\dot s_m - \\dot s_d = (\\dot s - \\dot s_d) + K (\\dot q_o - \\dot q_{o,d}), \\qquad
+          s_m - s_d = (s - s_d) + K (q_o - q_{o,d}), \\qquad K = M_{ss}^{-1} M_{so},
+
+q_o the coordinates outside the chain (the rolls, and x, psi, theta), q_o,d their references (the rolls of
+the reference's thrust vectors and the planned roll rates; 0 for the others). On the reference both equal
+the thesis' errors; the integral keeps integrating s - s_d, so a roll held off its plan (a steady wind)
+leaves no steady error in s.
+
 **An unknown external force** is estimated by a generalized-momentum observer (:mod:`controllers.observer`,
 bandwidth ``observer_bandwidth``, K_O = 10 rad/s by default) on the robot's full model in the thesis'
 coordinates q (seed 2.11: rigid drones on their offset joints, the model of the inner loop's attitude
@@ -99,6 +116,8 @@ class ControllerSettings:
         observer_bandwidth: K_O [rad/s] of the external-force observer (:mod:`controllers.observer`), whose
             estimate is fed forward in both loops; 0: no observer (the thesis' law with the integral term).
             Above the chain loop's frequency, below the attitude loop's, and a tenth of the outer rate.
+        momentum_feedback: the outer loop feeds back the chain state that the full model's momentum stands for
+            (module docstring), free of the drones' roll torques; False: the measured s and s' (the thesis).
     """
 
     outer_rate: float = 100.0
@@ -118,6 +137,7 @@ class ControllerSettings:
     thrust_weight: float = 1.0
     singular_band: float = 0.03
     observer_bandwidth: float = 10.0
+    momentum_feedback: bool = True
 
     @property
     def chain_gains(self) -> tuple[float, float]:
@@ -197,6 +217,8 @@ class CascadedController:
         self._gains = None  # (key, kp, kd, their lists) of the attitude loop, see _attitude_gains
         self.chain = r.indices(r.layout.chain)
         self.rolls = r.indices(r.layout.rolls)
+        self._others = np.setdiff1d(np.arange(r.nq), self.chain)  # q_o: the coordinates outside the chain
+        self._other_rolls = np.searchsorted(self._others, self.rolls)  # the rolls' places in q_o
         self.attitude = r.indices(r.layout.attitude)
         self.allocator = Allocator(r, st.attitude_weight, st.thrust_weight)
         self.offset = np.array(r.hinge_offsets)  # d_i, (n_d,) [m]
@@ -273,7 +295,10 @@ class CascadedController:
         kp, kd = st.chain_gains
         s, ds = q[self.chain], v[self.chain]
         sd = reference.motion
-        u = sd[2] - kp * (s - sd[0]) - kd * (ds - sd[1]) - st.chain_integral * self._integral
+        error, rate_error = s - sd[0], ds - sd[1]
+        if st.momentum_feedback:
+            error, rate_error = self._momentum_errors(q, v, reference, error, rate_error)
+        u = sd[2] - kp * error - kd * rate_error - st.chain_integral * self._integral
         m, c, jac = self._point_dynamics(s, ds)
         b = m.dot(u) + c
         if reference.task_force is not None or reference.drone_forces is not None:
@@ -285,6 +310,29 @@ class CascadedController:
         self._seen = (jac_task, jac)
         return self.robot.kind.outer_loop_forces(s, b - self.observer.estimate[self.chain], jac, reference.force,
                                                  st.singular_band)
+
+    def _momentum_errors(self, q, v, reference: Reference, error, rate_error):
+        """The chain's errors of the state its momentum stands for (module docstring): (s_m - s_d, s_m' - s_d'),
+        each (n_s,), from the thesis' ``error`` = s - s_d and ``rate_error`` = s' - s_d'.
+
+        K = M_ss^-1 M_so from the full model's M(q) (Pinocchio's CRBA). The rolls' references: the direction of
+        the reference's thrust vectors (2.20), or of the held outer-loop force without them, or the measured
+        rolls (no position term) before either exists; their rates: the reference's roll rates.
+        """
+        mass = self.robot.mass_matrix(q)
+        chain, others = self.chain, self._others
+        gain = np.linalg.solve(mass[np.ix_(chain, chain)], mass[np.ix_(chain, others)])
+        position, rate = q[others].copy(), v[others].copy()
+        force = reference.force if reference.force is not None else self._force
+        if force is not None:
+            force = np.asarray(force, dtype=float)
+            planned = np.arctan2(-force[:, 0], force[:, 1])  # (2.20)
+            position[self._other_rolls] = np.remainder(position[self._other_rolls] - planned + np.pi,
+                                                       2 * np.pi) - np.pi
+        else:
+            position[self._other_rolls] = 0.0
+        rate[self._other_rolls] -= reference.roll_rate
+        return error + gain.dot(position), rate_error + gain.dot(rate)
 
     def _observe(self, dt: float, q, v) -> None:
         """One update of the observer (:mod:`controllers.observer`) at the measured (q, q'), dt [s] after the

@@ -7,7 +7,7 @@ import pytest
 
 import fpr
 from controllers.allocation import Allocator, allocation_qp, pseudo_inverse_law, selectors
-from controllers.ctc import CascadedController, Reference
+from controllers.ctc import CascadedController, ControllerSettings, Reference
 from fpr.model.inverse_dynamics import inverse_dynamics
 
 POSES = {"fpr": np.array([0.0, 0.0, 5 * np.pi / 4, np.pi / 2]), "prototype": np.array([-0.84, 1.68])}
@@ -120,10 +120,30 @@ def test_outer_loop_force_is_the_planning_inverse_dynamics(hover):
     motion[0, 0] = POSES[robot.name]
     motion[1:3, 0] = 0.3 * rng.normal(size=(2, n_s))
     planned = inverse_dynamics(robot, motion)
-    q = q0.copy()
-    v = np.zeros(robot.nq)
-    chain = robot.indices(robot.layout.chain)
-    q[chain], v[chain] = motion[0, 0], motion[1, 0]
+    q, v = (state[0] for state in planned.full_state(robot)[:2])  # the rolls and their rates on the plan too
+    reference = Reference(motion[:, 0], planned.roll_rate[0], planned.roll_acceleration[0], planned.thrust_vector[0])
+    for feedback in (True, False):
+        controller = CascadedController(robot, ControllerSettings(momentum_feedback=feedback))
+        np.testing.assert_allclose(controller.outer(q, v, reference), planned.thrust_vector[0], atol=1e-10)
+
+
+def test_roll_torques_leave_the_fed_back_chain_acceleration_alone(hover):
+    """The momentum feedback's chain velocity s' + K q_o', K = M_ss^-1 M_so: its acceleration from the forward
+    dynamics (Pinocchio's ABA, independent of the CRBA that gives K) does not change with the drones' roll
+    torques, while s'' alone does (the roll torque pushes the joint, and the chain, the other way).
+    """
+    robot, q0, inputs, _ = hover
+    rng = np.random.default_rng(11)
     controller = CascadedController(robot)
-    force = controller.outer(q, v, Reference(motion[:, 0], planned.roll_rate[0], planned.roll_acceleration[0]))
-    np.testing.assert_allclose(force, planned.thrust_vector[0], atol=1e-10)
+    chain, others = controller.chain, controller._others
+    for _ in range(3):
+        q, v = _random_state(robot, q0, rng)
+        mass = robot.mass_matrix(q)
+        gain = np.linalg.solve(mass[np.ix_(chain, chain)], mass[np.ix_(chain, others)])
+        torque = np.zeros((robot.n_drones, 3))
+        torque[:, 0] = 0.3 * rng.normal(size=robot.n_drones)  # body roll torques [N m]
+        still = robot.forward_dynamics(q, v, inputs.thrust[0], np.zeros((robot.n_drones, 3)))
+        turned = robot.forward_dynamics(q, v, inputs.thrust[0], torque)
+        delta = turned - still
+        assert np.abs(delta[chain]).max() > 1e-2  # the torque moves the chain at once ...
+        np.testing.assert_allclose(delta[chain] + gain.dot(delta[others]), 0.0, atol=1e-9)  # ... not its momentum

@@ -319,11 +319,11 @@ def test_controller_force_near_the_singularity(crossing_plan, proto):
     """With a tracking error: far from q2 = 0 the outer loop is the plain CTC solve J^-T b; at q2 = 0
     its tension is the planned one and its force across the link the CTC's (b2 / L).
     """
-    from controllers.ctc import CascadedController, Reference
+    from controllers.ctc import CascadedController, ControllerSettings, Reference
 
     res = crossing_plan
     ts = res.crossing.crossing_time
-    controller = CascadedController(proto)
+    controller = CascadedController(proto, ControllerSettings(momentum_feedback=False))  # the thesis' feedback
     band = controller.settings.singular_band
     for t in (ts - 0.5, ts):
         m = res.trajectory.evaluate(np.array([t]), order=6)

@@ -45,7 +45,7 @@ def test_the_fed_forward_wind_gives_the_planners_thrusts_in_that_wind(name):
     planned = inverse_dynamics(robot, motion, external=q_ext[None])
     still = inverse_dynamics(robot, motion)
     assert np.abs(planned.thrust_vector - still.thrust_vector).max() > 1.0  # the force matters here
-    q, v = _state(robot, motion)
+    q, v = (state[0] for state in planned.full_state(robot)[:2])  # the rolls and their rates on the plan too
     controller = CascadedController(robot)
     reference = Reference(motion[:, 0], planned.roll_rate[0], planned.roll_acceleration[0],
                           planned.thrust_vector[0], task_force=force)
