@@ -25,8 +25,8 @@ attitude loop that rings and, at low thrust, diverges. The drones' torques act o
 (the chain rows of J_tau are zero), so the chain's rows of the full model's momentum M(q) q' do not feel them
 at once: the outer loop feeds back the chain velocity that momentum stands for, and its position analogue,
 
-.. math:: \\dot s_m - \\dot s_d = (\\dot s - \\dot s_d) + K (\\dot q_o - \\dot q_{o,d}), \\qquad
-          s_m - s_d = (s - s_d) + K (q_o - q_{o,d}), \\qquad K = M_{ss}^{-1} M_{so},
+.. math:: \dot s_m - \dot s_d = (\dot s - \dot s_d) + K (\dot q_o - \dot q_{o,d}), \qquad
+          s_m - s_d = (s - s_d) + K (q_o - q_{o,d}), \qquad K = M_{ss}^{-1} M_{so},
 
 q_o the coordinates outside the chain (the rolls, and x, psi, theta), q_o,d their references (the rolls of
 the reference's thrust vectors and the planned roll rates; 0 for the others). On the reference both equal
