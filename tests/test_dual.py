@@ -33,9 +33,11 @@ def _both(problem, x):
 
 def _assert_same(reference, dual):
     raw, rows, sens_raw, sens_rows = reference
-    # the values to round-off (the complex step's come through complex inversions and products)
-    np.testing.assert_allclose(dual[0], raw, rtol=1e-13, atol=1e-14 * np.abs(raw).max())
-    np.testing.assert_allclose(dual[1], rows, rtol=1e-13, atol=1e-14 * np.abs(rows).max())
+    # the values to round-off (the complex step's come through complex inversions and products; near the
+    # crossing's singularity a quotient's conditioning amplifies it: the Python and the native jets, which sum in
+    # other orders, differ there by a few 1e-13 relative)
+    np.testing.assert_allclose(dual[0], raw, rtol=1e-11, atol=1e-14 * np.abs(raw).max())
+    np.testing.assert_allclose(dual[1], rows, rtol=1e-11, atol=1e-14 * np.abs(rows).max())
     for ref, got in ((sens_raw, dual[2]), (sens_rows, dual[3])):
         assert got.shape == ref.shape
         scale = np.abs(ref).max(axis=(-2, -1), keepdims=True)  # each quantity's sensitivities' size
