@@ -137,7 +137,7 @@ def solve_thrust_vectors(robot, motion: Jet, generalized: Jet, order: int | None
         generalized = generalized.truncate(order)
     jac = robot.planar("point").hinge_jacobian_jet(motion.truncate(generalized.order))
     force = jets.solve(jac.mT, generalized)
-    return force.reshape(force.shape[:-1] + (robot.n_drones, 2))
+    return force.reshape(force.shape[:-1] + (robot.n_drones, len(robot.kind.force_axes)))
 
 
 #: Derivative order at which to evaluate planned motions for :func:`inverse_dynamics` (0..6: the

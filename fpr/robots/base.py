@@ -11,7 +11,8 @@ The members come in two groups, in the manner of Pink's ``Task`` or Crocoddyl's 
 * **class attributes**, known without a model (the registry, missions and file columns use them):
   ``name``, ``xacro``, ``urdf``, ``layout``, ``chain_units``, ``task_coordinates``, ``assembly_modes``,
   ``crosses_singularity``, ``singular_margins``, ``margin_hints``, ``reference_chain``,
-  ``mass_parameters``, ``titles``, ``task_point_labels``, ``task_frame``, ``fixed_point``;
+  ``mass_parameters``, ``titles``, ``task_point_labels``, ``task_frame``, ``fixed_point``, ``force_axes``,
+  ``out_of_plane``, ``constraint_kinds``;
 * **methods** of the bound instance, which read the robot's geometry from its model: link lengths and
   ground, kinematics (``drone_joints``, ``drone_joint_velocities``, ``chain_jacobian``,
   ``task_points``; for figures ``joint_legends``, ``height_panels``), workspace and assembly modes
@@ -36,10 +37,15 @@ from typing import ClassVar
 import numpy as np
 
 from fpr.model import inverse_dynamics
-from fpr.model.errors import FprError, ModelArgumentError
+from fpr.model.errors import FprError, ModelArgumentError, RobotDefinitionError
 from fpr.model.jets import Jet
 from fpr.model.kinematics import check_margins, last_axis
 from fpr.model.robot import Layout
+
+#: The constraint kinds of a robot whose drone joints stay above a ground and whose drones have one roll
+#: each (the built-in robots): entries of ``RobotKind.constraint_kinds``.
+GROUND_KIND = ("m", "drone joint height above the ground margin z >= -L + m_gd (3.27, 3.40-3.41)")
+ROLL_KIND = ("rad", "drone roll |phi_i| <= pi/2 - m_ga (3.33, 3.45)")
 
 
 class RobotKind:
@@ -74,7 +80,21 @@ class RobotKind:
             :mod:`fpr.views.figures`).
         task_point_labels: (the main task-space point, the other joints) of ``task_points``, for legends.
         task_frame: the Pinocchio frame of the main task-space point (3D scenes).
-        fixed_point: (y, z) of a point of the chain fixed in the world [m], or None.
+        fixed_point: the coordinates along ``force_axes`` of a point of the chain fixed in the world [m], or
+            None.
+        force_axes: the world axes of the thrust vectors F_i, the drone joints r_i and their velocities, the
+            points of ``task_points`` and ``fixed_point``: ("y", "z") for a robot that moves in the world's
+            y-z plane. Arrays of such vectors have ``len(force_axes)`` entries in their last axis.
+        out_of_plane: the coordinates that a plan keeps at 0 and a simulation may move (the simulation's
+            summary and the out-of-plane figure report them), e.g. ("x", "psi", "theta"); empty for a robot
+            that tracks all of its coordinates.
+        constraint_kinds: the kinds of the robot's own constraints, by the prefix of their names, each with
+            its (unit, what it bounds): its workspace margins' kinds (``workspace_margins``,
+            ``crossing_margins``) and its drones' attitude margins' (``"roll"`` for drones with one roll
+            each). They join the generic kinds of :data:`planners.problem.motion.CONSTRAINT_KINDS`; a kind
+            named by two robots has one unit.
+        attitude_kinds: which of ``constraint_kinds`` bound the drones' attitude (the others bound the
+            workspace, a function of the planning coordinates alone).
     """
 
     name: ClassVar[str]
@@ -92,7 +112,11 @@ class RobotKind:
     titles: ClassVar[Mapping[str, str]] = {}
     task_point_labels: ClassVar[tuple[str, str]] = ("end-effector", "drone joints")
     task_frame: ClassVar[str] = "end_effector"
-    fixed_point: ClassVar[tuple[float, float] | None] = None
+    fixed_point: ClassVar[tuple[float, ...] | None] = None
+    force_axes: ClassVar[tuple[str, ...]] = ("y", "z")
+    out_of_plane: ClassVar[tuple[str, ...]] = ()
+    constraint_kinds: ClassVar[Mapping[str, tuple[str, str]]] = {}
+    attitude_kinds: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, robot):
         """Bind the kind to ``robot`` (a :class:`~fpr.model.robot.Robot` built from this kind's layout)."""
@@ -133,12 +157,23 @@ class RobotKind:
 
     @property
     def ground_height(self) -> float:
-        """z of the ground [m]: -L, with L the link length of the first drone's link (DESIGN.md)."""
-        return -self.robot.link_length
+        """z of the ground [m]: -L, with L the link length of the first drone's link (DESIGN.md).
+
+        Required of a robot whose first drone does not hang on a link (its hinge at the origin of the body
+        that carries it: L = 0 says nothing of the ground).
+
+        Raises:
+            RobotDefinitionError: the robot's first drone hinge has no offset from its parent body.
+        """
+        length = self.robot.link_length
+        if length == 0.0:
+            raise RobotDefinitionError(self.name, "its first drone's hinge sits at the origin of the body that "
+                                                  "carries it (no link): give the kind a ground_height")
+        return -length
 
     # ------------------------------------------------------------------ kinematics
     def drone_joints(self, s) -> np.ndarray:
-        """Drone joint positions r_i (world y, z), shape (..., n_d, 2) [m].
+        """Drone joint positions r_i (along ``force_axes``: world y, z), shape (..., n_d, 2) [m].
 
         Default: from the point-drone planar model (exact, not closed form).
         """
@@ -149,7 +184,7 @@ class RobotKind:
         """Drone joint velocities r_i', shape (..., n_d, 2) [m/s], for s' [m/s, rad/s] of the same shape as s."""
         jac = self.chain_jacobian(s)
         v = np.einsum("...ij,...j->...i", jac, last_axis(s_dot, len(self.layout.chain), "s_dot"))
-        return v.reshape(v.shape[:-1] + (-1, 2))
+        return v.reshape(v.shape[:-1] + (-1, len(self.force_axes)))
 
     def chain_jacobian(self, s) -> np.ndarray:
         """J_h = d[r_1; ...; r_nd]/ds, shape (..., 2 n_d, n_s) (seed 2.6, 3.35).
@@ -318,9 +353,9 @@ class RobotKind:
             singular_band: the controller's regularisation angle near a Type-2 singularity [rad].
 
         Returns:
-            F, shape (n_d, 2) [N]. Default: the plain solve.
+            F, shape (n_d, len(force_axes)) [N]. Default: the plain solve.
         """
-        return np.linalg.solve(jacobian.T, b).reshape(-1, 2)
+        return np.linalg.solve(jacobian.T, b).reshape(-1, len(self.force_axes))
 
 
-__all__ = ["RobotKind"]
+__all__ = ["GROUND_KIND", "ROLL_KIND", "RobotKind"]

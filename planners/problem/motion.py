@@ -35,11 +35,13 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
 
+from fpr import robots
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from planners.problem.banded import Banded
@@ -78,17 +80,8 @@ class Limits:
                    speed=robot.rotor_constants.max_speed - robot.margins.rotor_speed)
 
 
-# kind -> (unit, what it bounds)
-CONSTRAINT_KINDS = {
-    "ground": ("m", "drone joint height above the ground margin z >= -L + m_gd (3.27, 3.40-3.41)"),
-    "fixed_point": ("m", "joint distance y >= m_gd from the fixed point's vertical (3.42-3.43)"),
-    "phi": ("rad", "end-effector orientation pi + m_ga <= phi <= 2 pi - m_ga (3.28)"),
-    "q21": ("rad", "Type-2 singularity m_ga <= q21 <= pi - m_ga (3.29)"),
-    "q1": ("rad", "|q1| <= pi/2 - m_ga (3.44)"),
-    "q2": ("rad", "Type-2 singularity m_ga <= q2 <= pi - m_ga (3.46)"),
-    "crossing": ("rad", "a singularity crossing: q2 keeps the sign of its side of the single crossing, "
-                        "|q2| <= pi - m_ga"),
-    "roll": ("rad", "drone roll |phi_i| <= pi/2 - m_ga (3.33, 3.45)"),
+#: The constraint kinds every robot has: kind -> (unit, what it bounds).
+GENERIC_CONSTRAINT_KINDS = {
     "rotor_speed_low": ("rad/s", "rotor speed w >= 0 (3.48)"),
     "rotor_speed_high": ("rad/s", "rotor speed w <= w_max - m_gr (3.48)"),
     "thrust_low": ("N", "thrust f_i >= f_min: the controller steers the thrust's direction, which a small "
@@ -96,8 +89,34 @@ CONSTRAINT_KINDS = {
 }
 
 
-#: The constraint kinds of the robot's workspace margins (a function of the motion's positions alone).
-WORKSPACE_KINDS = ("ground", "fixed_point", "phi", "q21", "q1", "q2", "crossing")
+class _ConstraintKinds(Mapping):
+    """kind -> (unit, what it bounds): the generic kinds (:data:`GENERIC_CONSTRAINT_KINDS`) and those of every
+    registered robot (``RobotKind.constraint_kinds``: its workspace's and its drones' attitude's), read from
+    the registry when asked (a robot registered later adds its own).
+    """
+
+    def _table(self) -> dict:
+        return {**robots.constraint_kinds(), **GENERIC_CONSTRAINT_KINDS}
+
+    def __getitem__(self, kind):
+        return self._table()[kind]
+
+    def __iter__(self):
+        return iter(self._table())
+
+    def __len__(self):
+        return len(self._table())
+
+
+#: kind -> (unit, what it bounds) of every constraint a plan can have, the robots' included.
+CONSTRAINT_KINDS: Mapping[str, tuple[str, str]] = _ConstraintKinds()
+
+
+def workspace_kinds() -> frozenset[str]:
+    """The constraint kinds of the robots' workspace margins (a function of the motion's positions alone): the
+    registered robots' kinds but those of their drones' attitude.
+    """
+    return frozenset(robots.constraint_kinds()) - robots.attitude_kinds()
 
 
 def constraint_kind(name: str) -> str:
@@ -406,7 +425,8 @@ class MotionProblem:
             return 0
         if self._rows_names is None:
             self.evaluate(self.x_of(self.points))
-        return sum(1 for name in self._rows_names if constraint_kind(name) in WORKSPACE_KINDS)
+        kinds = workspace_kinds()
+        return sum(1 for name in self._rows_names if constraint_kind(name) in kinds)
 
     def _quantities(self, motion):
         """Raw per-drone integrand pieces (N, 2 n_d): [F_i . r_i' ..., phi_i' ...], and the rows."""
