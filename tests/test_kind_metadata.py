@@ -157,3 +157,77 @@ def test_the_simulation_summary_reports_the_kinds_out_of_plane_coordinates(monke
     assert summary["psi"] == pytest.approx(0.1 * (robot.index["psi"] + 1))
     monkeypatch.setattr(Fpr, "out_of_plane", ("theta",))
     assert list(log.summary()["max_abs_out_of_plane"]) == ["theta"]
+
+
+# ---------------------------------------------------------------------- what the drones must do, through the kind
+def _sine_motion(robot, count=9):
+    """s(t) = s0 + 0.2 sin(w t + p) and its derivatives 0..4 at ``count`` samples, shape (5, N, n_s)."""
+    t = np.linspace(0.0, 1.5, count)
+    n = len(robot.layout.chain)
+    omega, phase = np.linspace(1.0, 2.0, n), np.linspace(0.0, 1.0, n)
+    arg = omega * t[:, None] + phase
+    s0 = np.array(robot.kind.reference_chain)
+    return np.array([s0 * (k == 0) + 0.2 * omega**k * np.sin(arg + k * np.pi / 2) for k in range(5)])
+
+
+def test_inverse_dynamics_asks_the_kind(robot, monkeypatch):
+    from fpr.model import inverse_dynamics as idyn
+
+    motion = _sine_motion(robot)
+    sentinel = object()
+    monkeypatch.setattr(type(robot.kind), "motion_inputs", lambda self, m, external=None: (sentinel, m, external))
+    assert idyn.inverse_dynamics(robot, motion, external="gust") == (sentinel, motion, "gust")
+
+
+def test_the_planar_kinds_fill_the_generic_attitude_fields_with_their_rolls(robot):
+    from fpr.model.inverse_dynamics import inverse_dynamics, planar_inverse_dynamics
+
+    motion = _sine_motion(robot)
+    inputs = inverse_dynamics(robot, motion)
+    plain = planar_inverse_dynamics(robot, motion)
+    np.testing.assert_array_equal(inputs.thrust_vector, plain.thrust_vector)
+    n, n_d = motion.shape[1], robot.n_drones
+    k_a = {len(c) for c in robot.layout.drone_attitude}.pop()
+    for field, roll in (("attitude", inputs.roll), ("attitude_rate", inputs.roll_rate),
+                        ("attitude_acceleration", inputs.roll_acceleration)):
+        value = getattr(inputs, field)
+        assert value.shape == (n, n_d, k_a)
+        np.testing.assert_array_equal(value[..., 0], roll)
+    np.testing.assert_array_equal(inputs.attitude_rate_squared, inputs.roll_rate**2)
+    assert inputs.thrust_vector.shape == (n, n_d, len(robot.kind.force_axes))
+
+
+def test_full_state_is_the_kinds_and_puts_the_rolls_where_the_layout_says(robot):
+    from fpr.model.inverse_dynamics import inverse_dynamics
+
+    motion = _sine_motion(robot)
+    inputs = inverse_dynamics(robot, motion)
+    states = inputs.full_state(robot)
+    assert all(a is b or np.array_equal(a, b) for a, b in zip(states, robot.kind.full_state(inputs), strict=True))
+    others = [i for i, c in enumerate(robot.layout.coordinates) if c not in robot.layout.chain + robot.layout.rolls]
+    for k, (state, roll) in enumerate(zip(states, (inputs.roll, inputs.roll_rate, inputs.roll_acceleration),
+                                          strict=True)):
+        np.testing.assert_array_equal(state[:, robot.indices(robot.layout.chain)], motion[k])
+        for i, drone in enumerate(robot.layout.drone_attitude):
+            np.testing.assert_array_equal(state[:, robot.index[drone[0]]], roll[:, i])
+        assert not state[:, others].any()  # the out-of-plane coordinates stay at 0
+
+
+def test_constraint_rows_take_the_attitude_rows_from_the_kind_in_the_drones_order(robot):
+    from fpr.model.inverse_dynamics import inverse_dynamics
+    from planners.problem.motion import constraint_rows, objective_rates
+
+    motion = _sine_motion(robot)
+    inputs = inverse_dynamics(robot, motion)
+    rows, names, details = constraint_rows(robot, motion, inputs, scaled=True)
+    limit = np.pi / 2 - robot.margins.angle
+    first = len(robot.kind.workspace_margins(motion[0]))
+    per_drone = 2 + 8  # two roll rows, then two rows per rotor
+    for i in range(robot.n_drones):
+        at = first + i * per_drone
+        assert names[at:at + 2] == [f"roll_{i + 1}"] * 2 and details[at:at + 2] == ["negative", "positive"]
+        np.testing.assert_array_equal(rows[:, at], limit + inputs.roll[:, i])
+        np.testing.assert_array_equal(rows[:, at + 1], limit - inputs.roll[:, i])
+        assert names[at + 2] == f"rotor_speed_low_{i + 1}"
+    # J_phi's integrand is the sum of the drones' squared roll rates
+    np.testing.assert_array_equal(objective_rates(inputs)[:, 1], (inputs.roll_rate**2).sum(-1))

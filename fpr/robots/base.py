@@ -12,14 +12,14 @@ The members come in two groups, in the manner of Pink's ``Task`` or Crocoddyl's 
   ``name``, ``xacro``, ``urdf``, ``layout``, ``chain_units``, ``task_coordinates``, ``assembly_modes``,
   ``crosses_singularity``, ``singular_margins``, ``margin_hints``, ``reference_chain``,
   ``mass_parameters``, ``titles``, ``task_point_labels``, ``task_frame``, ``fixed_point``, ``force_axes``,
-  ``out_of_plane``, ``constraint_kinds``;
+  ``out_of_plane``, ``constraint_kinds``, ``attitude_kinds``;
 * **methods** of the bound instance, which read the robot's geometry from its model: link lengths and
   ground, kinematics (``drone_joints``, ``drone_joint_velocities``, ``chain_jacobian``,
   ``task_points``; for figures ``joint_legends``, ``height_panels``), workspace and assembly modes
   (``workspace_margins``, ``crossing_margins``, ``planning_pose``, ``check_pose``, ``assembly_mode``,
-  ``coordinate_axes``, ``mission_region``), thrust from motion
-  (``thrust_vectors``, ``needs_high_derivatives``), the closure of the plant (``closed_chain``,
-  ``closure_reader``) and the controller's outer-loop solve (``outer_loop_forces``).
+  ``coordinate_axes``, ``mission_region``), what the drones must do along a motion (``motion_inputs``,
+  ``thrust_vectors``, ``needs_high_derivatives``, ``attitude_margins``, ``full_state``), the closure of the
+  plant (``closed_chain``, ``closure_reader``) and the controller's outer-loop solve (``outer_loop_forces``).
 
 Members marked *required* must be given by every robot; the others have defaults here that suit a
 robot whose planning coordinates are its task coordinates and whose drone-joint Jacobian is invertible
@@ -286,6 +286,64 @@ class RobotKind:
         Default: "name [unit]" and no bound.
         """
         return [(f"{n} [{u}]", None) for n, u in self.planning_columns()]
+
+    # ------------------------------------------------------------------ what the drones must do along a motion
+    def motion_inputs(self, motion, external=None) -> inverse_dynamics.MotionInputs:
+        """Thrusts, attitudes, torques and rotor speeds along a motion of the chain
+        (:func:`fpr.model.inverse_dynamics.inverse_dynamics` asks this).
+
+        Args:
+            motion: s and its time derivatives 0..4, shape (5, N, n_s) (or (5, n_s) for one sample); rows 5
+                and 6 are used where ``needs_high_derivatives`` says so.
+            external: generalised force Q_ext [N or N m] of known external forces on the chain coordinates,
+                shape (N, n_s), or a Jet of it with its time derivatives, or None.
+
+        Returns:
+            the :class:`~fpr.model.inverse_dynamics.MotionInputs` at the N samples. Default: the planar
+            robots' (:func:`fpr.model.inverse_dynamics.planar_inverse_dynamics`).
+        """
+        return inverse_dynamics.planar_inverse_dynamics(self.robot, motion, external)
+
+    def attitude_margins(self, inputs, scaled: bool) -> list[list[tuple[str, str, np.ndarray]]]:
+        """The planner's margins (>= 0 where satisfied) on the drones' attitude, per drone: (constraint name,
+        detail, margin (N,)) of each row, the names' kinds among ``attitude_kinds``.
+
+        Args:
+            inputs: the :class:`~fpr.model.inverse_dynamics.MotionInputs` of a motion (or an object with the
+                attributes the kind reads: a simulation's measured rolls, :mod:`fpr.sim.margins`).
+            scaled: True for the optimiser's smooth, O(1) rows, False for natural units.
+
+        Returns:
+            one list of rows per drone. Default: the roll bound |phi_i| <= pi/2 - m_ga (seed 3.33, 3.45),
+            ``roll_<i>`` "negative" and "positive", the same rows scaled or not [rad].
+        """
+        limit = np.pi / 2 - self.robot.margins.angle
+        rows = []
+        for i in range(self.robot.n_drones):
+            roll = inputs.roll[:, i]
+            rows.append([(f"roll_{i + 1}", "negative", limit + roll), (f"roll_{i + 1}", "positive", limit - roll)])
+        return rows
+
+    def full_state(self, inputs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Configurations, velocities and accelerations of the full model along a motion, each of shape (N, n).
+
+        Args:
+            inputs: the :class:`~fpr.model.inverse_dynamics.MotionInputs` of the motion.
+
+        Returns:
+            (q, q', q''). Default: the chain coordinates from the motion, each drone's attitude coordinates
+            (``layout.drone_attitude``) from ``inputs.attitude`` and its derivatives, the others (the
+            ``out_of_plane`` ones) 0.
+        """
+        robot = self.robot
+        n = inputs.motion.shape[1]
+        out = [np.zeros((n, robot.nq)) for _ in range(3)]
+        chain = robot.indices(robot.layout.chain)
+        attitude = robot.indices(robot.layout.rolls)  # drone_attitude flattened, drone after drone
+        for k, value in enumerate((inputs.attitude, inputs.attitude_rate, inputs.attitude_acceleration)):
+            out[k][:, chain] = inputs.motion[k]
+            out[k][:, attitude] = value.reshape(n, -1)
+        return tuple(out)
 
     # ------------------------------------------------------------------ thrust from motion
     def thrust_vectors(self, motion: Jet, generalized: Jet, order: int | None = None) -> Jet:

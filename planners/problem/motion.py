@@ -162,11 +162,12 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
         cols.append(value)
         names.append(name)
         details.append("")
+    attitude = robot.kind.attitude_margins(inputs, scaled)
     for i in range(robot.n_drones):
-        roll = inputs.roll[:, i]
-        cols += [lim.roll + roll, lim.roll - roll]
-        names += [f"roll_{i + 1}"] * 2
-        details += ["negative", "positive"]
+        for name, detail, margin in attitude[i]:
+            cols.append(margin)
+            names.append(name)
+            details.append(detail)
         for m in range(4):
             if scaled:
                 w2 = inputs.rotor_speed_squared[:, i, m] / lim.speed**2
@@ -233,13 +234,15 @@ def _chain_basis(sensitivities, basis_by_node) -> np.ndarray:
     return out.reshape(n, q, j, 2, -1).transpose(0, 1, 3, 4, 2)
 
 
-def _integrands(power, roll_rate, smoothing: float) -> np.ndarray:
-    """[sum_i |P_i|, sum_i phi_i'^2] per sample from the drone powers F_i . r_i' and roll rates (N, n_d)."""
+def _integrands(power, rate_squared, smoothing: float) -> np.ndarray:
+    """[sum_i |P_i|, sum_i |w_i|^2] per sample from the drone powers F_i . r_i' and the squares of the drones'
+    angular speeds (N, n_d) (phi_i'^2 for a planar robot's).
+    """
     if smoothing > 0:
         power = np.sqrt(power * power + smoothing**2) - smoothing
     else:
         power = np.abs(power)
-    return np.stack([power.sum(-1), (roll_rate**2).sum(-1)], axis=-1)
+    return np.stack([power.sum(-1), rate_squared.sum(-1)], axis=-1)
 
 
 def objective_rates(inputs: MotionInputs, smoothing: float = 0.0) -> np.ndarray:
@@ -248,7 +251,7 @@ def objective_rates(inputs: MotionInputs, smoothing: float = 0.0) -> np.ndarray:
     ``smoothing`` > 0 replaces |x| by sqrt(x^2 + eps^2) - eps (analytic, complex-step safe).
     """
     power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)  # (N, n_d)
-    return _integrands(power, inputs.roll_rate, smoothing)
+    return _integrands(power, inputs.attitude_rate_squared, smoothing)
 
 
 def point_time_scales(durations) -> np.ndarray:
@@ -518,7 +521,7 @@ class MotionProblem:
                 def power_gram(weight, power_local=power_local):
                     return self._assemble(np.asarray(weight, dtype=float).reshape(n_s, n_d), power_local)
         n_d = raw.shape[1] // 2
-        terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
+        terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:] ** 2, POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
         if self.dips:
             rows, tau = between_node_minima(rows, self.samples_per_segment, self._half_step_columns)
