@@ -102,6 +102,8 @@ def test_a_registered_kind_adds_its_constraint_kinds_and_a_unit_clash_is_refused
                                                           "tilt": ("rad", "drone tilt from the vertical")},
                                      "attitude_kinds": ("roll", "tilt")})
     assert "tilt" not in CONSTRAINT_KINDS
+    with pytest.raises(StopIteration):
+        constraint_kind("tilt_3")  # (an answer constraint_kind remembers only while the registry stays)
     fpr.robots.register(tilted)
     try:
         assert CONSTRAINT_KINDS["tilt"][0] == "rad"
@@ -110,6 +112,7 @@ def test_a_registered_kind_adds_its_constraint_kinds_and_a_unit_clash_is_refused
     finally:
         fpr.robots.unregister(tilted.name)
     assert "tilt" not in CONSTRAINT_KINDS
+    assert constraint_kind("ground_1") == "ground"
     clash = type("Clash", (Fpr,), {"name": "clash_test_kind", "constraint_kinds": {"ground": ("rad", "?")}})
     fpr.robots.register(clash)
     try:

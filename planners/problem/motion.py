@@ -121,7 +121,18 @@ def workspace_kinds() -> frozenset[str]:
 
 def constraint_kind(name: str) -> str:
     """The kind (key of :data:`CONSTRAINT_KINDS`) of a constraint name such as ``ground_2``."""
-    return next(k for k in sorted(CONSTRAINT_KINDS, key=len, reverse=True) if name.startswith(k))
+    table = robots.constraint_kinds()  # the same object while the registry does not change
+    if _kind_of[0] is not table:
+        _kind_of[:] = [table, {}]
+    found = _kind_of[1].get(name)
+    if found is None:
+        found = next(k for k in sorted(CONSTRAINT_KINDS, key=len, reverse=True) if name.startswith(k))
+        _kind_of[1][name] = found
+    return found
+
+
+# (the robots' constraint kinds it holds for, constraint name -> kind): constraint_kind's answers
+_kind_of: list = [None, {}]
 
 
 def _workspace(robot, s, crossing_sign=None) -> dict:
