@@ -55,6 +55,16 @@ class MotionInputs:
         joint_velocity: r_i', shape (N, n_d, 2) [m/s].
         joint_acceleration: r_i'', shape (N, n_d, 2) [m/s^2].
         chain_force: f_pi, force of drone i on the chain at its joint, shape (N, n_d, 2) [N].
+        attitude: each drone's attitude in its coordinates (``layout.drone_attitude``), shape (N, n_d, k_a)
+            [rad]: a planar robot's roll phi_i (k_a = 1).
+        attitude_rate: their time derivatives, shape (N, n_d, k_a) [rad/s].
+        attitude_acceleration: their second time derivatives, shape (N, n_d, k_a) [rad/s^2].
+        attitude_rate_squared: the square of each drone's angular speed, the integrand of the perturbation
+            index J_phi (seed 3.25) summed over the drones, shape (N, n_d) [rad^2/s^2]: phi_i'^2 for a planar
+            robot.
+
+    The thrust vectors, joint positions and forces have one entry per axis of ``robot.kind.force_axes`` in
+    their last axis (the planar robots': world y, z).
     """
 
     motion: np.ndarray
@@ -71,6 +81,10 @@ class MotionInputs:
     joint_velocity: np.ndarray
     joint_acceleration: np.ndarray
     chain_force: np.ndarray
+    attitude: np.ndarray
+    attitude_rate: np.ndarray
+    attitude_acceleration: np.ndarray
+    attitude_rate_squared: np.ndarray
 
     @property
     def power(self) -> np.ndarray:
@@ -78,17 +92,10 @@ class MotionInputs:
         return np.abs(np.sum(self.thrust_vector * self.joint_velocity, axis=-1))
 
     def full_state(self, robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Configurations, velocities and accelerations of the full model (x = psi = theta = 0),
-        each of shape (N, n): the chain coordinates from the motion, the drone rolls from the plan.
+        """Configurations, velocities and accelerations of the full model, each of shape (N, n): the robot
+        kind's (``robot.kind.full_state``).
         """
-        n = self.motion.shape[1]
-        out = [np.zeros((n, robot.nq)) for _ in range(3)]
-        chain = robot.indices(robot.layout.chain)
-        rolls = robot.indices(robot.layout.rolls)
-        for k, roll in enumerate((self.roll, self.roll_rate, self.roll_acceleration)):
-            out[k][:, chain] = self.motion[k]
-            out[k][:, rolls] = roll
-        return tuple(out)
+        return robot.kind.full_state(self)
 
 
 def _motion_array(robot, motion) -> np.ndarray:
@@ -137,7 +144,7 @@ def solve_thrust_vectors(robot, motion: Jet, generalized: Jet, order: int | None
         generalized = generalized.truncate(order)
     jac = robot.planar("point").hinge_jacobian_jet(motion.truncate(generalized.order))
     force = jets.solve(jac.mT, generalized)
-    return force.reshape(force.shape[:-1] + (robot.n_drones, 2))
+    return force.reshape(force.shape[:-1] + (robot.n_drones, len(robot.kind.force_axes)))
 
 
 #: Derivative order at which to evaluate planned motions for :func:`inverse_dynamics` (0..6: the
@@ -224,7 +231,24 @@ def _roll_rows(m, gen, sel, roll_acceleration):
 
 
 def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
-    """Thrusts, rolls, torques and rotor speeds along a motion of the chain.
+    """What the drones must do along a motion of the chain: the robot kind's ``motion_inputs``.
+
+    Args:
+        robot: the :class:`~fpr.model.robot.Robot`.
+        motion: s and its time derivatives 0..4 (and, where the robot needs them, 5 and 6), shape
+            (5, N, n_s) (or (5, n_s) for one sample).
+        external: generalised force Q_ext [N or N m] of known external forces on the chain coordinates,
+            shape (N, n_s), or a Jet of it with its time derivatives, or None.
+
+    Returns:
+        the :class:`MotionInputs` at the N samples (:func:`planar_inverse_dynamics` for the planar robots).
+    """
+    return robot.kind.motion_inputs(motion, external)
+
+
+def planar_inverse_dynamics(robot, motion, external=None) -> MotionInputs:
+    """Thrusts, rolls, torques and rotor speeds along a motion of a planar robot's chain (drones with one roll
+    each, thrust vectors in the world's y-z plane).
 
     Args:
         robot: the :class:`~fpr.model.robot.Robot`.
@@ -277,4 +301,8 @@ def inverse_dynamics(robot, motion, external=None) -> MotionInputs:
         joint_velocity=hinges.d[1],
         joint_acceleration=hinges.d[2],
         chain_force=chain_force,
+        attitude=roll.value[..., None],
+        attitude_rate=roll.d[1][..., None],
+        attitude_acceleration=roll.d[2][..., None],
+        attitude_rate_squared=roll.d[1] ** 2,
     )

@@ -56,6 +56,8 @@ class Layout:
         drones: names of the drones (URDF prefixes).
         chain: the planar chain coordinates (the planning vector s, or xi for the prototype).
         attitude: the attitude coordinates q_a (seed 2.10).
+        drone_attitude: per drone (in the order of ``drones``), the coordinates that hold its attitude,
+            e.g. (("phi1",), ("phi2",)) for drones with one absolute roll each; each among ``attitude``.
         euler_root: whether Pinocchio gets a 6-dof Euler root joint (floating robot).
     """
 
@@ -64,12 +66,15 @@ class Layout:
     drones: tuple[str, ...]
     chain: tuple[str, ...]
     attitude: tuple[str, ...]
+    drone_attitude: tuple[tuple[str, ...], ...]
     euler_root: bool
 
     @property
     def rolls(self) -> tuple[str, ...]:
-        """The drones' absolute roll coordinates (phi1, phi2...), the in-plane part of the attitude."""
-        return tuple(c for c in self.attitude if c.startswith("phi"))
+        """The drones' attitude coordinates in one tuple, drone after drone (``drone_attitude`` flattened):
+        the absolute rolls (phi1, phi2...) of a planar robot's drones.
+        """
+        return tuple(c for coordinates in self.drone_attitude for c in coordinates)
 
 
 EULER_ROOT_NAME = "end_effector_root"
@@ -160,6 +165,7 @@ class Robot:
         self.rotor_constants: RotorConstants = rotor_constants(self.parameters)
         self.margins: Margins = margins(self.parameters)
         self._build_coordinate_map()
+        self._check_drone_attitude()
         self.drone_frame_ids = tuple(self.model.getFrameId(f"{d}_center") for d in self.layout.drones)
         self.hinge_joint_ids = tuple(self.model.getJointId(f"{d}_hinge") for d in self.layout.drones)
         for fid, jid, d in zip(self.drone_frame_ids, self.hinge_joint_ids, self.layout.drones, strict=True):
@@ -190,6 +196,17 @@ class Robot:
         self.T = t
         self.T_inv = np.linalg.inv(t)
         self.index = {c: i for i, c in enumerate(names)}
+
+    def _check_drone_attitude(self):
+        layout = self.layout
+        if len(layout.drone_attitude) != len(layout.drones):
+            raise RobotDefinitionError(self.name, f"the layout's drone_attitude has {len(layout.drone_attitude)} "
+                                                  f"entries for {len(layout.drones)} drones: give one tuple of "
+                                                  "attitude coordinates per drone")
+        stray = [c for c in layout.rolls if c not in layout.attitude]
+        if stray:
+            raise RobotDefinitionError(self.name, f"the layout's drone_attitude names {stray}, which are not "
+                                                  f"among its attitude coordinates {layout.attitude}")
 
     @property
     def nq(self) -> int:

@@ -107,6 +107,36 @@ def names() -> tuple[str, ...]:
     return tuple(_REGISTRY)
 
 
+def constraint_kinds() -> dict[str, tuple[str, str]]:
+    """The constraint kinds of the registered robots (``RobotKind.constraint_kinds``): name prefix ->
+    (unit, what it bounds), the first robot's text where two robots name the same kind.
+
+    Raises:
+        RobotDefinitionError: two robots give the same kind different units.
+    """
+    kinds = tuple(get(name) for name in names())
+    cached = _constraint_kinds_cache.get(kinds)
+    if cached is None:
+        cached = {}
+        for kind in kinds:
+            for key, (unit, text) in kind.constraint_kinds.items():
+                if key in cached and cached[key][0] != unit:
+                    raise RobotDefinitionError(kind.name, f"its constraint kind {key!r} is in {unit}, another "
+                                                          f"robot's in {cached[key][0]}: rename it")
+                cached.setdefault(key, (unit, text))
+        _constraint_kinds_cache.clear()
+        _constraint_kinds_cache[kinds] = cached
+    return cached
+
+
+def attitude_kinds() -> frozenset[str]:
+    """The constraint kinds that bound the drones' attitude, of every registered robot (``attitude_kinds``)."""
+    return frozenset(k for name in names() for k in get(name).attitude_kinds)
+
+
+_constraint_kinds_cache: dict[tuple, dict] = {}
+
+
 def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Robot:
     """Load a robot into Pinocchio.
 

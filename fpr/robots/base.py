@@ -11,14 +11,15 @@ The members come in two groups, in the manner of Pink's ``Task`` or Crocoddyl's 
 * **class attributes**, known without a model (the registry, missions and file columns use them):
   ``name``, ``xacro``, ``urdf``, ``layout``, ``chain_units``, ``task_coordinates``, ``assembly_modes``,
   ``crosses_singularity``, ``singular_margins``, ``margin_hints``, ``reference_chain``,
-  ``mass_parameters``, ``titles``, ``task_point_labels``, ``task_frame``, ``fixed_point``;
+  ``mass_parameters``, ``titles``, ``task_point_labels``, ``task_frame``, ``fixed_point``, ``force_axes``,
+  ``out_of_plane``, ``constraint_kinds``, ``attitude_kinds``;
 * **methods** of the bound instance, which read the robot's geometry from its model: link lengths and
   ground, kinematics (``drone_joints``, ``drone_joint_velocities``, ``chain_jacobian``,
   ``task_points``; for figures ``joint_legends``, ``height_panels``), workspace and assembly modes
   (``workspace_margins``, ``crossing_margins``, ``planning_pose``, ``check_pose``, ``assembly_mode``,
-  ``coordinate_axes``, ``mission_region``), thrust from motion
-  (``thrust_vectors``, ``needs_high_derivatives``), the closure of the plant (``closed_chain``,
-  ``closure_reader``) and the controller's outer-loop solve (``outer_loop_forces``).
+  ``coordinate_axes``, ``mission_region``), what the drones must do along a motion (``motion_inputs``,
+  ``thrust_vectors``, ``needs_high_derivatives``, ``attitude_margins``, ``full_state``), the closure of the
+  plant (``closed_chain``, ``closure_reader``) and the controller's outer-loop solve (``outer_loop_forces``).
 
 Members marked *required* must be given by every robot; the others have defaults here that suit a
 robot whose planning coordinates are its task coordinates and whose drone-joint Jacobian is invertible
@@ -36,10 +37,15 @@ from typing import ClassVar
 import numpy as np
 
 from fpr.model import inverse_dynamics
-from fpr.model.errors import FprError, ModelArgumentError
+from fpr.model.errors import FprError, ModelArgumentError, RobotDefinitionError
 from fpr.model.jets import Jet
 from fpr.model.kinematics import check_margins, last_axis
 from fpr.model.robot import Layout
+
+#: The constraint kinds of a robot whose drone joints stay above a ground and whose drones have one roll
+#: each (the built-in robots): entries of ``RobotKind.constraint_kinds``.
+GROUND_KIND = ("m", "drone joint height above the ground margin z >= -L + m_gd (3.27, 3.40-3.41)")
+ROLL_KIND = ("rad", "drone roll |phi_i| <= pi/2 - m_ga (3.33, 3.45)")
 
 
 class RobotKind:
@@ -74,7 +80,21 @@ class RobotKind:
             :mod:`fpr.views.figures`).
         task_point_labels: (the main task-space point, the other joints) of ``task_points``, for legends.
         task_frame: the Pinocchio frame of the main task-space point (3D scenes).
-        fixed_point: (y, z) of a point of the chain fixed in the world [m], or None.
+        fixed_point: the coordinates along ``force_axes`` of a point of the chain fixed in the world [m], or
+            None.
+        force_axes: the world axes of the thrust vectors F_i, the drone joints r_i and their velocities, the
+            points of ``task_points`` and ``fixed_point``: ("y", "z") for a robot that moves in the world's
+            y-z plane. Arrays of such vectors have ``len(force_axes)`` entries in their last axis.
+        out_of_plane: the coordinates that a plan keeps at 0 and a simulation may move (the simulation's
+            summary and the out-of-plane figure report them), e.g. ("x", "psi", "theta"); empty for a robot
+            that tracks all of its coordinates.
+        constraint_kinds: the kinds of the robot's own constraints, by the prefix of their names, each with
+            its (unit, what it bounds): its workspace margins' kinds (``workspace_margins``,
+            ``crossing_margins``) and its drones' attitude margins' (``"roll"`` for drones with one roll
+            each). They join the generic kinds of :data:`planners.problem.motion.CONSTRAINT_KINDS`; a kind
+            named by two robots has one unit.
+        attitude_kinds: which of ``constraint_kinds`` bound the drones' attitude (the others bound the
+            workspace, a function of the planning coordinates alone).
     """
 
     name: ClassVar[str]
@@ -92,7 +112,11 @@ class RobotKind:
     titles: ClassVar[Mapping[str, str]] = {}
     task_point_labels: ClassVar[tuple[str, str]] = ("end-effector", "drone joints")
     task_frame: ClassVar[str] = "end_effector"
-    fixed_point: ClassVar[tuple[float, float] | None] = None
+    fixed_point: ClassVar[tuple[float, ...] | None] = None
+    force_axes: ClassVar[tuple[str, ...]] = ("y", "z")
+    out_of_plane: ClassVar[tuple[str, ...]] = ()
+    constraint_kinds: ClassVar[Mapping[str, tuple[str, str]]] = {}
+    attitude_kinds: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, robot):
         """Bind the kind to ``robot`` (a :class:`~fpr.model.robot.Robot` built from this kind's layout)."""
@@ -133,12 +157,23 @@ class RobotKind:
 
     @property
     def ground_height(self) -> float:
-        """z of the ground [m]: -L, with L the link length of the first drone's link (DESIGN.md)."""
-        return -self.robot.link_length
+        """z of the ground [m]: -L, with L the link length of the first drone's link (DESIGN.md).
+
+        Required of a robot whose first drone does not hang on a link (its hinge at the origin of the body
+        that carries it: L = 0 says nothing of the ground).
+
+        Raises:
+            RobotDefinitionError: the robot's first drone hinge has no offset from its parent body.
+        """
+        length = self.robot.link_length
+        if length == 0.0:
+            raise RobotDefinitionError(self.name, "its first drone's hinge sits at the origin of the body that "
+                                                  "carries it (no link): give the kind a ground_height")
+        return -length
 
     # ------------------------------------------------------------------ kinematics
     def drone_joints(self, s) -> np.ndarray:
-        """Drone joint positions r_i (world y, z), shape (..., n_d, 2) [m].
+        """Drone joint positions r_i (along ``force_axes``: world y, z), shape (..., n_d, 2) [m].
 
         Default: from the point-drone planar model (exact, not closed form).
         """
@@ -149,7 +184,7 @@ class RobotKind:
         """Drone joint velocities r_i', shape (..., n_d, 2) [m/s], for s' [m/s, rad/s] of the same shape as s."""
         jac = self.chain_jacobian(s)
         v = np.einsum("...ij,...j->...i", jac, last_axis(s_dot, len(self.layout.chain), "s_dot"))
-        return v.reshape(v.shape[:-1] + (-1, 2))
+        return v.reshape(v.shape[:-1] + (-1, len(self.force_axes)))
 
     def chain_jacobian(self, s) -> np.ndarray:
         """J_h = d[r_1; ...; r_nd]/ds, shape (..., 2 n_d, n_s) (seed 2.6, 3.35).
@@ -252,6 +287,64 @@ class RobotKind:
         """
         return [(f"{n} [{u}]", None) for n, u in self.planning_columns()]
 
+    # ------------------------------------------------------------------ what the drones must do along a motion
+    def motion_inputs(self, motion, external=None) -> inverse_dynamics.MotionInputs:
+        """Thrusts, attitudes, torques and rotor speeds along a motion of the chain
+        (:func:`fpr.model.inverse_dynamics.inverse_dynamics` asks this).
+
+        Args:
+            motion: s and its time derivatives 0..4, shape (5, N, n_s) (or (5, n_s) for one sample); rows 5
+                and 6 are used where ``needs_high_derivatives`` says so.
+            external: generalised force Q_ext [N or N m] of known external forces on the chain coordinates,
+                shape (N, n_s), or a Jet of it with its time derivatives, or None.
+
+        Returns:
+            the :class:`~fpr.model.inverse_dynamics.MotionInputs` at the N samples. Default: the planar
+            robots' (:func:`fpr.model.inverse_dynamics.planar_inverse_dynamics`).
+        """
+        return inverse_dynamics.planar_inverse_dynamics(self.robot, motion, external)
+
+    def attitude_margins(self, inputs, scaled: bool) -> list[list[tuple[str, str, np.ndarray]]]:
+        """The planner's margins (>= 0 where satisfied) on the drones' attitude, per drone: (constraint name,
+        detail, margin (N,)) of each row, the names' kinds among ``attitude_kinds``.
+
+        Args:
+            inputs: the :class:`~fpr.model.inverse_dynamics.MotionInputs` of a motion (or an object with the
+                attributes the kind reads: a simulation's measured rolls, :mod:`fpr.sim.margins`).
+            scaled: True for the optimiser's smooth, O(1) rows, False for natural units.
+
+        Returns:
+            one list of rows per drone. Default: the roll bound |phi_i| <= pi/2 - m_ga (seed 3.33, 3.45),
+            ``roll_<i>`` "negative" and "positive", the same rows scaled or not [rad].
+        """
+        limit = np.pi / 2 - self.robot.margins.angle
+        rows = []
+        for i in range(self.robot.n_drones):
+            roll = inputs.roll[:, i]
+            rows.append([(f"roll_{i + 1}", "negative", limit + roll), (f"roll_{i + 1}", "positive", limit - roll)])
+        return rows
+
+    def full_state(self, inputs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Configurations, velocities and accelerations of the full model along a motion, each of shape (N, n).
+
+        Args:
+            inputs: the :class:`~fpr.model.inverse_dynamics.MotionInputs` of the motion.
+
+        Returns:
+            (q, q', q''). Default: the chain coordinates from the motion, each drone's attitude coordinates
+            (``layout.drone_attitude``) from ``inputs.attitude`` and its derivatives, the others (the
+            ``out_of_plane`` ones) 0.
+        """
+        robot = self.robot
+        n = inputs.motion.shape[1]
+        out = [np.zeros((n, robot.nq)) for _ in range(3)]
+        chain = robot.indices(robot.layout.chain)
+        attitude = robot.indices(robot.layout.rolls)  # drone_attitude flattened, drone after drone
+        for k, value in enumerate((inputs.attitude, inputs.attitude_rate, inputs.attitude_acceleration)):
+            out[k][:, chain] = inputs.motion[k]
+            out[k][:, attitude] = value.reshape(n, -1)
+        return tuple(out)
+
     # ------------------------------------------------------------------ thrust from motion
     def thrust_vectors(self, motion: Jet, generalized: Jet, order: int | None = None) -> Jet:
         """Thrust vectors F_i from J_h(s)^T F = b along a motion (seed 2.16, 3.12, 3.37).
@@ -318,9 +411,9 @@ class RobotKind:
             singular_band: the controller's regularisation angle near a Type-2 singularity [rad].
 
         Returns:
-            F, shape (n_d, 2) [N]. Default: the plain solve.
+            F, shape (n_d, len(force_axes)) [N]. Default: the plain solve.
         """
-        return np.linalg.solve(jacobian.T, b).reshape(-1, 2)
+        return np.linalg.solve(jacobian.T, b).reshape(-1, len(self.force_axes))
 
 
-__all__ = ["RobotKind"]
+__all__ = ["GROUND_KIND", "ROLL_KIND", "RobotKind"]

@@ -28,7 +28,7 @@ from fpr.model.errors import ModelArgumentError, WorkspaceError
 from fpr.model.kinematics import last_axis, u, u_perp
 from fpr.model.parameters import Margins
 from fpr.model.robot import EULER_ROOT_NAME, Layout
-from fpr.robots.base import RobotKind
+from fpr.robots.base import GROUND_KIND, ROLL_KIND, RobotKind
 
 LAYOUT = Layout(
     coordinates=("x", "y", "z", "psi", "theta", "phi", "q21", "phi1", "phi2"),
@@ -40,6 +40,7 @@ LAYOUT = Layout(
     drones=("drone_1", "drone_2"),
     chain=("y", "z", "phi", "q21"),
     attitude=("psi", "theta", "phi1", "phi2"),
+    drone_attitude=(("phi1",), ("phi2",)),
     euler_root=True,
 )
 """The FPR's coordinates and their Pinocchio joints (the drone hinges are relative to their link)."""
@@ -242,6 +243,14 @@ class Fpr(RobotKind):
     chain_units = ("m", "m", "rad", "rad")
     reference_chain = (0.0, 0.0, 5 * np.pi / 4, np.pi / 2)
     singular_margins = ("q21",)
+    out_of_plane = ("x", "psi", "theta")
+    constraint_kinds = {
+        "ground": GROUND_KIND,
+        "phi": ("rad", "end-effector orientation pi + m_ga <= phi <= 2 pi - m_ga (3.28)"),
+        "q21": ("rad", "Type-2 singularity m_ga <= q21 <= pi - m_ga (3.29)"),
+        "roll": ROLL_KIND,
+    }
+    attitude_kinds = ("roll",)
     margin_hints = {"phi": "keep pi + m_ga <= phi <= 2 pi - m_ga (end-effector below the first drone)"}
     task_point_labels = ("end-effector", "drone joints")
     task_frame = "end_effector"

@@ -30,7 +30,7 @@ from fpr.model.kinematics import check_margins, last_axis, singularity_margin, u
 from fpr.model.parameters import Margins
 from fpr.model.robot import Layout
 from fpr.robots import prototype_thrust
-from fpr.robots.base import RobotKind
+from fpr.robots.base import GROUND_KIND, ROLL_KIND, RobotKind
 
 LAYOUT = Layout(
     coordinates=("psi", "theta", "q1", "q2", "phi1"),
@@ -44,6 +44,7 @@ LAYOUT = Layout(
     drones=("drone_1",),
     chain=("q1", "q2"),
     attitude=("psi", "theta", "phi1"),
+    drone_attitude=(("phi1",),),
     euler_root=False,
 )
 """The prototype's coordinates and their Pinocchio joints (the drone hinge is relative to link 2)."""
@@ -185,6 +186,17 @@ class Prototype(RobotKind):
     crosses_singularity = True
     reference_chain = (0.3, 1.2)
     singular_margins = ("q2_",)
+    out_of_plane = ("psi", "theta")
+    constraint_kinds = {
+        "ground": GROUND_KIND,
+        "fixed_point": ("m", "joint distance y >= m_gd from the fixed point's vertical (3.42-3.43)"),
+        "q1": ("rad", "|q1| <= pi/2 - m_ga (3.44)"),
+        "q2": ("rad", "Type-2 singularity m_ga <= q2 <= pi - m_ga (3.46)"),
+        "crossing": ("rad", "a singularity crossing: q2 keeps the sign of its side of the single crossing, "
+                            "|q2| <= pi - m_ga"),
+        "roll": ROLL_KIND,
+    }
+    attitude_kinds = ("roll",)
     margin_hints = {"fixed_point": "move the joint away from the fixed point: its y must be at least m_gd",
                     "q1": "keep |q1| <= pi/2 - m_ga"}
     task_point_labels = ("drone joint", "elbow joint")

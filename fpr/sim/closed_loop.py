@@ -31,7 +31,7 @@ import numpy as np
 from controllers.ctc import CascadedController, ControllerSettings, Reference
 from fpr.model.errors import ModelArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
-from fpr.robots import load
+from fpr.robots import get, load
 from fpr.sim.plant import Plant, PlantDivergedError
 from fpr.sim.watch import Watch
 
@@ -161,7 +161,8 @@ class SimulationLog:
         return float(self.t[-1] - self.t[0]) / max(self.wall_time, 1e-12)
 
     def summary(self) -> dict:
-        """Tracking errors (RMS and max per planning coordinate), out-of-plane motion, rotor speeds
+        """Tracking errors (RMS and max per planning coordinate), out-of-plane motion (the robot kind's
+        ``out_of_plane`` coordinates), rotor speeds
         against the limits, allocation saturations, closure error, real-time factor, and the failure (None
         for a run that reached its end) with its time.
         """
@@ -171,7 +172,7 @@ class SimulationLog:
             "tracking_max": {c: float(np.abs(err[:, i]).max()) for i, c in enumerate(self.chain)},
             "final_error": {c: float(err[-1, i]) for i, c in enumerate(self.chain)},
             "max_abs_out_of_plane": {c: float(np.abs(self.column(c)).max())
-                                     for c in ("x", "psi", "theta") if c in self.coordinates},
+                                     for c in get(self.robot_name).out_of_plane if c in self.coordinates},
             "peak_rotor_speed_rad_s": float(self.speed.max()),
             "least_rotor_speed_rad_s": float(self.speed.min()),
             "rotor_speed_limit_rad_s": self.max_speed,

@@ -35,11 +35,13 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
 
+from fpr import robots
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
 from planners.problem.banded import Banded
@@ -78,17 +80,8 @@ class Limits:
                    speed=robot.rotor_constants.max_speed - robot.margins.rotor_speed)
 
 
-# kind -> (unit, what it bounds)
-CONSTRAINT_KINDS = {
-    "ground": ("m", "drone joint height above the ground margin z >= -L + m_gd (3.27, 3.40-3.41)"),
-    "fixed_point": ("m", "joint distance y >= m_gd from the fixed point's vertical (3.42-3.43)"),
-    "phi": ("rad", "end-effector orientation pi + m_ga <= phi <= 2 pi - m_ga (3.28)"),
-    "q21": ("rad", "Type-2 singularity m_ga <= q21 <= pi - m_ga (3.29)"),
-    "q1": ("rad", "|q1| <= pi/2 - m_ga (3.44)"),
-    "q2": ("rad", "Type-2 singularity m_ga <= q2 <= pi - m_ga (3.46)"),
-    "crossing": ("rad", "a singularity crossing: q2 keeps the sign of its side of the single crossing, "
-                        "|q2| <= pi - m_ga"),
-    "roll": ("rad", "drone roll |phi_i| <= pi/2 - m_ga (3.33, 3.45)"),
+#: The constraint kinds every robot has: kind -> (unit, what it bounds).
+GENERIC_CONSTRAINT_KINDS = {
     "rotor_speed_low": ("rad/s", "rotor speed w >= 0 (3.48)"),
     "rotor_speed_high": ("rad/s", "rotor speed w <= w_max - m_gr (3.48)"),
     "thrust_low": ("N", "thrust f_i >= f_min: the controller steers the thrust's direction, which a small "
@@ -96,13 +89,50 @@ CONSTRAINT_KINDS = {
 }
 
 
-#: The constraint kinds of the robot's workspace margins (a function of the motion's positions alone).
-WORKSPACE_KINDS = ("ground", "fixed_point", "phi", "q21", "q1", "q2", "crossing")
+class _ConstraintKinds(Mapping):
+    """kind -> (unit, what it bounds): the generic kinds (:data:`GENERIC_CONSTRAINT_KINDS`) and those of every
+    registered robot (``RobotKind.constraint_kinds``: its workspace's and its drones' attitude's), read from
+    the registry when asked (a robot registered later adds its own).
+    """
+
+    def _table(self) -> dict:
+        return {**robots.constraint_kinds(), **GENERIC_CONSTRAINT_KINDS}
+
+    def __getitem__(self, kind):
+        return self._table()[kind]
+
+    def __iter__(self):
+        return iter(self._table())
+
+    def __len__(self):
+        return len(self._table())
+
+
+#: kind -> (unit, what it bounds) of every constraint a plan can have, the robots' included.
+CONSTRAINT_KINDS: Mapping[str, tuple[str, str]] = _ConstraintKinds()
+
+
+def workspace_kinds() -> frozenset[str]:
+    """The constraint kinds of the robots' workspace margins (a function of the motion's positions alone): the
+    registered robots' kinds but those of their drones' attitude.
+    """
+    return frozenset(robots.constraint_kinds()) - robots.attitude_kinds()
 
 
 def constraint_kind(name: str) -> str:
     """The kind (key of :data:`CONSTRAINT_KINDS`) of a constraint name such as ``ground_2``."""
-    return next(k for k in sorted(CONSTRAINT_KINDS, key=len, reverse=True) if name.startswith(k))
+    table = robots.constraint_kinds()  # the same object while the registry does not change
+    if _kind_of[0] is not table:
+        _kind_of[:] = [table, {}]
+    found = _kind_of[1].get(name)
+    if found is None:
+        found = next(k for k in sorted(CONSTRAINT_KINDS, key=len, reverse=True) if name.startswith(k))
+        _kind_of[1][name] = found
+    return found
+
+
+# (the robots' constraint kinds it holds for, constraint name -> kind): constraint_kind's answers
+_kind_of: list = [None, {}]
 
 
 def _workspace(robot, s, crossing_sign=None) -> dict:
@@ -143,11 +173,12 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
         cols.append(value)
         names.append(name)
         details.append("")
+    attitude = robot.kind.attitude_margins(inputs, scaled)
     for i in range(robot.n_drones):
-        roll = inputs.roll[:, i]
-        cols += [lim.roll + roll, lim.roll - roll]
-        names += [f"roll_{i + 1}"] * 2
-        details += ["negative", "positive"]
+        for name, detail, margin in attitude[i]:
+            cols.append(margin)
+            names.append(name)
+            details.append(detail)
         for m in range(4):
             if scaled:
                 w2 = inputs.rotor_speed_squared[:, i, m] / lim.speed**2
@@ -214,13 +245,15 @@ def _chain_basis(sensitivities, basis_by_node) -> np.ndarray:
     return out.reshape(n, q, j, 2, -1).transpose(0, 1, 3, 4, 2)
 
 
-def _integrands(power, roll_rate, smoothing: float) -> np.ndarray:
-    """[sum_i |P_i|, sum_i phi_i'^2] per sample from the drone powers F_i . r_i' and roll rates (N, n_d)."""
+def _integrands(power, rate_squared, smoothing: float) -> np.ndarray:
+    """[sum_i |P_i|, sum_i |w_i|^2] per sample from the drone powers F_i . r_i' and the squares of the drones'
+    angular speeds (N, n_d) (phi_i'^2 for a planar robot's).
+    """
     if smoothing > 0:
         power = np.sqrt(power * power + smoothing**2) - smoothing
     else:
         power = np.abs(power)
-    return np.stack([power.sum(-1), (roll_rate**2).sum(-1)], axis=-1)
+    return np.stack([power.sum(-1), rate_squared.sum(-1)], axis=-1)
 
 
 def objective_rates(inputs: MotionInputs, smoothing: float = 0.0) -> np.ndarray:
@@ -229,7 +262,7 @@ def objective_rates(inputs: MotionInputs, smoothing: float = 0.0) -> np.ndarray:
     ``smoothing`` > 0 replaces |x| by sqrt(x^2 + eps^2) - eps (analytic, complex-step safe).
     """
     power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)  # (N, n_d)
-    return _integrands(power, inputs.roll_rate, smoothing)
+    return _integrands(power, inputs.attitude_rate_squared, smoothing)
 
 
 def point_time_scales(durations) -> np.ndarray:
@@ -406,7 +439,8 @@ class MotionProblem:
             return 0
         if self._rows_names is None:
             self.evaluate(self.x_of(self.points))
-        return sum(1 for name in self._rows_names if constraint_kind(name) in WORKSPACE_KINDS)
+        kinds = workspace_kinds()
+        return sum(1 for name in self._rows_names if constraint_kind(name) in kinds)
 
     def _quantities(self, motion):
         """Raw per-drone integrand pieces (N, 2 n_d): [F_i . r_i' ..., phi_i' ...], and the rows."""
@@ -498,7 +532,7 @@ class MotionProblem:
                 def power_gram(weight, power_local=power_local):
                     return self._assemble(np.asarray(weight, dtype=float).reshape(n_s, n_d), power_local)
         n_d = raw.shape[1] // 2
-        terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:], POWER_SMOOTHING)
+        terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:] ** 2, POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
         if self.dips:
             rows, tau = between_node_minima(rows, self.samples_per_segment, self._half_step_columns)

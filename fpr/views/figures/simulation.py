@@ -37,8 +37,17 @@ SIMULATION_FIGURES = ("sim_path", "sim_coordinates", "sim_out_of_plane", "sim_ro
                       "sim_rotor_speeds", "sim_rotor_forces", "sim_energy")
 
 
-# thesis order of the out-of-plane coordinates (Fig. 3.20, 3.23, 3.24) and their axis labels
-_OUT_OF_PLANE = (("x", "x [m]"), ("theta", r"$\theta$ [rad]"), ("psi", r"$\psi$ [rad]"))
+# axis labels of out-of-plane coordinates, in the thesis' order of their panels (Fig. 3.20, 3.23, 3.24)
+_OUT_OF_PLANE_LABELS = {"x": "x [m]", "theta": r"$\theta$ [rad]", "psi": r"$\psi$ [rad]"}
+
+
+def _out_of_plane_panels(robot) -> list[tuple[str, str]]:
+    """(coordinate, axis label) of each of the robot kind's ``out_of_plane`` coordinates: those with a label
+    of :data:`_OUT_OF_PLANE_LABELS` in its order, then the others by their names.
+    """
+    names = robot.kind.out_of_plane
+    known = [(c, label) for c, label in _OUT_OF_PLANE_LABELS.items() if c in names]
+    return known + [(c, c) for c in names if c not in _OUT_OF_PLANE_LABELS]
 
 
 @dataclass(frozen=True)
@@ -101,7 +110,7 @@ def _simulated(robot, log) -> _Simulated:
         thrust=_field("log", log, "thrust", (n, n_d), "allocated thrusts [N]"),
         speed=_field("log", log, "speed", (n, n_d, 4), "plant rotor speeds [rad/s]"),
         drone_height=_field("log", log, "drone_height", (n, n_d), "drone heights [m]"),
-        out_of_plane={c: q[:, coordinates.index(c)] for c, _ in _OUT_OF_PLANE if c in coordinates},
+        out_of_plane={c: q[:, coordinates.index(c)] for c, _ in _out_of_plane_panels(robot) if c in coordinates},
         max_speed=float(log.max_speed),
     )
 
@@ -180,12 +189,13 @@ def _sim_coordinates(robot, log, plan: SampledPlan | None = None) -> Figure:
 
 
 def _sim_out_of_plane(robot, log, plan: SampledPlan | None = None) -> Figure:
-    """Out of the plane: x (FPR), pitch theta, yaw psi of the simulated robot (Fig. 3.20, 3.23-3.24).
+    """Out of the plane: the robot kind's ``out_of_plane`` coordinates (x (FPR), pitch theta, yaw psi) of the
+    simulated robot (Fig. 3.20, 3.23-3.24).
 
     The plan keeps them at 0.
     """
     sim = _simulated(robot, log)
-    specs = [(c, label) for c, label in _OUT_OF_PLANE if c in sim.out_of_plane]
+    specs = [(c, label) for c, label in _out_of_plane_panels(robot) if c in sim.out_of_plane]
     with _styled():
         fig, axes = _new_figure(len(specs))
         for ax, (name, ylabel) in zip(axes, specs, strict=True):
