@@ -314,7 +314,7 @@ class RobotKind:
             scaled: True for the optimiser's smooth, O(1) rows, False for natural units.
 
         Returns:
-            one list of rows per drone. Default: the roll bound |phi_i| <= pi/2 - m_ga (seed 3.33, 3.45),
+            one list of rows per drone. Default: the roll bound ``|phi_i| <= pi/2 - m_ga`` (seed 3.33, 3.45),
             ``roll_<i>`` "negative" and "positive", the same rows scaled or not [rad].
         """
         limit = np.pi / 2 - self.robot.margins.angle
