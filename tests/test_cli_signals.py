@@ -191,3 +191,31 @@ def test_a_killed_campaign_leaves_no_process_behind(tmp_path, moment):
     process.kill()  # SIGKILL: the campaign runs no code of its own
     process.communicate(timeout=30)
     _none_left(seen)
+
+
+def test_an_interruption_a_callback_swallowed_is_raised_again():
+    """A signal whose KeyboardInterrupt lands in a weakref callback (as in the import system's module-lock
+    callbacks while modules load): Python drops it, the command's next check raises it again, and no traceback
+    is printed.
+    """
+    code = """
+import os, signal, sys, weakref
+from fpr.cli import interrupts
+interrupts.handle_signals()
+class Thing:
+    pass
+def callback(_):
+    os.kill(os.getpid(), signal.SIGINT)
+    for _ in range(1000):  # the handler runs here, inside the callback
+        pass
+thing = Thing()
+ref = weakref.ref(thing, callback)
+del thing
+print("ran on", flush=True)
+try:
+    interrupts.raise_if_interrupted()
+except KeyboardInterrupt:
+    sys.exit(130)
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert (result.returncode, result.stdout, result.stderr) == (130, "ran on\n", "")

@@ -25,7 +25,7 @@ import importlib
 import os
 import sys
 
-from fpr.cli.interrupts import INTERRUPTED, INTERRUPTED_LINE, ending, handle_signals
+from fpr.cli.interrupts import INTERRUPTED, INTERRUPTED_LINE, ending, handle_signals, raise_if_interrupted
 
 
 def _target(path: str):
@@ -66,8 +66,11 @@ def launch(parser: str | None, work: str, argv=None) -> int:
                 code, line = contract.ending_of(error)
                 _say(line)
                 return code
-            return main(argv)
-        return contract.command(_target(parser)(), argv, lambda args, given: _target(work)(args, given))
+            code = main(argv)
+        else:
+            code = contract.command(_target(parser)(), argv, lambda args, given: _target(work)(args, given))
+        raise_if_interrupted()
+        return code
     except KeyboardInterrupt:
         ending()
         _say(INTERRUPTED_LINE)

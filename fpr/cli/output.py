@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 import fpr
+from fpr.cli.interrupts import raise_if_interrupted
 from fpr.model.errors import FprError
 
 MANIFEST = "manifest.json"
@@ -134,6 +135,7 @@ class OutputFolder:
         """
         if self.tmp is None:
             raise RuntimeError("OutputFolder.commit before open")
+        raise_if_interrupted()
         with _interrupts_held():
             old = None
             try:

@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from fpr.cli import checks, contract, replanning
+from fpr.cli.interrupts import raise_if_interrupted
 from fpr.cli.output import OutputError, OutputFolder, inputs_hash, manifest, write_deterministic_npz, write_manifest
 from fpr.cli.plan_files import csv_columns, plan_document, split_timings, write_csv
 from fpr.cli.plan_options import parser
@@ -154,6 +155,7 @@ class _Progress:
         self.stage = None
 
     def __call__(self, stage, iteration, value, violation):
+        raise_if_interrupted()
         end = "\r" if self.tty else "\n"
         if self.tty and self.stage is not None and stage != self.stage:
             self.stream.write("\n")
