@@ -219,3 +219,27 @@ except KeyboardInterrupt:
 """
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert (result.returncode, result.stdout, result.stderr) == (130, "ran on\n", "")
+
+
+def test_an_interruption_that_comes_out_as_another_error_ends_as_an_interruption():
+    """A KeyboardInterrupt that C code turns into another error (numpy's C-extension import makes it an
+    ImportError when the signal lands while it imports datetime): exit 130 and the interruption's one line.
+    """
+    code = """
+import os, signal, sys
+from fpr.cli import contract, interrupts
+interrupts.handle_signals()
+def work():
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):
+            pass
+    except KeyboardInterrupt:
+        raise ImportError("PyCapsule_Import could not import module") from None
+    return 0
+sys.exit(contract.run(work))
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    from fpr.cli.interrupts import INTERRUPTED_LINE
+
+    assert (result.returncode, result.stderr) == (130, INTERRUPTED_LINE + "\n")

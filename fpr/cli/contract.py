@@ -134,10 +134,7 @@ def _terminate_as_interrupt():
         yield
         return
 
-    def interrupt(*_):
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, interrupt)
+    previous = signal.signal(signal.SIGTERM, interrupts.on_signal)
     try:
         yield
     finally:
@@ -198,9 +195,9 @@ def run(work, debug: bool = False) -> int:
                     print(warnings.formatwarning(warning.message, warning.category, warning.filename,
                                                  warning.lineno, warning.line).rstrip(), file=sys.stderr)
     except (KeyboardInterrupt, Exception) as error:  # noqa: BLE001 - the contract: an exit code and one line
-        if isinstance(error, KeyboardInterrupt):
-            interrupts.ending()  # a second Ctrl-C now ends the process at once
         code, line = ending_of(error)
+        if code == INTERRUPTED:
+            interrupts.ending()  # a second Ctrl-C now ends the process at once
         if debug:
             traceback.print_exc()
         print(line, file=sys.stderr)
@@ -212,8 +209,12 @@ NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
 
 
 def ending_of(error: BaseException) -> tuple[int, str]:
-    """The exit code and the stderr line of an exception that ended a command (:func:`run`)."""
-    if isinstance(error, KeyboardInterrupt):
+    """The exit code and the stderr line of an exception that ended a command (:func:`run`).
+
+    After a signal, any exception is the interruption's: a ``KeyboardInterrupt`` raised inside C code may come
+    out as another error (numpy's C-extension import turns it into an ``ImportError``).
+    """
+    if isinstance(error, KeyboardInterrupt) or interrupts.interrupted():
         return INTERRUPTED, interrupts.INTERRUPTED_LINE
     if isinstance(error, FprError):
         return BAD_INPUT, f"error: {one_line(error)}"

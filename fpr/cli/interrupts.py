@@ -19,10 +19,16 @@ INTERRUPTED_LINE = ("interrupted (Ctrl-C or SIGTERM): nothing written; a previou
 _received = False
 
 
-def _interrupt(signum, frame):
+def on_signal(signum, frame):
+    """The handler of SIGINT and SIGTERM: records the interruption, raises ``KeyboardInterrupt``."""
     global _received
     _received = True
     raise KeyboardInterrupt
+
+
+def interrupted() -> bool:
+    """Whether a signal came that no handler has dealt with yet (:func:`ending` deals with it)."""
+    return _received
 
 
 def raise_if_interrupted() -> None:
@@ -55,8 +61,8 @@ def handle_signals() -> None:
     Python drops in a callback is not reported as a traceback (:func:`raise_if_interrupted` raises it again).
     """
     try:
-        signal.signal(signal.SIGINT, _interrupt)
-        signal.signal(signal.SIGTERM, _interrupt)
+        signal.signal(signal.SIGINT, on_signal)
+        signal.signal(signal.SIGTERM, on_signal)
     except ValueError:  # not the main thread of the main interpreter
         return
     sys.unraisablehook = _unraisable

@@ -25,7 +25,14 @@ import importlib
 import os
 import sys
 
-from fpr.cli.interrupts import INTERRUPTED, INTERRUPTED_LINE, ending, handle_signals, raise_if_interrupted
+from fpr.cli.interrupts import (
+    INTERRUPTED,
+    INTERRUPTED_LINE,
+    ending,
+    handle_signals,
+    interrupted,
+    raise_if_interrupted,
+)
 
 
 def _target(path: str):
@@ -72,6 +79,13 @@ def launch(parser: str | None, work: str, argv=None) -> int:
         raise_if_interrupted()
         return code
     except KeyboardInterrupt:
+        ending()
+        _say(INTERRUPTED_LINE)
+        return INTERRUPTED
+    except Exception:
+        if not interrupted():
+            raise
+        # the interruption came out of C code as another error (numpy's import turns it into an ImportError)
         ending()
         _say(INTERRUPTED_LINE)
         return INTERRUPTED
