@@ -237,6 +237,7 @@ class CascadedController:
         self._task_frame = self._point_robot.model.getFrameId(r.kind.task_frame)
         self._full_task_frame = r.model.getFrameId(r.kind.task_frame)
         self._upper = np.triu(np.ones((r.nq, r.nq), dtype=bool))
+        self._axes = _force_rows(r.kind.force_axes)  # the rows of world (x, y, z) along the kind's force axes
         self._gains = None  # (key, kp, kd, their lists) of the attitude loop, see _attitude_gains
         self.chain = r.indices(r.layout.chain)
         self.rolls = r.indices(r.layout.rolls)
@@ -291,9 +292,10 @@ class CascadedController:
             return task, drones
         jac_task, jac_hinges = self._seen
         r = self.disturbance
-        task[1:] = np.linalg.lstsq(jac_task.T, r, rcond=None)[0]
-        rest = r - jac_task.T.dot(task[1:])
-        drones[:, 1:] = np.linalg.lstsq(jac_hinges.T, rest, rcond=None)[0].reshape(n_d, 2)
+        axes = self._axes
+        task[axes] = np.linalg.lstsq(jac_task.T, r, rcond=None)[0]
+        rest = r - jac_task.T.dot(task[axes])
+        drones[:, axes] = np.linalg.lstsq(jac_hinges.T, rest, rcond=None)[0].reshape(n_d, -1)
         return task, drones
 
     # ------------------------------------------------------------------ loops
@@ -316,7 +318,7 @@ class CascadedController:
         if self.observer is None:
             return self.robot.kind.outer_loop_forces(s, b, jac, reference.force, st.singular_band)
         jac_task = pin.getFrameJacobian(self._point_robot.model, self._point_robot.data, self._task_frame,
-                                        pin.LOCAL_WORLD_ALIGNED)[1:3].dot(self._chain_map)
+                                        pin.LOCAL_WORLD_ALIGNED)[self._axes].dot(self._chain_map)
         self._seen = (jac_task, jac)
         return self.robot.kind.outer_loop_forces(s, b - self.observer.estimate[self.chain], jac, reference.force,
                                                  st.singular_band)
@@ -362,25 +364,27 @@ class CascadedController:
         """Q_ext = J_p^T f_p + sum_i J_h,i^T f_i on the chain coordinates [N or N m], shape (n_s,).
 
         At the configuration of the last :meth:`_point_dynamics` call (the Jacobians of its Pinocchio
-        pass; ``hinge_jacobian`` is its J_h), only the in-plane components (world y, z) of the forces.
+        pass; ``hinge_jacobian`` is its J_h), only the forces' components along the kind's ``force_axes``
+        (world y, z of a planar robot).
 
         Args:
             task_force: world force on the task point [x, y, z] [N], or None.
             drone_forces: world forces on the drones' joints (n_d, 3) [N], or None.
-            hinge_jacobian: J_h (2 n_d, n_s) of that configuration (needed with ``drone_forces``).
+            hinge_jacobian: J_h (n_d len(force_axes), n_s) of that configuration (needed with ``drone_forces``).
         """
         q_ext = np.zeros(len(self.chain))
         if task_force is not None:
             r = self._point_robot
             jac = pin.getFrameJacobian(r.model, r.data, self._task_frame, pin.LOCAL_WORLD_ALIGNED)
-            jac = jac[1:3].dot(self._chain_map)
-            q_ext += np.asarray(task_force, dtype=float)[1:].dot(jac)
+            jac = jac[self._axes].dot(self._chain_map)
+            q_ext += np.asarray(task_force, dtype=float)[self._axes].dot(jac)
         if drone_forces is not None:
-            q_ext += np.asarray(drone_forces, dtype=float)[:, 1:].reshape(-1).dot(hinge_jacobian)
+            q_ext += np.asarray(drone_forces, dtype=float)[:, self._axes].reshape(-1).dot(hinge_jacobian)
         return q_ext
 
     def _point_dynamics(self, s, ds):
-        """M_s(s), c_s(s, s') and the hinge Jacobian J_h(s) (2 n_d, n_s) of the point-drone planning model.
+        """M_s(s), c_s(s, s') and the hinge Jacobian J_h(s) (n_d len(force_axes), n_s) of the point-drone planning
+        model.
 
         The same as ``robot.planar("point").mass_matrix_and_bias(s, ds)`` and ``.hinge_jacobian(s)`` to
         round-off, from Pinocchio's CRBA, RNEA and joint Jacobians at q = (s, out-of-plane
@@ -393,8 +397,8 @@ class CascadedController:
         m = t.T.dot(np.where(self._upper, m, m.T)).dot(t)  # CRBA fills the upper triangle only
         c = t.T.dot(pin.nonLinearEffects(model, data, qp, t.dot(ds)))
         pin.computeJointJacobians(model, data, qp)
-        jac = np.concatenate([pin.getJointJacobian(model, data, h, pin.LOCAL_WORLD_ALIGNED)[1:3]
-                              for h in r.hinge_joint_ids]).dot(t)  # world (y, z) of each hinge point
+        jac = np.concatenate([pin.getJointJacobian(model, data, h, pin.LOCAL_WORLD_ALIGNED)[self._axes]
+                              for h in r.hinge_joint_ids]).dot(t)  # the force axes (world y, z) of each hinge
         return m, c, jac
 
     def _attitude_in_wind(self, q, attitude, task_force, drone_forces):
@@ -506,3 +510,11 @@ class CascadedController:
 
 
 _TWO_PI = 2 * math.pi
+
+
+def _force_rows(force_axes) -> slice | list[int]:
+    """The rows of a world (x, y, z) vector along ``force_axes``: a slice where they follow each other (("y", "z"):
+    rows 1:3), else their list.
+    """
+    rows = ["xyz".index(a) for a in force_axes]
+    return slice(rows[0], rows[-1] + 1) if rows == list(range(rows[0], rows[-1] + 1)) else rows
