@@ -327,9 +327,10 @@ class CascadedController:
         """The chain's errors of the state its momentum stands for (module docstring): (s_m - s_d, s_m' - s_d'),
         each (n_s,), from the thesis' ``error`` = s - s_d and ``rate_error`` = s' - s_d'.
 
-        K = M_ss^-1 M_so from the full model's M(q) (Pinocchio's CRBA). The rolls' references: the direction of
-        the reference's thrust vectors (2.20), or of the held outer-loop force without them, or the measured
-        rolls (no position term) before either exists; their rates: the reference's roll rates.
+        K = M_ss^-1 M_so from the full model's M(q) (Pinocchio's CRBA). The rolls' references: the attitude of
+        the reference's thrust vectors (the robot kind's ``force_attitude``, 2.20), or of the held outer-loop
+        force without them, or the measured rolls (no position term) before either exists; their rates: the
+        reference's attitude rates.
         """
         mass = self.robot.mass_matrix(q)
         chain, others = self.chain, self._others
@@ -338,7 +339,7 @@ class CascadedController:
         force = reference.force if reference.force is not None else self._force
         if force is not None:
             force = np.asarray(force, dtype=float)
-            planned = np.arctan2(-force[:, 0], force[:, 1])  # (2.20)
+            planned = self.robot.kind.force_attitude(force)  # (2.20)
             position[self._other_rolls] = np.remainder(position[self._other_rolls] - planned + np.pi,
                                                        2 * np.pi) - np.pi
         else:

@@ -241,3 +241,11 @@ def test_the_outer_loop_s_known_forces_act_through_the_force_axes_only(robot):
     np.testing.assert_array_equal(controller.external_force([5.0, 0.0, 0.0], along_x, jac), 0.0)
     along_y = np.roll(along_x, 1, axis=1)
     assert np.abs(controller.external_force(None, along_y, jac)).max() > 0.1
+
+
+def test_force_attitude_is_the_roll_whose_thrust_axis_is_along_the_force(robot):
+    force = np.random.default_rng(12).normal(scale=10.0, size=(robot.n_drones, 2))
+    roll = robot.kind.force_attitude(force)
+    assert roll.shape == (robot.n_drones,)
+    axis = np.stack([-np.sin(roll), np.cos(roll)], axis=-1)  # the drone's thrust axis in (y, z)
+    np.testing.assert_allclose(axis * np.linalg.norm(force, axis=-1, keepdims=True), force, rtol=1e-12, atol=1e-12)

@@ -20,8 +20,8 @@ The members come in two groups, in the manner of Pink's ``Task`` or Crocoddyl's 
   ``coordinate_axes``, ``mission_region``), what the drones must do along a motion (``motion_inputs``,
   ``thrust_vectors``, ``needs_high_derivatives``, ``attitude_margins``, ``full_state``), the closure of the
   plant (``closed_chain``, ``closure_reader``) and the simulator's take-off (``level_attitude``), the
-  controller's outer-loop solve (``outer_loop_forces``) and its inner loop's targets (``attitude_targets``,
-  ``lateral_loop``, ``compiled_inner_constants``).
+  controller's outer-loop solve (``outer_loop_forces``), the attitude of a thrust vector (``force_attitude``)
+  and its inner loop's targets (``attitude_targets``, ``lateral_loop``, ``compiled_inner_constants``).
 
 Members marked *required* must be given by every robot; the others have defaults here that suit a
 robot whose planning coordinates are its task coordinates and whose drone-joint Jacobian is invertible
@@ -417,6 +417,14 @@ class RobotKind:
             F, shape (n_d, len(force_axes)) [N]. Default: the plain solve.
         """
         return np.linalg.solve(jacobian.T, b).reshape(-1, len(self.force_axes))
+
+    def force_attitude(self, force) -> np.ndarray:
+        """The drones' attitude coordinates (``layout.drone_attitude`` flattened) whose thrust axes lie along the
+        thrust vectors ``force`` (n_d, len(force_axes)) [N]: the references of the controller's momentum feedback.
+
+        Default: the planar robots' roll phi_i = atan2(-F_iy, F_iz) (seed 2.20), shape (n_d,) [rad].
+        """
+        return np.arctan2(-force[:, 0], force[:, 1])
 
     @cached_property
     def _planar_inner(self) -> planar_control.PlanarInner:
