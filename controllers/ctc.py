@@ -60,13 +60,16 @@ tension's row in the least-squares sense, regularised towards the planned tensio
 as the planner's inverse dynamics; ``singular_band`` sets the regularisation), so that near q2 = 0 the
 elbow's motion across the straight chain, which no drone force can act on, follows the plan open loop.
 
-**Out of the plane** (a robot with a coordinate x, the FPR): the pitch theta tilts every thrust out
-of the plane, so the lateral position x is held by a desired pitch theta_d = (-k_px x - k_dx x') /
-(d x'' / d theta), the sensitivity taken from the model at the hover pose ``kind.reference_chain``;
-psi_d = 0. A pinned chain (the prototype) has no x: psi_d = theta_d = 0.
+**Out of the plane** (a robot kind with a ``lateral_loop``: the FPR, whose ``out_of_plane`` coordinates
+include x): the pitch theta tilts every thrust out of the plane, so the lateral position x is held by a
+desired pitch theta_d = (-k_px x - k_dx x') / (d x'' / d theta), the sensitivity taken from the model at the
+hover pose ``kind.reference_chain``; psi_d = 0. A pinned chain (the prototype) has no x: psi_d = theta_d = 0.
 
-**Inner loop** (attitude, eq. 2.23): u_a = q_a,d'' - K_pa (q_a - q_a,d) - K_da (q_a' - q_a,d') for
-q_a = [psi, theta, phi_1, (phi_2)], with the planned roll rate and acceleration as feed-forward;
+**Inner loop** (attitude, eq. 2.23): the robot kind's ``attitude_targets`` turns F_i into the thrusts and the
+targets q_a,d with their feed-forward (the planar robots': the roll and thrust above, the lateral loop's
+pitch, the planned roll rates and accelerations; :mod:`fpr.robots.planar_control`), then
+u_a = q_a,d'' - K_pa (q_a - q_a,d) - K_da (q_a' - q_a,d') for q_a = ``layout.attitude`` ([psi, theta, phi_1,
+(phi_2)]); the compiled part (``fpr/_native/alloc.c``) runs both where the kind says it fits;
 then the rotor allocation QP (:mod:`controllers.allocation`) turns u_a and the thrusts into rotor
 speeds under 0 <= w <= w_max, equal to the thesis' pseudo-inverse law (2.24) when no rotor is at
 a bound.
@@ -87,7 +90,6 @@ import pinocchio as pin
 from controllers.allocation import AllocationResult, Allocator
 from controllers.observer import MomentumObserver
 from fpr import _native as native
-from fpr.model.inverse_dynamics import inverse_dynamics
 
 
 @dataclass
@@ -151,9 +153,12 @@ class Reference:
 
     Attributes:
         motion: s_d and its derivatives 0..4, shape (5, n_s).
-        roll_rate, roll_acceleration: planned phi_i', phi_i'' (feed-forward), shape (n_d,).
-        force: planned thrust vectors F_i, shape (n_d, 2) [N], or None. The robot kind's outer-loop
-            solve may use it (the prototype's near q2 = 0, module docstring).
+        attitude_rate, attitude_acceleration: the planned rates and accelerations of the drones' attitude
+            coordinates (``layout.drone_attitude`` flattened; the rolls phi_i', phi_i'' of a planar robot, shape
+            (n_d,)), the attitude loop's feed-forward. ``roll_rate`` and ``roll_acceleration`` are their
+            former names (read-only aliases).
+        force: planned thrust vectors F_i, shape (n_d, len(force_axes)) [N], or None. The robot kind's
+            outer-loop solve may use it (the prototype's near q2 = 0, module docstring).
         task_force: a known external force on the robot kind's task point (the FPR's end-effector), world
             [x, y, z] [N], fed forward (module docstring), or None. x does not act on the planar chain.
         drone_forces: known external forces on each drone, world [x, y, z], shape (n_d, 3) [N], or None: at
@@ -161,11 +166,21 @@ class Reference:
     """
 
     motion: np.ndarray
-    roll_rate: np.ndarray
-    roll_acceleration: np.ndarray
+    attitude_rate: np.ndarray
+    attitude_acceleration: np.ndarray
     force: np.ndarray | None = None
     task_force: np.ndarray | None = None
     drone_forces: np.ndarray | None = None
+
+    @property
+    def roll_rate(self) -> np.ndarray:
+        """``attitude_rate`` under its former name (a planar robot's planned roll rates)."""
+        return self.attitude_rate
+
+    @property
+    def roll_acceleration(self) -> np.ndarray:
+        """``attitude_acceleration`` under its former name (a planar robot's planned roll accelerations)."""
+        return self.attitude_acceleration
 
 
 @dataclass
@@ -175,20 +190,28 @@ class ControlOutput:
     Attributes:
         speeds: commanded rotor speeds, shape (n_d, 4) [rad/s].
         allocation: the :class:`~controllers.allocation.AllocationResult`.
-        force: F_i of the outer loop, shape (n_d, 2) [N].
-        roll_desired: phi_d,i, shape (n_d,) [rad].
+        force: F_i of the outer loop, shape (n_d, len(force_axes)) [N].
+        attitude_target: the targets of the drones' attitude coordinates (``layout.drone_attitude``
+            flattened; phi_d,i of a planar robot, shape (n_d,)) [rad]; ``roll_desired`` is its former name
+            (a read-only alias).
         thrust_desired: f_i wanted from the allocation, shape (n_d,) [N].
-        attitude_desired: u_a, shape (n_a,) [rad/s^2].
-        pitch_desired: theta_d [rad].
+        attitude_desired: u_a, the attitude loop's commanded accelerations, shape (n_a,) [rad/s^2] (the
+            allocation's name; the desired attitudes are ``attitude_target``).
+        pitch_desired: theta_d of the lateral loop [rad] (0 without one).
     """
 
     speeds: np.ndarray
     allocation: AllocationResult
     force: np.ndarray
-    roll_desired: np.ndarray
+    attitude_target: np.ndarray
     thrust_desired: np.ndarray
     attitude_desired: np.ndarray
     pitch_desired: float
+
+    @property
+    def roll_desired(self) -> np.ndarray:
+        """``attitude_target`` under its former name (a planar robot's desired rolls)."""
+        return self.attitude_target
 
 
 @dataclass
@@ -214,24 +237,24 @@ class CascadedController:
         self._task_frame = self._point_robot.model.getFrameId(r.kind.task_frame)
         self._full_task_frame = r.model.getFrameId(r.kind.task_frame)
         self._upper = np.triu(np.ones((r.nq, r.nq), dtype=bool))
+        self._axes = _force_rows(r.kind.force_axes)  # the rows of world (x, y, z) along the kind's force axes
         self._gains = None  # (key, kp, kd, their lists) of the attitude loop, see _attitude_gains
         self.chain = r.indices(r.layout.chain)
         self.rolls = r.indices(r.layout.rolls)
         self._others = np.setdiff1d(np.arange(r.nq), self.chain)  # q_o: the coordinates outside the chain
         self._other_rolls = np.searchsorted(self._others, self.rolls)  # the rolls' places in q_o
         self.attitude = r.indices(r.layout.attitude)
+        drone_attitude = set(r.layout.rolls)  # drone_attitude flattened
+        self._wrap = [c in drone_attitude for c in r.layout.attitude]  # errors taken as the shortest angle
+        self._drone_places = [k for k, wrap in enumerate(self._wrap) if wrap]  # their places in q_a
         self.allocator = Allocator(r, st.attitude_weight, st.thrust_weight)
         self.offset = np.array(r.hinge_offsets)  # d_i, (n_d,) [m]
         self.mass = np.array(r.drone_masses)  # m_i, (n_d,) [kg]
-        self.lateral = "x" in r.layout.coordinates
-        self._pitch_gain = self._lateral_sensitivity() if self.lateral else 1.0
+        self.lateral = r.kind.lateral_loop is not None  # an out-of-plane position held with the pitch
         self._force = None
         self._last_outer = -np.inf
         self._integral = np.zeros(len(self.chain))
-        # the inner loop's indices and constants as Python numbers (update works on floats)
-        self._roll_list, self._attitude_list = self.rolls.tolist(), self.attitude.tolist()
-        self._mass_offset = (self.mass * self.offset).tolist()
-        self._x = r.index.get("x")
+        self._attitude_list = self.attitude.tolist()  # as Python numbers (the inner loop works on floats)
         self.observer = None  # the external-force observer (controllers/observer.py), made by _observe
         self._applied = np.zeros(r.nq)  # sum of the inputs' generalised forces since the last observer update
         self._ticks = 0
@@ -269,28 +292,17 @@ class CascadedController:
             return task, drones
         jac_task, jac_hinges = self._seen
         r = self.disturbance
-        task[1:] = np.linalg.lstsq(jac_task.T, r, rcond=None)[0]
-        rest = r - jac_task.T.dot(task[1:])
-        drones[:, 1:] = np.linalg.lstsq(jac_hinges.T, rest, rcond=None)[0].reshape(n_d, 2)
+        axes = self._axes
+        task[axes] = np.linalg.lstsq(jac_task.T, r, rcond=None)[0]
+        rest = r - jac_task.T.dot(task[axes])
+        drones[:, axes] = np.linalg.lstsq(jac_hinges.T, rest, rcond=None)[0].reshape(n_d, -1)
         return task, drones
-
-    def _lateral_sensitivity(self) -> float:
-        """d x'' / d theta at the hover pose s0 = ``kind.reference_chain`` with hover thrusts."""
-        r = self.robot
-        s0 = np.array(r.kind.reference_chain, dtype=float)
-        n_s = s0.size
-        hover = inverse_dynamics(r, np.concatenate([s0[None, None], np.zeros((4, 1, n_s))]))
-        q = np.zeros(r.nq)
-        q[self.chain] = s0
-        q[self.rolls] = hover.roll[0]
-        delta = 1e-6
-        q[r.index["theta"]] = delta
-        a = r.forward_dynamics(q, np.zeros(r.nq), hover.thrust[0], hover.torque[0])
-        return float(a[r.index["x"]] / delta)
 
     # ------------------------------------------------------------------ loops
     def outer(self, q, v, reference: Reference) -> np.ndarray:
-        """F_i (world y, z) each drone must apply at its joint, shape (n_d, 2) [N] (2.14-2.16)."""
+        """F_i (along the kind's ``force_axes``) each drone must apply at its joint, shape (n_d, len(force_axes))
+        [N] (2.14-2.16).
+        """
         st = self.settings
         kp, kd = st.chain_gains
         s, ds = q[self.chain], v[self.chain]
@@ -306,7 +318,7 @@ class CascadedController:
         if self.observer is None:
             return self.robot.kind.outer_loop_forces(s, b, jac, reference.force, st.singular_band)
         jac_task = pin.getFrameJacobian(self._point_robot.model, self._point_robot.data, self._task_frame,
-                                        pin.LOCAL_WORLD_ALIGNED)[1:3].dot(self._chain_map)
+                                        pin.LOCAL_WORLD_ALIGNED)[self._axes].dot(self._chain_map)
         self._seen = (jac_task, jac)
         return self.robot.kind.outer_loop_forces(s, b - self.observer.estimate[self.chain], jac, reference.force,
                                                  st.singular_band)
@@ -315,9 +327,10 @@ class CascadedController:
         """The chain's errors of the state its momentum stands for (module docstring): (s_m - s_d, s_m' - s_d'),
         each (n_s,), from the thesis' ``error`` = s - s_d and ``rate_error`` = s' - s_d'.
 
-        K = M_ss^-1 M_so from the full model's M(q) (Pinocchio's CRBA). The rolls' references: the direction of
-        the reference's thrust vectors (2.20), or of the held outer-loop force without them, or the measured
-        rolls (no position term) before either exists; their rates: the reference's roll rates.
+        K = M_ss^-1 M_so from the full model's M(q) (Pinocchio's CRBA). The rolls' references: the attitude of
+        the reference's thrust vectors (the robot kind's ``force_attitude``, 2.20), or of the held outer-loop
+        force without them, or the measured rolls (no position term) before either exists; their rates: the
+        reference's attitude rates.
         """
         mass = self.robot.mass_matrix(q)
         chain, others = self.chain, self._others
@@ -326,12 +339,12 @@ class CascadedController:
         force = reference.force if reference.force is not None else self._force
         if force is not None:
             force = np.asarray(force, dtype=float)
-            planned = np.arctan2(-force[:, 0], force[:, 1])  # (2.20)
+            planned = self.robot.kind.force_attitude(force)  # (2.20)
             position[self._other_rolls] = np.remainder(position[self._other_rolls] - planned + np.pi,
                                                        2 * np.pi) - np.pi
         else:
             position[self._other_rolls] = 0.0
-        rate[self._other_rolls] -= reference.roll_rate
+        rate[self._other_rolls] -= reference.attitude_rate
         return error + gain.dot(position), rate_error + gain.dot(rate)
 
     def _observe(self, dt: float, q, v) -> None:
@@ -352,25 +365,27 @@ class CascadedController:
         """Q_ext = J_p^T f_p + sum_i J_h,i^T f_i on the chain coordinates [N or N m], shape (n_s,).
 
         At the configuration of the last :meth:`_point_dynamics` call (the Jacobians of its Pinocchio
-        pass; ``hinge_jacobian`` is its J_h), only the in-plane components (world y, z) of the forces.
+        pass; ``hinge_jacobian`` is its J_h), only the forces' components along the kind's ``force_axes``
+        (world y, z of a planar robot).
 
         Args:
             task_force: world force on the task point [x, y, z] [N], or None.
             drone_forces: world forces on the drones' joints (n_d, 3) [N], or None.
-            hinge_jacobian: J_h (2 n_d, n_s) of that configuration (needed with ``drone_forces``).
+            hinge_jacobian: J_h (n_d len(force_axes), n_s) of that configuration (needed with ``drone_forces``).
         """
         q_ext = np.zeros(len(self.chain))
         if task_force is not None:
             r = self._point_robot
             jac = pin.getFrameJacobian(r.model, r.data, self._task_frame, pin.LOCAL_WORLD_ALIGNED)
-            jac = jac[1:3].dot(self._chain_map)
-            q_ext += np.asarray(task_force, dtype=float)[1:].dot(jac)
+            jac = jac[self._axes].dot(self._chain_map)
+            q_ext += np.asarray(task_force, dtype=float)[self._axes].dot(jac)
         if drone_forces is not None:
-            q_ext += np.asarray(drone_forces, dtype=float)[:, 1:].reshape(-1).dot(hinge_jacobian)
+            q_ext += np.asarray(drone_forces, dtype=float)[:, self._axes].reshape(-1).dot(hinge_jacobian)
         return q_ext
 
     def _point_dynamics(self, s, ds):
-        """M_s(s), c_s(s, s') and the hinge Jacobian J_h(s) (2 n_d, n_s) of the point-drone planning model.
+        """M_s(s), c_s(s, s') and the hinge Jacobian J_h(s) (n_d len(force_axes), n_s) of the point-drone planning
+        model.
 
         The same as ``robot.planar("point").mass_matrix_and_bias(s, ds)`` and ``.hinge_jacobian(s)`` to
         round-off, from Pinocchio's CRBA, RNEA and joint Jacobians at q = (s, out-of-plane
@@ -383,8 +398,8 @@ class CascadedController:
         m = t.T.dot(np.where(self._upper, m, m.T)).dot(t)  # CRBA fills the upper triangle only
         c = t.T.dot(pin.nonLinearEffects(model, data, qp, t.dot(ds)))
         pin.computeJointJacobians(model, data, qp)
-        jac = np.concatenate([pin.getJointJacobian(model, data, h, pin.LOCAL_WORLD_ALIGNED)[1:3]
-                              for h in r.hinge_joint_ids]).dot(t)  # world (y, z) of each hinge point
+        jac = np.concatenate([pin.getJointJacobian(model, data, h, pin.LOCAL_WORLD_ALIGNED)[self._axes]
+                              for h in r.hinge_joint_ids]).dot(t)  # the force axes (world y, z) of each hinge
         return m, c, jac
 
     def _attitude_in_wind(self, q, attitude, task_force, drone_forces):
@@ -409,66 +424,54 @@ class CascadedController:
         return dataclasses.replace(attitude, c=attitude.c - q_ext)
 
     def _attitude_gains(self) -> tuple[np.ndarray, np.ndarray]:
-        """K_pa, K_da of q_a = [psi, theta, rolls...], rebuilt only when the settings change; with them the
-        compiled inner loop's constants (``fpr/_native/alloc.c``'s ``inner``: n_d, the lateral loop, the
-        indices, m_i d_i, K_pa, K_da), as ``self._gains = (key, kp, kd, kp list, kd list, constants)``.
+        """K_pa, K_da of q_a = ``layout.attitude`` (the orientation gains for the coordinates that are not a
+        drone's attitude, psi and theta, the attitude gains for the drones'), rebuilt only when the settings
+        change; with them the compiled inner loop's constants (``fpr/_native/alloc.c``'s ``inner``: the robot
+        kind's ``compiled_inner_constants``, then K_pa, K_da; None when the kind says it does not fit), as
+        ``self._gains = (key, kp, kd, kp list, kd list, constants)``.
         """
         st = self.settings
         key = (st.orientation_frequency, st.orientation_damping, st.attitude_frequency, st.attitude_damping,
                st.lateral_frequency, st.lateral_damping, st.max_pitch)
         if self._gains is None or self._gains[0] != key:
-            n = len(self.rolls)
-            kp = np.array([st.orientation_frequency**2] * 2 + [st.attitude_frequency**2] * n)
-            kd = np.array([2 * st.orientation_damping * st.orientation_frequency] * 2
-                          + [2 * st.attitude_damping * st.attitude_frequency] * n)
-            constants = np.concatenate([
-                [n, float(self.lateral), self._x if self.lateral else -1, st.lateral_frequency**2,
-                 2 * st.lateral_damping * st.lateral_frequency, self._pitch_gain, st.max_pitch],
-                self.rolls, self.attitude, self._mass_offset, kp, kd]).astype(float)
+            kp = np.array([st.attitude_frequency**2 if wrap else st.orientation_frequency**2 for wrap in self._wrap])
+            kd = np.array([2 * st.attitude_damping * st.attitude_frequency if wrap
+                           else 2 * st.orientation_damping * st.orientation_frequency for wrap in self._wrap])
+            robot_part = self.robot.kind.compiled_inner_constants(st)
+            constants = None if robot_part is None else np.array(robot_part + kp.tolist() + kd.tolist(), dtype=float)
             self._gains = (key, kp, kd, kp.tolist(), kd.tolist(), constants)  # lists: _inner_python's loop
         return self._gains[1], self._gains[2]
 
     def _inner_python(self, q, v, reference: Reference):
-        """The inner loop's float part in Python: (thrust f_i (n_d,), u_a (n_a,), roll_desired (n_d,), pitch
-        reference) from the measured state, the held outer-loop force and the reference's roll feed-forward.
-        The reference of the native part (the same operations in the same order; the tests hold the two equal to
-        round-off).
+        """The inner loop's float part in Python: (thrust f_i (n_d,), u_a (n_a,), the drones' attitude targets
+        (n_d,), pitch reference) from the measured state, the held outer-loop force and the reference's
+        feed-forward: the robot kind's ``attitude_targets``, then the attitude loop (2.23) on them, the drones'
+        attitude errors taken as the shortest angle. The reference of the native part (the same operations in
+        the same order; the tests hold the two equal to round-off).
         """
-        st = self.settings
-        # on floats: a few numbers each, where every numpy call costs a microsecond or more
-        ql, vl = q.tolist(), v.tolist()
-        rolls, attitude = self._roll_list, self._attitude_list
-        force = self._force.tolist()
-        roll_desired = [math.atan2(-fy, fz) for fy, fz in force]  # (2.20)
-        # f_i = b_z(phi_i) . F_i - m_i d_i phi_i'^2, b_z = (-sin phi, cos phi)
-        thrust = [-math.sin(ql[i]) * fy + math.cos(ql[i]) * fz - md * vl[i] ** 2
-                  for i, (fy, fz), md in zip(rolls, force, self._mass_offset, strict=True)]
-        # attitude references [psi, theta, rolls...]
-        pitch = 0.0
-        if self.lateral:
-            kp, kd = st.lateral_frequency**2, 2 * st.lateral_damping * st.lateral_frequency
-            pitch = (-kp * ql[self._x] - kd * vl[self._x]) / self._pitch_gain
-            pitch = min(max(pitch, -st.max_pitch), st.max_pitch)  # np.clip, cheaper on a float
-        target = [0.0, pitch] + roll_desired
-        rate = [0.0, 0.0] + reference.roll_rate.tolist()
-        acc = [0.0, 0.0] + reference.roll_acceleration.tolist()
+        targets = self.robot.kind.attitude_targets(q, v, self._force, reference, self.settings)
+        ql, vl = q.tolist(), v.tolist()  # on floats: a few numbers each
         self._attitude_gains()  # K_pa, K_da up to date, their lists in self._gains
         kp, kd = self._gains[3], self._gains[4]
         u_a = []
-        for k, (i, goal, kp_k, kd_k, rate_k, acc_k) in enumerate(zip(attitude, target, kp, kd, rate,
-                                                                       acc, strict=True)):
+        for i, goal, kp_k, kd_k, rate_k, acc_k, wrap in zip(self._attitude_list, targets.target, kp, kd, targets.rate,
+                                                            targets.acceleration, self._wrap, strict=True):
             error = ql[i] - goal
-            if k >= 2:  # rolls: the shortest angle
+            if wrap:  # a drone's attitude: the shortest angle
                 error = math.remainder(error, _TWO_PI)
             u_a.append(acc_k - kp_k * error - kd_k * (vl[i] - rate_k))
-        return np.array(thrust), np.array(u_a), np.array(roll_desired), pitch
+        drone_targets = [targets.target[k] for k in self._drone_places]
+        return np.array(targets.thrust), np.array(u_a), np.array(drone_targets), targets.pitch
 
     def _inner_kernel(self):
         """The native inner loop's function (:mod:`fpr._native`'s part ``inner``, ``fpr/_native/alloc.c``), or None
         for :meth:`_inner_python`.
         """
         module = native.use("inner")
-        return module.inner if module is not None and len(self.attitude) <= module.MAX_ATTITUDE else None
+        if module is None or len(self.attitude) > module.MAX_ATTITUDE:
+            return None
+        self._attitude_gains()
+        return module.inner if self._gains[5] is not None else None  # the kind's word: the compiled part fits
 
     def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
         """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""
@@ -488,8 +491,9 @@ class CascadedController:
         inner = None
         if kernel[1] is not None:  # in C: _inner_python's operations, in its order (None: a result not finite)
             self._attitude_gains()  # its constants up to date, in self._gains
-            inner = kernel[1](q, v, self._force, reference.roll_rate, reference.roll_acceleration, self._gains[5])
-        thrust, u_a, roll_desired, pitch = self._inner_python(q, v, reference) if inner is None else inner
+            inner = kernel[1](q, v, self._force, reference.attitude_rate, reference.attitude_acceleration,
+                              self._gains[5])
+        thrust, u_a, attitude_target, pitch = self._inner_python(q, v, reference) if inner is None else inner
         attitude = self.robot.attitude_model(q, v)
         own = attitude.c
         if reference.task_force is not None or reference.drone_forces is not None:  # the known wind (2.12)
@@ -503,7 +507,15 @@ class CascadedController:
             self._applied += (attitude.j_f.T.dot(allocation.thrust)
                               + attitude.j_tau.T.dot(allocation.torque.reshape(-1)) + known)
             self._ticks += 1
-        return ControlOutput(speeds, allocation, self._force, roll_desired, thrust, u_a, pitch)
+        return ControlOutput(speeds, allocation, self._force, attitude_target, thrust, u_a, pitch)
 
 
 _TWO_PI = 2 * math.pi
+
+
+def _force_rows(force_axes) -> slice | list[int]:
+    """The rows of a world (x, y, z) vector along ``force_axes``: a slice where they follow each other (("y", "z"):
+    rows 1:3), else their list.
+    """
+    rows = ["xyz".index(a) for a in force_axes]
+    return slice(rows[0], rows[-1] + 1) if rows == list(range(rows[0], rows[-1] + 1)) else rows

@@ -19,7 +19,9 @@ The members come in two groups, in the manner of Pink's ``Task`` or Crocoddyl's 
   (``workspace_margins``, ``crossing_margins``, ``planning_pose``, ``check_pose``, ``assembly_mode``,
   ``coordinate_axes``, ``mission_region``), what the drones must do along a motion (``motion_inputs``,
   ``thrust_vectors``, ``needs_high_derivatives``, ``attitude_margins``, ``full_state``), the closure of the
-  plant (``closed_chain``, ``closure_reader``) and the controller's outer-loop solve (``outer_loop_forces``).
+  plant (``closed_chain``, ``closure_reader``) and the simulator's take-off (``level_attitude``), the
+  controller's outer-loop solve (``outer_loop_forces``), the attitude of a thrust vector (``force_attitude``)
+  and its inner loop's targets (``attitude_targets``, ``lateral_loop``, ``compiled_inner_constants``).
 
 Members marked *required* must be given by every robot; the others have defaults here that suit a
 robot whose planning coordinates are its task coordinates and whose drone-joint Jacobian is invertible
@@ -41,6 +43,7 @@ from fpr.model.errors import FprError, ModelArgumentError, RobotDefinitionError
 from fpr.model.jets import Jet
 from fpr.model.kinematics import check_margins, last_axis
 from fpr.model.robot import Layout
+from fpr.robots import planar_control
 
 #: The constraint kinds of a robot whose drone joints stay above a ground and whose drones have one roll
 #: each (the built-in robots): entries of ``RobotKind.constraint_kinds``.
@@ -414,6 +417,75 @@ class RobotKind:
             F, shape (n_d, len(force_axes)) [N]. Default: the plain solve.
         """
         return np.linalg.solve(jacobian.T, b).reshape(-1, len(self.force_axes))
+
+    def force_attitude(self, force) -> np.ndarray:
+        """The drones' attitude coordinates (``layout.drone_attitude`` flattened) whose thrust axes lie along the
+        thrust vectors ``force`` (n_d, len(force_axes)) [N]: the references of the controller's momentum feedback.
+
+        Default: the planar robots' roll phi_i = atan2(-F_iy, F_iz) (seed 2.20), shape (n_d,) [rad].
+        """
+        return np.arctan2(-force[:, 0], force[:, 1])
+
+    @cached_property
+    def _planar_inner(self) -> planar_control.PlanarInner:
+        """The robot's constants of the planar inner loop (:func:`fpr.robots.planar_control.planar_inner`)."""
+        return planar_control.planar_inner(self)
+
+    @property
+    def lateral_loop(self) -> tuple[int, float] | None:
+        """(position of x in q, d x'' / d theta at the hover pose [m/s^2/rad]) of the inner loop's lateral loop,
+        which holds an out-of-plane position with the pitch, or None (no such loop).
+
+        Default: the loop runs for a robot with ``"x"`` among its ``out_of_plane`` coordinates (the FPR), its
+        sensitivity from the model (:func:`fpr.robots.planar_control.lateral_sensitivity`).
+        """
+        inner = self._planar_inner
+        return None if inner.lateral is None else (inner.lateral, inner.pitch_gain)
+
+    def attitude_targets(self, q, v, force, reference, settings) -> planar_control.AttitudeTargets:
+        """The float part of the controller's inner loop at one tick: the drones' thrusts and the attitude loop's
+        targets with their feed-forward (seed 2.15, 2.20).
+
+        Args:
+            q: measured configuration in thesis coordinates, shape (n,) [m, rad].
+            v: measured velocity, shape (n,) [m/s, rad/s].
+            force: the outer loop's F_i (:meth:`outer_loop_forces`), shape (n_d, len(force_axes)) [N].
+            reference: the controller's :class:`~controllers.ctc.Reference` at this instant (its
+                ``attitude_rate`` and ``attitude_acceleration``, the drones' attitude coordinates'
+                feed-forward, ``layout.drone_attitude`` flattened).
+            settings: the controller's :class:`~controllers.ctc.ControllerSettings` (the lateral loop's
+                gains and ``max_pitch``).
+
+        Returns:
+            the :class:`~fpr.robots.planar_control.AttitudeTargets` (floats): thrusts f_i (n_d), targets, rates
+            and accelerations of the coordinates ``layout.attitude`` (n_a), the lateral loop's pitch. The
+            controller closes the attitude loop on them, the drones' attitude coordinates' errors taken as the
+            shortest angle. Default: the planar robots' (:mod:`fpr.robots.planar_control`): the roll along F_i,
+            the thrust along the measured thrust axis, psi_d = 0 and theta_d from the lateral loop.
+        """
+        return planar_control.planar_attitude_targets(self._planar_inner, q, v, force, reference, settings)
+
+    def compiled_inner_constants(self, settings) -> list[float] | None:
+        """The robot's part of the compiled inner loop's constants (``fpr/_native/alloc.c``'s ``inner``, which
+        performs the default :meth:`attitude_targets` and the attitude loop in C), or None when it does not fit
+        the robot (then the controller runs :meth:`attitude_targets` in Python).
+
+        Default: :func:`fpr.robots.planar_control.compiled_constants` for a kind that keeps the default
+        :meth:`attitude_targets`, None for one that overrides it.
+        """
+        if type(self).attitude_targets is not RobotKind.attitude_targets:
+            return None
+        return planar_control.compiled_constants(self._planar_inner, settings)
+
+    # ------------------------------------------------------------------ simulation
+    def level_attitude(self, q) -> np.ndarray:
+        """The configuration ``q`` (shape (n,)) with the drones level: the take-off pose, at rest on the ground.
+
+        Default: the drones' attitude coordinates (``layout.drone_attitude``, the rolls) set to 0, on a copy.
+        """
+        q = np.array(q, dtype=float)
+        q[self.robot.indices(self.layout.rolls)] = 0.0
+        return q
 
 
 __all__ = ["GROUND_KIND", "ROLL_KIND", "RobotKind"]

@@ -101,8 +101,11 @@ class SimulationLog:
         t: times (N,) [s].
         q, v: plant state in thesis coordinates (N, n) [m, rad; /s].
         reference: planned s and its first two derivatives (3, N, n_s).
-        planned_roll: the plan's drone rolls (N, n_d) [rad].
-        roll_desired: the outer loop's desired rolls (N, n_d) [rad].
+        planned_attitude: the plan's drone attitudes (``layout.drone_attitude`` flattened; a planar robot's
+            rolls) (N, n_d) [rad]; ``planned_roll`` is its former name (a read-only alias, and its key in the
+            files of :meth:`save`).
+        attitude_desired: the controller's targets of the same coordinates (its ``attitude_target``: the
+            desired rolls) (N, n_d) [rad]; ``roll_desired`` is its former name (alias and file key).
         speed_command: allocated rotor speeds (N, n_d, 4) [rad/s].
         speed: plant rotor speeds (after lag and saturation) (N, n_d, 4) [rad/s].
         thrust, torque: allocated thrusts (N, n_d) [N] and torques (N, n_d, 3) [N m].
@@ -129,8 +132,8 @@ class SimulationLog:
     q: np.ndarray
     v: np.ndarray
     reference: np.ndarray
-    planned_roll: np.ndarray
-    roll_desired: np.ndarray
+    planned_attitude: np.ndarray
+    attitude_desired: np.ndarray
     speed_command: np.ndarray
     speed: np.ndarray
     thrust: np.ndarray
@@ -144,6 +147,16 @@ class SimulationLog:
     failure: str | None = None
     failure_time: float | None = None
     disturbance: np.ndarray | None = None
+
+    @property
+    def planned_roll(self) -> np.ndarray:
+        """``planned_attitude`` under its former name (a planar robot's planned rolls)."""
+        return self.planned_attitude
+
+    @property
+    def roll_desired(self) -> np.ndarray:
+        """``attitude_desired`` under its former name (a planar robot's desired rolls)."""
+        return self.attitude_desired
 
     def column(self, name: str) -> np.ndarray:
         """The measured coordinate ``name`` over time."""
@@ -191,9 +204,10 @@ class SimulationLog:
 
     def save(self, path) -> None:
         """Write every array and the scalars to a NumPy ``.npz`` file (no failure: ``failure`` is stored as
-        an empty string and ``failure_time`` as NaN).
+        an empty string and ``failure_time`` as NaN). The drones' attitudes keep their former keys
+        (``planned_roll``, ``roll_desired``: the files of every version read alike).
         """
-        arrays = {k: v for k, v in vars(self).items() if isinstance(v, np.ndarray)}
+        arrays = {_FILE_KEYS.get(k, k): v for k, v in vars(self).items() if isinstance(v, np.ndarray)}
         np.savez_compressed(path, robot_name=self.robot_name, coordinates=np.array(self.coordinates),
                             chain=np.array(self.chain), max_speed=self.max_speed, speed_limit=self.speed_limit,
                             wall_time=self.wall_time, failure=np.array(self.failure or ""),
@@ -203,13 +217,31 @@ class SimulationLog:
     def load(cls, path) -> "SimulationLog":
         """Read a log written by :meth:`save` (one written before the failure fields: no failure)."""
         with np.load(path) as data:
-            values = {k: data[k] for k in data.files}
+            values = {_FIELDS.get(k, k): data[k] for k in data.files}
         failure = str(values.pop("failure", "")) or None
         failure_time = float(values.pop("failure_time", np.nan))
         values["failure"], values["failure_time"] = failure, None if np.isnan(failure_time) else failure_time
         return cls(robot_name=str(values.pop("robot_name")), coordinates=tuple(values.pop("coordinates").tolist()),
                    chain=tuple(values.pop("chain").tolist()), max_speed=float(values.pop("max_speed")),
                    speed_limit=float(values.pop("speed_limit")), wall_time=float(values.pop("wall_time")), **values)
+
+
+def _drone_attitudes(planned) -> np.ndarray:
+    """The plan's drone attitude coordinates, drone after drone, shape (N, n_d k_a) [rad]."""
+    return planned.attitude.reshape(planned.attitude.shape[0], -1)
+
+
+def _attitude_feedforward(planned) -> tuple[np.ndarray, np.ndarray]:
+    """The plan's rates and accelerations of the drones' attitude coordinates, drone after drone, each of shape
+    (N, n_d k_a): the controller's feed-forward (``Reference.attitude_rate``, ``attitude_acceleration``).
+    """
+    n = planned.attitude_rate.shape[0]
+    return planned.attitude_rate.reshape(n, -1), planned.attitude_acceleration.reshape(n, -1)
+
+
+#: The file keys of :meth:`SimulationLog.save` that differ from the fields' names, and back.
+_FILE_KEYS = {"planned_attitude": "planned_roll", "attitude_desired": "roll_desired"}
+_FIELDS = {v: k for k, v in _FILE_KEYS.items()}
 
 
 def _scaled_robot(robot, scale: float):
@@ -305,6 +337,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     # the plan's inputs (roll feed-forward), flown in the wind the controller knows (fpr.sim.replanning)
     planned = inverse_dynamics(robot, motion) if in_flight is None else in_flight.inputs(robot, ticks, motion)
     q_plan = planned.full_state(robot)[0]
+    planned_rate, planned_acceleration = _attitude_feedforward(planned)
 
     controller = CascadedController(_scaled_robot(robot, st.model_mass_scale), ctrl_settings)
     if in_flight is not None and hasattr(in_flight, "attach"):
@@ -314,7 +347,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
         q0[robot.index[name]] += offset
     w0 = planned.rotor_speed[0]
     if st.takeoff:  # at rest on the take-off pose: drones level, rotors at one speed each
-        q0[[robot.index[c] for c in robot.layout.rolls]] = 0.0
+        q0 = robot.kind.level_attitude(q0)
         w0 = np.repeat(np.sqrt(np.mean(planned.rotor_speed_squared[0], axis=-1, keepdims=True)), 4, axis=-1)
     make_plant = Plant.from_minimal if in_flight is None else in_flight.make_plant
     plant = make_plant(robot, q0, np.zeros(robot.nq), w0, rotor_constant_scale=st.rotor_constant_scale)
@@ -345,13 +378,12 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
         log_measured((q, v, plant.rotor_speeds, closure_error, positions))
         q_meas = q + noise_q * rng.normal(size=n) if noise_q else q
         v_meas = v + noise_v * rng.normal(size=n) if noise_v else v
-        reference = Reference(motion[:5, k], planned.roll_rate[k], planned.roll_acceleration[k],
-                              planned.thrust_vector[k])
+        reference = Reference(motion[:5, k], planned_rate[k], planned_acceleration[k], planned.thrust_vector[k])
         if in_flight is not None:  # a wind the controller knows, fed forward (None: none)
             reference.task_force, reference.drone_forces = in_flight.known_force(float(t))
         out = update(t, q_meas, v_meas, reference)
         allocation = out.allocation
-        log_commanded((out.roll_desired, out.speeds, allocation.thrust, allocation.torque, allocation.saturated,
+        log_commanded((out.attitude_target, out.speeds, allocation.thrust, allocation.torque, allocation.saturated,
                        controller.disturbance))
         if failure is not None:
             last, failure_time = k, float(t)
@@ -364,6 +396,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
                 motion = new.evaluate_held(ticks, order=MOTION_ORDER)
             if new is not None or in_flight.known_changed:
                 planned = in_flight.inputs(robot, ticks, motion)
+                planned_rate, planned_acceleration = _attitude_feedforward(planned)
         try:  # the command as the controller gave it: the plant saturates it to [0, w_max]
             advance(out.speeds, dt, steps_per_tick, wind)
         except PlantDivergedError as error:  # the plant keeps its last finite state
@@ -378,7 +411,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     log = {}  # the groups stacked: both hold last + 1 ticks
     for rows, fields in ((measured, {"q": (n,), "v": (n,), "speed": (n_d, 4), "closure_error": (),
                                      "positions": (n_d, 3)}),
-                         (commanded, {"roll_desired": (n_d,), "speed_command": (n_d, 4), "thrust": (n_d,),
+                         (commanded, {"attitude_desired": (n_d,), "speed_command": (n_d, 4), "thrust": (n_d,),
                                       "torque": (n_d, 3), "saturated": (n_d, 4),
                                       "disturbance": (len(robot.layout.chain),)})):
         columns = zip(*rows, strict=True) if rows else [()] * len(fields)
@@ -388,7 +421,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     log["drone_height"] = log.pop("positions")[:, :, 2].copy()
     speed_limit = robot.rotor_constants.max_speed - robot.margins.rotor_speed
     return SimulationLog(robot.name, tuple(robot.layout.coordinates), tuple(robot.layout.chain), ticks[keep],
-                         log["q"], log["v"], motion[:3, keep], planned.roll[keep], log["roll_desired"],
+                         log["q"], log["v"], motion[:3, keep], _drone_attitudes(planned)[keep], log["attitude_desired"],
                          log["speed_command"], log["speed"], log["thrust"], log["torque"],
                          log["saturated"], log["drone_height"], log["closure_error"],
                          robot.rotor_constants.max_speed, speed_limit, time.perf_counter() - start, failure,
