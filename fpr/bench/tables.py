@@ -14,6 +14,11 @@ import sys
 from fpr import robots
 
 
+def family_label(row: dict) -> str:
+    """A family row's name: robot and space, and the assembly mode for a robot that has more than one."""
+    return f"{row['robot']} {row['space']}" + (f" {row['arm']}" if robots.get(row["robot"]).assembly_modes else "")
+
+
 def _seconds(value: float) -> str:
     return f"{value:.2f} s" if value >= 0.995 else f"{value * 1e3:.0f} ms"
 
@@ -25,8 +30,7 @@ def families_markdown(families: dict) -> str:
              "| family | method | missions | median | p95 | failures | J above the unpolished two-step's | "
              "J (median) |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in families["rows"]:
-        label = f"{r['robot']} {r['space']}" + (f" {r['arm']}" if robots.get(r["robot"]).assembly_modes else "")
-        lines.append(f"| {label} | {r['method']} | {len(r['seeds'])} | {_seconds(r['median_s'])} | "
+        lines.append(f"| {family_label(r)} | {r['method']} | {len(r['seeds'])} | {_seconds(r['median_s'])} | "
                      f"{_seconds(r['p95_s'])} | {r['failures']} | {r['worse_than_unpolished']} | {r['J_median']:.4f} |")
     for r in families["robots"]:
         lines.append(f"| **{r['robot']}, all** | {r['method']} | {r['missions']} | {_seconds(r['median_s'])} | "

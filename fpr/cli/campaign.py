@@ -31,11 +31,12 @@ from fpr import robots
 from fpr.cli import checks, contract, interrupts, workers
 from fpr.cli.campaign_options import EXIT_CODES, MAX_RUNS, parser
 from fpr.cli.text import plural
+from fpr.files import write_atomic
 from fpr.model.errors import CampaignError, MissionError
 from fpr.robustness.campaign_file import campaign_from_dict, campaign_to_toml
 from fpr.robustness.runner import make_flight, mission_of, run_campaign
 from fpr.robustness.spec import INITIAL_ERROR, SETTINGS, Campaign, components
-from fpr.robustness.store import RunStore, write_atomic
+from fpr.robustness.store import RunStore
 from fpr.robustness.summary import event_summary, summarise, write_table
 from fpr.sim.closed_loop import SimulationSettings
 from fpr.tuning import tune_process

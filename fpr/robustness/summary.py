@@ -66,7 +66,7 @@ def write_table(path, rows: list[dict], columns: list[str]) -> None:
 
     import pyarrow.parquet as pq
 
-    from fpr.robustness.store import write_atomic
+    from fpr.files import write_atomic
 
     buffer = io.BytesIO()
     pq.write_table(table(rows, columns), buffer, compression="zstd")

@@ -35,13 +35,13 @@ import logging
 import math
 import os
 import platform
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from fpr.files import write_atomic
 from fpr.model.errors import PlannerArgumentError
 
 logger = logging.getLogger(__name__)
@@ -163,17 +163,7 @@ def write_calibration(path, robot_name: str, model: LatencyModel) -> None:
         document = {"format": FORMAT, "machine": here, "robots": {}}
     document["robots"][robot_name] = model.to_dict()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(json.dumps(document, indent=1, sort_keys=True) + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    write_atomic(path, json.dumps(document, indent=1, sort_keys=True) + "\n")
 
 
 def machine_latency(robot, measure, path=None) -> LatencyModel:

@@ -24,6 +24,7 @@ import pinocchio as pin
 from fpr import robots
 from fpr.bench.families import METHODS, FamilyRow, plan_family
 from fpr.bench.missions import builtin_families, loop_mission
+from fpr.bench.tables import family_label
 from fpr.cli.bench.timing import Bench
 from planners.optimize import plan
 
@@ -127,9 +128,9 @@ def families_table(families: dict) -> str:
              f"{'family':<22} {'method':<9} {'n':>3} {'median':>8} {'p95':>8} {'max':>8} {'fail':>4} {'worse':>5} "
              f"{'J med':>7}"]
     for r in families["rows"]:
-        label = f"{r['robot']} {r['space']}" + (f" {r['arm']}" if robots.get(r["robot"]).assembly_modes else "")
-        lines.append(f"{label:<22} {r['method']:<9} {len(r['seeds']):>3} {r['median_s']:8.3f} {r['p95_s']:8.3f} "
-                     f"{r['max_s']:8.3f} {r['failures']:>4} {r['worse_than_unpolished']:>5} {r['J_median']:7.4f}")
+        lines.append(f"{family_label(r):<22} {r['method']:<9} {len(r['seeds']):>3} {r['median_s']:8.3f} "
+                     f"{r['p95_s']:8.3f} {r['max_s']:8.3f} {r['failures']:>4} {r['worse_than_unpolished']:>5} "
+                     f"{r['J_median']:7.4f}")
     for r in families["robots"]:
         lines.append(f"{r['robot'] + ' (all)':<22} {r['method']:<9} {r['missions']:>3} {r['median_s']:8.3f} "
                      f"{r['p95_s']:8.3f} {r['max_s']:8.3f} {r['failures']:>4} {r['worse_than_unpolished']:>5} "
