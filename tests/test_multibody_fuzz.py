@@ -12,6 +12,7 @@ from native_parts import native_module, needs_native
 
 import fpr
 from fpr import _native as native
+from fpr.model.constrained import constraint_data
 from fpr.sim.plant import Plant, hover_configuration, hover_speeds
 
 pytestmark = needs_native
@@ -29,11 +30,7 @@ def plant():
 
 def _arguments(plant):
     closed = plant.closed
-    data = closed.model.createData()
-    datas = pin.StdVec_RigidConstraintData()
-    for cm in closed.constraints:
-        datas.append(cm.createData())
-    pin.initConstraintDynamics(closed.model, data, closed.constraints, datas)
+    data, datas = constraint_data(closed.model, closed.constraints)
     return [closed.model, data, closed.constraints, datas, closed.settings,
             np.ascontiguousarray(plant._rotor_map.T), list(closed.drone_frame_ids)]
 

@@ -20,6 +20,7 @@ from native_parts import native_module, needs_native
 
 import fpr
 from fpr import _native as native
+from fpr.model.constrained import constraint_data
 from fpr.sim.plant import Plant, PlantDivergedError, hover_configuration, hover_speeds, rkmk4_step
 
 pytestmark = needs_native
@@ -147,12 +148,10 @@ def test_measurement_is_the_python_one(name):
 
 def _well_posed(model, q, constraints) -> bool:
     """Whether the closures' rows are independent at q and Pinocchio's proximal solve of them converges there."""
-    data, datas = model.createData(), pin.StdVec_RigidConstraintData()
     models = pin.StdVec_RigidConstraintModel()
     for cm in constraints:
         models.append(cm)
-        datas.append(cm.createData())
-    pin.initConstraintDynamics(model, data, models, datas)
+    data, datas = constraint_data(model, models)
     settings = pin.ProximalSettings(1e-12, 1e-6, 20)
     pin.constraintDynamics(model, data, q, np.zeros(model.nv), np.zeros(model.nv), models, datas, settings)
     rows = np.linalg.svd(pin.getConstraintsJacobian(model, data, models, datas), compute_uv=False)
@@ -211,10 +210,7 @@ def test_any_joint_pinocchio_knows_runs_natively(seed):
     model, constraints, frames, q, rng = _random_model(seed)
     assert any(model.joints[j].shortname() == "JointModelSpherical" for j in range(model.njoints))
     settings = pin.ProximalSettings(1e-12, 1e-6, 20)
-    data, datas = model.createData(), pin.StdVec_RigidConstraintData()
-    for cm in constraints:
-        datas.append(cm.createData())
-    pin.initConstraintDynamics(model, data, constraints, datas)
+    data, datas = constraint_data(model, constraints)
     nw = 4
     force_map = 0.01 * rng.normal(size=(model.nv, nw))
     kernel = module.Plant(model, data, constraints, datas, settings, np.ascontiguousarray(force_map.T),

@@ -361,6 +361,17 @@ def add_free_drone(model: pin.Model, robot, index: int) -> tuple[int, int]:
     return jid, fid
 
 
+def constraint_data(model: pin.Model, constraints) -> tuple[pin.Data, pin.StdVec_RigidConstraintData]:
+    """A data of ``model`` and one data per constraint of ``constraints``, initialised for
+    ``pin.constraintDynamics``.
+    """
+    data, datas = model.createData(), pin.StdVec_RigidConstraintData()
+    for cm in constraints:
+        datas.append(cm.createData())
+    pin.initConstraintDynamics(model, data, constraints, datas)
+    return data, datas
+
+
 def build_closed_chain(robot, baumgarte: tuple[float, float] = (400.0, 40.0),
                        accuracy: float = 1e-12, mu: float = 1e-9, max_iter: int = 50,
                        axis_offset: float = 0.1) -> ClosedChainModel:
@@ -380,15 +391,11 @@ def build_closed_chain(robot, baumgarte: tuple[float, float] = (400.0, 40.0),
     model = pin.Model()
     model.gravity = robot.model.gravity
     tree = robot.kind.closed_chain(model, axis_offset)
-    data = model.createData()
-    datas = pin.StdVec_RigidConstraintData()
-    for cm in tree.constraints:
-        datas.append(cm.createData())
+    data, datas = constraint_data(model, tree.constraints)
     settings = pin.ProximalSettings(accuracy, mu, max_iter)
     closed = ClosedChainModel(robot, model, data, tree.constraints, datas, tree.frame_ids, tree.freeflyer_ids,
                               tree.reversed_ids, settings)
     closed.set_baumgarte(*baumgarte)
-    pin.initConstraintDynamics(model, data, tree.constraints, datas)
     return closed
 
 

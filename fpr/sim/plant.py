@@ -37,7 +37,7 @@ import pinocchio as pin
 from scipy.linalg import lapack
 
 from fpr import _native as native
-from fpr.model.constrained import ClosedChainModel, build_closed_chain
+from fpr.model.constrained import ClosedChainModel, build_closed_chain, constraint_data
 from fpr.model.errors import FprError, ModelArgumentError, check_shape
 from fpr.robots import load
 from fpr.sim.hover import hover_configuration, hover_speeds
@@ -541,11 +541,7 @@ class Plant:
             return None
         if self._native_plant is None:
             closed = self.closed
-            data = closed.model.createData()
-            datas = pin.StdVec_RigidConstraintData()
-            for cm in closed.constraints:
-                datas.append(cm.createData())
-            pin.initConstraintDynamics(closed.model, data, closed.constraints, datas)
+            data, datas = constraint_data(closed.model, closed.constraints)
             self._native_plant = module.Plant(closed.model, data, closed.constraints, datas, closed.settings,
                                               np.ascontiguousarray(self._rotor_map.T), list(closed.drone_frame_ids))
         return self._native_plant
