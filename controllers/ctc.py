@@ -299,9 +299,10 @@ class CascadedController:
         return task, drones
 
     # ------------------------------------------------------------------ loops
-    def outer(self, q, v, reference: Reference) -> np.ndarray:
+    def outer(self, q, v, reference: Reference, mass=None) -> np.ndarray:
         """F_i (along the kind's ``force_axes``) each drone must apply at its joint, shape (n_d, len(force_axes))
-        [N] (2.14-2.16).
+        [N] (2.14-2.16). ``mass``: the full model's M(q) when the caller has it (the momentum feedback's), else
+        computed here.
         """
         st = self.settings
         kp, kd = st.chain_gains
@@ -309,7 +310,8 @@ class CascadedController:
         sd = reference.motion
         error, rate_error = s - sd[0], ds - sd[1]
         if st.momentum_feedback:
-            error, rate_error = self._momentum_errors(q, v, reference, error, rate_error)
+            mass = self.robot.mass_matrix(q) if mass is None else mass
+            error, rate_error = self._momentum_errors(q, v, reference, error, rate_error, mass)
         u = sd[2] - kp * error - kd * rate_error - st.chain_integral * self._integral
         m, c, jac = self._point_dynamics(s, ds)
         b = m.dot(u) + c
@@ -323,16 +325,15 @@ class CascadedController:
         return self.robot.kind.outer_loop_forces(s, b - self.observer.estimate[self.chain], jac, reference.force,
                                                  st.singular_band)
 
-    def _momentum_errors(self, q, v, reference: Reference, error, rate_error):
+    def _momentum_errors(self, q, v, reference: Reference, error, rate_error, mass):
         """The chain's errors of the state its momentum stands for (module docstring): (s_m - s_d, s_m' - s_d'),
         each (n_s,), from the thesis' ``error`` = s - s_d and ``rate_error`` = s' - s_d'.
 
-        K = M_ss^-1 M_so from the full model's M(q) (Pinocchio's CRBA). The rolls' references: the attitude of
+        K = M_ss^-1 M_so from the full model's M(q) (``mass``, Pinocchio's CRBA). The rolls' references: the attitude of
         the reference's thrust vectors (the robot kind's ``force_attitude``, 2.20), or of the held outer-loop
         force without them, or the measured rolls (no position term) before either exists; their rates: the
         reference's attitude rates.
         """
-        mass = self.robot.mass_matrix(q)
         chain, others = self.chain, self._others
         gain = np.linalg.solve(mass[np.ix_(chain, chain)], mass[np.ix_(chain, others)])
         position, rate = q[others].copy(), v[others].copy()
@@ -347,9 +348,9 @@ class CascadedController:
         rate[self._other_rolls] -= reference.attitude_rate
         return error + gain.dot(position), rate_error + gain.dot(rate)
 
-    def _observe(self, dt: float, q, v) -> None:
+    def _observe(self, dt: float, q, v, mass) -> None:
         """One update of the observer (:mod:`controllers.observer`) at the measured (q, q'), dt [s] after the
-        last: the full model's M(q) and nonlinear effects (Pinocchio's CRBA and RNEA), and the mean over the
+        last: the full model's M(q) (``mass``) and nonlinear effects (Pinocchio's CRBA and RNEA), and the mean over the
         inner-loop ticks since the last update of the generalised force the drones were commanded to apply
         (J_f^T f + J_tau^T tau of the attitude model) plus the known wind's.
         """
@@ -359,7 +360,7 @@ class CascadedController:
         r = self.robot
         applied = self._applied / self._ticks if self._ticks else np.zeros(r.nq)
         self._applied, self._ticks = np.zeros(r.nq), 0
-        self.observer.update(dt, r.mass_matrix(q), v, r.nonlinear_effects(q, v), applied)
+        self.observer.update(dt, mass, v, r.nonlinear_effects(q, v), applied)
 
     def external_force(self, task_force=None, drone_forces=None, hinge_jacobian=None) -> np.ndarray:
         """Q_ext = J_p^T f_p + sum_i J_h,i^T f_i on the chain coordinates [N or N m], shape (n_s,).
@@ -481,9 +482,11 @@ class CascadedController:
                 error = q[self.chain] - reference.motion[0]
                 self._integral = np.minimum(np.maximum(self._integral + error * (t - self._last_outer),
                                                     -st.integral_limit), st.integral_limit)  # np.clip
+            # M(q) once for the observer and the momentum feedback
+            mass = self.robot.mass_matrix(q) if st.observer_bandwidth > 0 or st.momentum_feedback else None
             if st.observer_bandwidth > 0:
-                self._observe(t - self._last_outer if np.isfinite(self._last_outer) else 0.0, q, v)
-            self._force = self.outer(q, v, reference)
+                self._observe(t - self._last_outer if np.isfinite(self._last_outer) else 0.0, q, v, mass)
+            self._force = self.outer(q, v, reference, mass)
             self._last_outer = t
         kernel = self.__dict__.get("_inner")
         if kernel is None or kernel[0] is not native.use("inner"):  # the switch read again when it changed
