@@ -6,7 +6,10 @@ Everything specific to it, for generic code to ask through ``robot.kind`` (:clas
   and its Z-Y-X angles (R_p = Rz(psi) Ry(theta) Rx(phi), roll-pitch-yaw), the legs' angles (q_i > 0: leg i below
   the platform's plane), each drone's ball angles relative to its leg (drone i's attitude in the platform frame is
   Rz(a_i) Ry(q_i + pitch_i) Rz(yaw_i) Rx(roll_i)). The planning vector is the chain s = q[:9];
-* the drones' thrust vectors F_i are 3-vectors in world axes (``force_axes`` x, y, z).
+* the drones' thrust vectors F_i are 3-vectors in world axes (``force_axes`` x, y, z);
+* a drone's attitude from its thrust vector (:func:`ball_angles`, the one formula the planner and the controller
+  share): z_d along F_i, x_d normal to leg i's hinge axis t_i = R_p Rz(a_i) e_y, i.e. in the vertical plane of
+  leg i fixed in the platform (x_d = t_i x z_d / |t_i x z_d|, y_d = z_d x x_d). Its ball yaw is then 0 exactly.
 """
 
 from __future__ import annotations
@@ -18,6 +21,48 @@ from fpr.model.robot import Layout
 from fpr.robots.base import RobotKind
 
 _BALL = ("pitch", "yaw", "roll")
+
+LEG_ANGLES = (0.0, 2 * np.pi / 3, 4 * np.pi / 3)
+"""a_i: the directions of the legs' hinges in the platform's plane, leg i's hinge at Rz(a_i) [r_p 0 0] [rad]."""
+
+
+def _rz(angle) -> np.ndarray:
+    """Rz(angle), shape (..., 3, 3)."""
+    c, s = np.cos(angle), np.sin(angle)
+    zero, one = np.zeros_like(c), np.ones_like(c)
+    return np.stack([np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1), np.stack([zero, zero, one], -1)], -2)
+
+
+def ball_angles(platform_rotation, legs, force, leg_angles=LEG_ANGLES) -> np.ndarray:
+    r"""Each drone's ball angles (pitch_i, yaw_i, roll_i) whose thrust axis lies along its thrust vector F_i.
+
+    The attitude rule: z_d = F_i / |F_i|, x_d normal to leg i's hinge axis t_i = R_p Rz(a_i) e_y (x_d = t_i x z_d /
+    |t_i x z_d|, in the vertical plane of leg i fixed in the platform), y_d = z_d x x_d. In leg i's radial frame
+    P_i = R_p Rz(a_i), with f = P_i^T F_i,
+
+    .. math:: \mathrm{yaw}_i = 0, \quad q_i + \mathrm{pitch}_i = \operatorname{atan2}(f_x, f_z), \quad
+              \mathrm{roll}_i = \operatorname{atan2}(-f_y, \sqrt{f_x^2 + f_z^2})
+
+    (the drone's attitude in the platform frame being Rz(a_i) Ry(q_i + pitch_i) Rz(yaw_i) Rx(roll_i)). The rule is
+    singular where F_i is parallel to t_i (a drone tilted 90 degrees from the platform's plane: the tilt bound
+    excludes it). The pitch is unwrapped to within pi of -q_i (the drone level with the platform).
+
+    Args:
+        platform_rotation: R_p, shape (..., 3, 3).
+        legs: leg angles q_i, shape (..., n_d) [rad].
+        force: thrust vectors F_i in world axes, shape (..., n_d, 3) [N].
+        leg_angles: a_i, shape (n_d,) [rad].
+
+    Returns:
+        (pitch_i, yaw_i, roll_i) of each drone, shape (..., n_d, 3) [rad].
+    """
+    radial = np.asarray(platform_rotation, float)[..., None, :, :] @ _rz(np.asarray(leg_angles, float))
+    f = np.einsum("...ji,...j->...i", radial, np.asarray(force, float))  # P_i^T F_i
+    legs = np.asarray(legs, float)
+    beta = np.arctan2(f[..., 0], f[..., 2])  # q_i + pitch_i in (-pi, pi]
+    pitch = np.remainder(beta - legs + np.pi, 2 * np.pi) - np.pi  # relative to level with the platform
+    roll = np.arctan2(-f[..., 1], np.hypot(f[..., 0], f[..., 2]))
+    return np.stack([pitch, np.zeros_like(pitch), roll], axis=-1)
 
 LAYOUT = Layout(
     coordinates=("x", "y", "z", "psi", "theta", "phi", "q1", "q2", "q3")
@@ -53,4 +98,4 @@ class Fpr3(RobotKind):
     out_of_plane = ()
 
 
-__all__ = ["LAYOUT", "Fpr3"]
+__all__ = ["LAYOUT", "LEG_ANGLES", "Fpr3", "ball_angles"]
