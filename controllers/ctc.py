@@ -340,7 +340,7 @@ class CascadedController:
         force = reference.force if reference.force is not None else self._force
         if force is not None:
             force = np.asarray(force, dtype=float)
-            planned = self.robot.kind.force_attitude(force)  # (2.20)
+            planned = self.robot.kind.force_attitude(force, q)  # (2.20)
             position[self._other_rolls] = np.remainder(position[self._other_rolls] - planned + np.pi,
                                                        2 * np.pi) - np.pi
         else:

@@ -71,12 +71,16 @@ class ClosureTree:
         frame_ids: frame of each drone's centre of mass, in drone order.
         reversed_ids: ``{joint of the closed chain: (joint of the minimal model, sign)}``: the closed
             chain's joint angle is sign times the minimal model's.
+        placed_freeflyers: ``(joint of the closed chain, joint of the minimal model)`` of each free flyer other
+            than the drones' whose frame is that minimal joint's frame (e.g. a floating platform that carries
+            the chain: its placement and body twist are the minimal joint's).
     """
 
     constraints: object
     freeflyer_ids: tuple
     frame_ids: tuple
     reversed_ids: dict
+    placed_freeflyers: tuple = ()
 
 
 @dataclass
@@ -91,6 +95,8 @@ class ClosedChainModel:
         constraint_datas: their datas.
         drone_frame_ids: frames at the drones' centres of mass (where thrust and torques act).
         settings: proximal solver settings of pin.constraintDynamics.
+        placed_freeflyers: the free flyers other than the drones' placed as a minimal joint's frame
+            (:class:`ClosureTree`).
     """
 
     robot: object
@@ -102,6 +108,7 @@ class ClosedChainModel:
     freeflyer_ids: tuple
     reversed_ids: dict
     settings: pin.ProximalSettings
+    placed_freeflyers: tuple = ()
 
     # ------------------------------------------------------------------ state conversion
     def from_minimal(self, q, v=None, a=None):
@@ -117,7 +124,8 @@ class ClosedChainModel:
         qc = np.zeros(self.model.nq)
         vc = np.zeros(self.model.nv)
         ac = np.zeros(self.model.nv)
-        for fly, hinge in zip(self.freeflyer_ids, r.hinge_joint_ids, strict=True):
+        pairs = tuple(zip(self.freeflyer_ids, r.hinge_joint_ids, strict=True)) + tuple(self.placed_freeflyers)
+        for fly, hinge in pairs:
             jq, jv = self.model.joints[fly].idx_q, self.model.joints[fly].idx_v
             qc[jq:jq + 7] = pin.SE3ToXYZQUAT(r.data.oMi[hinge])
             vc[jv:jv + 6] = r.data.v[hinge].vector
@@ -285,7 +293,7 @@ class _MinimalCache:
         self.velocity_rows = np.zeros((model.nv, r.nq))
         for j, source, sign in rev:
             self.velocity_rows[j.idx_v] = sign * r.T[source.idx_v]
-        pairs = zip(closed.freeflyer_ids, r.hinge_joint_ids, strict=True)
+        pairs = tuple(zip(closed.freeflyer_ids, r.hinge_joint_ids, strict=True)) + tuple(closed.placed_freeflyers)
         self.freeflyer_rows = tuple((model.joints[fly].idx_v, hinge) for fly, hinge in pairs)
         self.angular = closed._angular
         self.angular_list = self.angular.tolist()
@@ -394,7 +402,7 @@ def build_closed_chain(robot, baumgarte: tuple[float, float] = (400.0, 40.0),
     data, datas = constraint_data(model, tree.constraints)
     settings = pin.ProximalSettings(accuracy, mu, max_iter)
     closed = ClosedChainModel(robot, model, data, tree.constraints, datas, tree.frame_ids, tree.freeflyer_ids,
-                              tree.reversed_ids, settings)
+                              tree.reversed_ids, settings, tuple(tree.placed_freeflyers))
     closed.set_baumgarte(*baumgarte)
     return closed
 

@@ -418,9 +418,11 @@ class RobotKind:
         """
         return np.linalg.solve(jacobian.T, b).reshape(-1, len(self.force_axes))
 
-    def force_attitude(self, force) -> np.ndarray:
+    def force_attitude(self, force, q=None) -> np.ndarray:
         """The drones' attitude coordinates (``layout.drone_attitude`` flattened) whose thrust axes lie along the
         thrust vectors ``force`` (n_d, len(force_axes)) [N]: the references of the controller's momentum feedback.
+        ``q``: the measured configuration (n,), for a kind whose drones' attitude coordinates are relative to the
+        chain (the spatial FPR's ball angles), or None.
 
         Default: the planar robots' roll phi_i = atan2(-F_iy, F_iz) (seed 2.20), shape (n_d,) [rad].
         """

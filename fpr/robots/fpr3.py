@@ -14,11 +14,16 @@ Everything specific to it, for generic code to ask through ``robot.kind`` (:clas
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
+from fpr.model.constrained import ClosureTree
 from fpr.model.description import URDF_DIR
 from fpr.model.robot import Layout
+from fpr.robots import fpr3_control
 from fpr.robots.base import RobotKind
+from fpr.robots.planar_control import AttitudeTargets
 
 _BALL = ("pitch", "yaw", "roll")
 
@@ -96,6 +101,44 @@ class Fpr3(RobotKind):
     task_frame = "platform"
     force_axes = ("x", "y", "z")
     out_of_plane = ()
+
+    # ---- control and simulation (fpr3_control)
+    @cached_property
+    def _control(self) -> fpr3_control.Fpr3Control:
+        """The control constants read from the model (:class:`fpr.robots.fpr3_control.Fpr3Control`)."""
+        return fpr3_control.Fpr3Control(self)
+
+    @property
+    def ground_height(self) -> float:
+        """z of the ground [m]: 0 (the drones sit on their balls at the legs' tips, no link below them)."""
+        return 0.0
+
+    def closed_chain(self, model, axis_offset: float) -> ClosureTree:
+        """The platform a free flyer, the legs a tree on it, three free drones, three point closures
+        (:func:`fpr.robots.fpr3_control.closed_chain`)."""
+        return fpr3_control.closed_chain(self, model, axis_offset)
+
+    def closure_reader(self, closed) -> fpr3_control.Fpr3Reader:
+        """The platform's pose and the ball angles off the closed chain (:class:`fpr.robots.fpr3_control.Fpr3Reader`)."""
+        return fpr3_control.Fpr3Reader(closed)
+
+    def force_attitude(self, force, q=None) -> np.ndarray:
+        """The ball angles (``layout.drone_attitude`` flattened, (9,)) of drones whose thrust axes lie along
+        ``force`` (3, 3) [N] by the yaw rule, relative to the platform and legs of ``q`` (the reference pose
+        without it) [rad]."""
+        if q is None:
+            q = np.zeros(self.robot.nq)
+            q[self.robot.indices(self.layout.chain)] = self.reference_chain
+        return self._control.ball_angles(q, force).reshape(-1)
+
+    def attitude_targets(self, q, v, force, reference, settings) -> AttitudeTargets:
+        """Thrusts along the measured thrust axes, the ball angles of F_i relative to the measured platform and
+        legs, the plan's ball-angle rates and accelerations (:meth:`fpr.robots.fpr3_control.Fpr3Control.targets`)."""
+        return self._control.targets(q, v, force, reference)
+
+    def level_attitude(self, q) -> np.ndarray:
+        """``q`` with each drone level in the world, yaw by the rule (:meth:`fpr.robots.fpr3_control.Fpr3Control.level`)."""
+        return self._control.level(q)
 
 
 __all__ = ["LAYOUT", "LEG_ANGLES", "Fpr3", "ball_angles"]
