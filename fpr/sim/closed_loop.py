@@ -102,10 +102,10 @@ class SimulationLog:
         q, v: plant state in thesis coordinates (N, n) [m, rad; /s].
         reference: planned s and its first two derivatives (3, N, n_s).
         planned_attitude: the plan's drone attitudes (``layout.drone_attitude`` flattened; a planar robot's
-            rolls) (N, n_d) [rad]; ``planned_roll`` is its former name (a read-only alias, and its key in the
+            rolls) (N, n_d k_a) [rad]; ``planned_roll`` is its former name (a read-only alias, and its key in the
             files of :meth:`save`).
         attitude_desired: the controller's targets of the same coordinates (its ``attitude_target``: the
-            desired rolls) (N, n_d) [rad]; ``roll_desired`` is its former name (alias and file key).
+            desired rolls) (N, n_d k_a) [rad]; ``roll_desired`` is its former name (alias and file key).
         speed_command: allocated rotor speeds (N, n_d, 4) [rad/s].
         speed: plant rotor speeds (after lag and saturation) (N, n_d, 4) [rad/s].
         thrust, torque: allocated thrusts (N, n_d) [N] and torques (N, n_d, 3) [N m].
@@ -358,6 +358,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     wind = None if not wind.any() else wind
 
     n, n_d, n_t = robot.nq, robot.n_drones, ticks.size
+    n_a = len(robot.layout.rolls)  # the drones' attitude coordinates (layout.drone_attitude flattened)
     # the log: each tick's arrays kept as they are (fresh arrays, or read-only ones), stacked after the loop (one
     # list append per group instead of a numpy row write per array)
     measured, commanded = [], []  # (q, v, rotor speeds, closure error, centres); (rolls, command, f, tau, saturated)
@@ -411,7 +412,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     log = {}  # the groups stacked: both hold last + 1 ticks
     for rows, fields in ((measured, {"q": (n,), "v": (n,), "speed": (n_d, 4), "closure_error": (),
                                      "positions": (n_d, 3)}),
-                         (commanded, {"attitude_desired": (n_d,), "speed_command": (n_d, 4), "thrust": (n_d,),
+                         (commanded, {"attitude_desired": (n_a,), "speed_command": (n_d, 4), "thrust": (n_d,),
                                       "torque": (n_d, 3), "saturated": (n_d, 4),
                                       "disturbance": (len(robot.layout.chain),)})):
         columns = zip(*rows, strict=True) if rows else [()] * len(fields)

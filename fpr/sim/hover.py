@@ -19,7 +19,8 @@ def _static_inputs(robot, chain):
 
 
 def hover_configuration(robot, chain) -> np.ndarray:
-    """The static pose of a chain configuration: x = psi = theta = 0 and the drone rolls that hold it.
+    """The static pose of a chain configuration: the ``out_of_plane`` coordinates 0 and the drones' attitudes
+    (``layout.drone_attitude``: the rolls of a planar robot) that hold it.
 
     Args:
         robot: the :class:`~fpr.model.robot.Robot`.
@@ -27,11 +28,11 @@ def hover_configuration(robot, chain) -> np.ndarray:
             prototype xi = [q1 q2] [rad]), e.g. ``robot.kind.reference_chain``.
 
     Returns:
-        q, shape (n,), with the drones' rolls along their static thrust vectors (seed 2.20).
+        q, shape (n,), with the drones' thrust axes along their static thrust vectors (seed 2.20).
     """
     q = np.zeros(robot.nq)
     q[robot.indices(robot.layout.chain)] = chain
-    q[robot.indices(robot.layout.rolls)] = _static_inputs(robot, chain).roll[0]
+    q[robot.indices(robot.layout.rolls)] = _static_inputs(robot, chain).attitude[0].reshape(-1)
     return q
 
 
@@ -41,8 +42,9 @@ def hover_speeds(robot, q, tolerance: float = 1e-6) -> np.ndarray:
     The thrusts and roll torques come from :func:`fpr.model.inverse_dynamics.inverse_dynamics` with a
     motionless chain: at rest the planning model's thrust vectors are exact (the forces on a drone
     do not depend on where its mass sits), and the roll torques balance the drones' weight about
-    their hinges in the exact model. A static pose has the drone rolls along these thrusts (use
-    :func:`hover_configuration`) and a vertical plane (theta = 0); x and psi are free.
+    their hinges in the exact model. A static pose has the drones' attitudes along these thrusts (use
+    :func:`hover_configuration`) and, for a planar robot, a vertical plane (theta = 0, when theta is among the
+    kind's ``out_of_plane`` coordinates); x and psi are free.
 
     Args:
         robot: the :class:`~fpr.model.robot.Robot`.
@@ -57,9 +59,10 @@ def hover_speeds(robot, q, tolerance: float = 1e-6) -> np.ndarray:
     """
     q = check_shape("q", q, (robot.nq,))
     inputs = _static_inputs(robot, q[robot.indices(robot.layout.chain)])
-    names = robot.layout.rolls + ("theta",)
+    plane = ("theta",) if "theta" in robot.kind.out_of_plane else ()
+    names = robot.layout.rolls + plane
     actual = q[robot.indices(names)]
-    static = np.append(inputs.roll[0], 0.0)
+    static = np.append(inputs.attitude[0].reshape(-1), np.zeros(len(plane)))
     off = np.abs(np.mod(actual - static + np.pi, 2 * np.pi) - np.pi)
     if off.max() > tolerance:
         raise ModelArgumentError("q", q, f"q is not a static pose: ({', '.join(names)}) = "

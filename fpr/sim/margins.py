@@ -152,8 +152,8 @@ def _rows(robot, log, crossing_sign, floor):
     index = {c: i for i, c in enumerate(log.coordinates)}
     s = log.q[:, [index[c] for c in log.chain]]
     rolls = log.q[:, [index[c] for c in robot.layout.rolls]]
-    measured = SimpleNamespace(roll=rolls, rotor_speed=log.speed, rotor_speed_squared=log.speed**2,
-                               thrust=log.thrust)
+    measured = SimpleNamespace(roll=rolls, attitude=rolls.reshape(len(rolls), robot.n_drones, -1),
+                               rotor_speed=log.speed, rotor_speed_squared=log.speed**2, thrust=log.thrust)
     motion = s[None]
     return constraint_rows(robot, motion, measured, scaled=False, crossing_sign=crossing_sign,
                            min_thrust=floor)

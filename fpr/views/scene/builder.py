@@ -20,7 +20,7 @@ from fpr.model.errors import SceneError
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from fpr.views.scene.geometry import (
     _HINGE_COLOR,
-    _Z_TO_X,
+    _axle_matrix,
     _Group,
     _is_hinge,
     _meshcat,
@@ -94,10 +94,10 @@ def _tracked_motion(log, times: np.ndarray) -> _Motion:
 
 
 def _logged_reference(robot, log, times: np.ndarray) -> _Motion:
-    """The plan as the log recorded it (chain coordinates and drone rolls); no thrusts."""
+    """The plan as the log recorded it (chain coordinates and the drones' attitude coordinates); no thrusts."""
     q = np.zeros((len(log.t), robot.nq))
     q[:, robot.indices(robot.layout.chain)] = log.reference[0]
-    q[:, robot.indices(robot.layout.rolls)] = log.planned_roll
+    q[:, robot.indices(robot.layout.rolls)] = log.planned_attitude
     return _Motion(_interpolate(log.t, q, times), None)
 
 
@@ -178,7 +178,7 @@ class _Scene:
         for j in self.joint_ids:
             if _is_hinge(model, j):
                 group = groups.setdefault(j, _Group(model.names[j], color, opacity))
-                group.cylinder("hinge", length, radius, _HINGE_COLOR, _Z_TO_X)
+                group.cylinder("hinge", length, radius, _HINGE_COLOR, _axle_matrix(model, j))
         for j, group in groups.items():
             path = f"{prefix}/{model.names[j]}" if j > 0 else f"{prefix}/base"
             self.set_group(path, group)

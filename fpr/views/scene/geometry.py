@@ -68,9 +68,42 @@ def _visual_model(robot):
     return _VISUAL_MODELS[robot.urdf]
 
 
+_REVOLUTE_AXES = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0), "JointModelRZ": (0.0, 0.0, 1.0)}
+
+
+def _revolute_axis(model, joint_id: int) -> np.ndarray | None:
+    """The axis of a 1-DoF revolute joint in its own frame (unit), or None for any other joint."""
+    joint = model.joints[joint_id]
+    name = joint.shortname()
+    if name in _REVOLUTE_AXES:
+        return np.array(_REVOLUTE_AXES[name])
+    if name in ("JointModelRevoluteUnaligned", "JointModelRevoluteUnboundedUnaligned"):
+        axis = np.asarray(joint.extract().axis if hasattr(joint, "extract") else joint.axis, dtype=float)
+        return axis / np.linalg.norm(axis)
+    return None
+
+
 def _is_hinge(model, joint_id: int) -> bool:
-    """A revolute joint about x: a joint of the planar chain, drawn as an axle."""
-    return model.joints[joint_id].shortname() == "JointModelRX"
+    """A 1-DoF revolute joint (about any axis): drawn as an axle."""
+    return _revolute_axis(model, joint_id) is not None
+
+
+def _axle_matrix(model, joint_id: int) -> np.ndarray:
+    """The 4x4 transform that turns a cylinder along z onto a revolute joint's axis (:data:`_Z_TO_X` for an axis
+    along x, the planar chain's)."""
+    axis = _revolute_axis(model, joint_id)
+    if axis[0] == 1.0 and not axis[1:].any():
+        return _Z_TO_X
+    z = np.array([0.0, 0.0, 1.0])
+    v, c = np.cross(z, axis), float(z.dot(axis))
+    if np.linalg.norm(v) < 1e-12:  # along +-z
+        rotation = np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    else:  # Rodrigues: the rotation of z onto the axis
+        k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+        rotation = np.eye(3) + k + k @ k / (1.0 + c)
+    out = np.eye(4)
+    out[:3, :3] = rotation
+    return out
 
 
 # ------------------------------------------------------------------------------------------ geometry
