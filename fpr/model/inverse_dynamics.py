@@ -62,6 +62,13 @@ class MotionInputs:
         attitude_rate_squared: the square of each drone's angular speed, the integrand of the perturbation
             index J_phi (seed 3.25) summed over the drones, shape (N, n_d) [rad^2/s^2]: phi_i'^2 for a planar
             robot.
+        angular_velocity: the components of each drone's angular velocity whose squares sum to
+            ``attitude_rate_squared`` (what the planner's Gauss-Newton model of J_phi takes), shape
+            (N, n_d, k_w) [rad/s]: a planar robot's roll rate phi_i' (k_w = 1), a spatial robot's angular velocity
+            in the drone's axes (k_w = 3).
+
+    A robot whose drones have more than a roll (the spatial FPR) fills the planar ``roll`` fields with what its
+    files and figures show in their place (its kind's ``motion_inputs`` says what).
 
     The thrust vectors, joint positions and forces have one entry per axis of ``robot.kind.force_axes`` in
     their last axis (the planar robots': world y, z).
@@ -85,6 +92,7 @@ class MotionInputs:
     attitude_rate: np.ndarray
     attitude_acceleration: np.ndarray
     attitude_rate_squared: np.ndarray
+    angular_velocity: np.ndarray
 
     @property
     def power(self) -> np.ndarray:
@@ -98,7 +106,12 @@ class MotionInputs:
         return robot.kind.full_state(self)
 
 
-def _motion_array(robot, motion) -> np.ndarray:
+def motion_array(robot, motion) -> np.ndarray:
+    """A motion as an array (5 or 7, N, n_s) (a Jet's derivatives, one sample given as (5, n_s) made (5, 1, n_s)).
+
+    Raises:
+        ShapeError: not s and its derivatives 0..4 at N samples.
+    """
     n_s = len(robot.layout.chain)
     m = jets.inexact(motion.d if isinstance(motion, Jet) else motion)
     if m.ndim == 2:
@@ -266,7 +279,7 @@ def planar_inverse_dynamics(robot, motion, external=None) -> MotionInputs:
     Returns:
         the :class:`MotionInputs` at the N samples.
     """
-    m = _motion_array(robot, motion)
+    m = motion_array(robot, motion)
     near = robot.kind.needs_high_derivatives(m[0])
     s = Jet(m if near else m[:5])  # higher derivatives only where the robot's solve needs them
     force = thrust_vectors(robot, s, order=2, external=external)
@@ -305,4 +318,5 @@ def planar_inverse_dynamics(robot, motion, external=None) -> MotionInputs:
         attitude_rate=roll.d[1][..., None],
         attitude_acceleration=roll.d[2][..., None],
         attitude_rate_squared=roll.d[1] ** 2,
+        angular_velocity=roll.d[1][..., None],
     )

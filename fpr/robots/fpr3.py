@@ -17,12 +17,18 @@ from __future__ import annotations
 from functools import cached_property
 
 import numpy as np
+import pinocchio as pin
 
 from fpr.model.constrained import ClosureTree
 from fpr.model.description import URDF_DIR
+from fpr.model.inverse_dynamics import MotionInputs
+from fpr.model.kinematics import last_axis
 from fpr.model.robot import Layout
+from fpr.model.spatial import SpatialChain
 from fpr.robots import fpr3_control
-from fpr.robots.base import RobotKind
+from fpr.robots.base import GROUND_KIND, RobotKind
+from fpr.robots.fpr3_geometry import LEGS, Fpr3Geometry
+from fpr.robots.fpr3_motion import spatial_motion_inputs
 from fpr.robots.planar_control import AttitudeTargets
 
 _BALL = ("pitch", "yaw", "roll")
@@ -88,7 +94,7 @@ LAYOUT = Layout(
 
 
 class Fpr3(RobotKind):
-    """The spatial FPR (three drones, a platform in 6 DOF)."""
+    """The spatial FPR (registry name "fpr3"): see the module docstring and :class:`~fpr.robots.base.RobotKind`."""
 
     name = "fpr3"
     xacro = URDF_DIR / "fpr3.urdf.xacro"
@@ -101,17 +107,211 @@ class Fpr3(RobotKind):
     task_frame = "platform"
     force_axes = ("x", "y", "z")
     out_of_plane = ()
+    constraint_kinds = {
+        "ground": GROUND_KIND,
+        "leg": ("rad", "leg angle m_ga <= q_i <= arccos(-r_p / l) - m_ga (legs out of the platform's plane; "
+                       "tips off the platform's axis)"),
+        "distance": ("m", "distance between two drones (leg tips) >= 2 (rotor arm + rotor disc radius) + m_gd"),
+        "chart": ("rad", "platform pitch |theta| <= pi/2 - m_ga (the Z-Y-X chart's singularity)"),
+        "singular": ("1", "det J (the legs' six lines) at least its value with every leg at m_ga, relative to the "
+                          "reference pose's"),
+        "tilt": ("rad", "drone tilt from the vertical <= pi/2 - m_ga"),
+    }
+    attitude_kinds = ("tilt",)
+    margin_hints = {
+        "leg": "keep every leg angle between m_ga and arccos(-r_p / l) - m_ga",
+        "distance": "move the legs' tips apart (open the legs towards the platform's plane)",
+        "chart": "keep the platform's pitch theta within pi/2 - m_ga of level",
+        "singular": "move away from the singular poses: legs in the platform's plane, tips on its axis",
+    }
+    titles = {
+        "path": "Path of the platform and of the legs' tips (projections)",
+        "coordinates": "Coordinates of the platform and of the legs",
+        "energy": "Energy index $J_e$",
+        "perturbation": r"Perturbation index $J_\omega$ (the drones' angular speeds)",
+        "thrust": "Thrust of each drone",
+        "roll": "Tilt of each drone from the vertical",
+        "rotor_speeds": "Rotor speeds of each drone",
+        "rotor_forces": r"Rotor forces $c_T \omega^2$ of each drone",
+        "sim_path": "Platform and legs' tips, planned and simulated",
+        "sim_coordinates": "Tracking of the platform's pose and of the legs",
+        "sim_out_of_plane": "The spatial FPR tracks all of its coordinates",
+        "sim_roll": "Tilt of each drone in simulation",
+        "sim_heights": "Height of each leg's tip in simulation",
+        "sim_rotor_speeds": "Rotor speeds of each drone in simulation",
+        "sim_rotor_forces": r"Rotor forces $c_T \omega^2$ of each drone in simulation",
+        "sim_energy": r"Energy $J_e$ and perturbation $J_\omega$ in planning and simulation",
+    }
+
+    # ------------------------------------------------------------------ geometry read from the model
+    @cached_property
+    def geometry(self) -> Fpr3Geometry:
+        """The legs' hinges, directions and lengths (:class:`~fpr.robots.fpr3_geometry.Fpr3Geometry`)."""
+        return Fpr3Geometry.from_model(self.robot.model, self.name)
+
+    @cached_property
+    def link_lengths(self) -> tuple[float, float, float]:
+        """(l_1, l_2, l_3): each leg's hinge to its tip [m]."""
+        return tuple(float(v) for v in self.geometry.lengths)
+
+    @property
+    def ground_height(self) -> float:
+        """z of the ground: 0 [m] (the world's origin is on the ground; the tour takes off m_gd above it)."""
+        return 0.0
+
+    @cached_property
+    def point_model(self) -> pin.Model:
+        """The planning model: the platform and the legs, each drone a point mass at its leg's tip (its ball
+        joint locked at 0, its rings on the leg), coordinates the planning vector s (Pinocchio's order).
+        """
+        model = pin.Model(self.robot.model)
+        for j in self.robot.hinge_joint_ids:
+            model.inertias[j] = pin.Inertia(model.inertias[j].mass, np.zeros(3), np.zeros((3, 3)))
+        locked = [model.getJointId(f"drone_{i}_{part}") for i in LEGS for part in ("ball_pitch", "ball_yaw", "hinge")]
+        reduced = pin.buildReducedModel(model, locked, pin.neutral(model))
+        reduced.gravity = model.gravity
+        return reduced
+
+    @cached_property
+    def spatial_chain(self) -> SpatialChain:
+        """The jets model of :attr:`point_model` with the legs' tips (:class:`fpr.model.spatial.SpatialChain`)."""
+        return SpatialChain(self.point_model, [f"leg_{i}_tip" for i in LEGS])
+
+    @cached_property
+    def drone_inertias(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(m_i (n_d,), centre of mass c_i in the drone's axes from its ball (n_d, 3), inertia about the ball
+        I_o (n_d, 3, 3)) of each drone, from the model [kg, m, kg m^2].
+        """
+        masses, levers, inertias = [], [], []
+        for j in self.robot.hinge_joint_ids:
+            body = self.robot.model.inertias[j]
+            c = np.asarray(body.lever, float)
+            masses.append(body.mass)
+            levers.append(c)
+            inertias.append(body.inertia + body.mass * (c @ c * np.eye(3) - np.outer(c, c)))
+        return np.array(masses), np.array(levers), np.array(inertias)
+
+    @cached_property
+    def _singular_scale(self) -> tuple[float, float]:
+        """(det K at the reference pose, the singular margin's floor: det K with every leg at m_ga over it)."""
+        reference = float(self.geometry.line_determinant(np.array(self.reference_chain[6:9])))
+        floor = float(self.geometry.line_determinant(np.full(3, self.robot.margins.angle))) / reference
+        return reference, floor
+
+    # ------------------------------------------------------------------ kinematics
+    def drone_joints(self, s) -> np.ndarray:
+        """The legs' tips (the drones' balls) in the world, shape (..., 3, 3), tip i in row i, (x, y, z) [m]."""
+        return self.geometry.tips(last_axis(s, 9, "s"))
+
+    def drone_joint_velocities(self, s, s_dot) -> np.ndarray:
+        """The tips' velocities J s', shape (..., 3, 3) [m/s]."""
+        s, s_dot = last_axis(s, 9, "s"), last_axis(s_dot, 9, "s_dot")
+        v = np.einsum("...ij,...j->...i", self.chain_jacobian(s), s_dot)
+        return v.reshape(v.shape[:-1] + (3, 3))
+
+    def chain_jacobian(self, s) -> np.ndarray:
+        """J = d[tip_1; tip_2; tip_3]/ds in world axes, shape (..., 9, 9) (the planning model's)."""
+        s = np.real(last_axis(s, 9, "s"))
+        return self.spatial_chain.tip_jacobian(s)
+
+    def task_points(self, s) -> tuple[np.ndarray, np.ndarray]:
+        """(the platform's centre (..., 3), the legs' tips (..., 3, 3)) [m]."""
+        s = last_axis(s, 9, "s")
+        return s[..., :3], self.drone_joints(s)
+
+    def joint_legends(self) -> tuple[tuple[str, str], ...]:
+        """The legs' tips: ("tip 1 (drone 1)", "tip1"), ..."""
+        return tuple((f"tip {i} (drone {i})", f"tip{i}") for i in LEGS)
+
+    def height_panels(self) -> tuple[tuple[str, str, str, int, int | None], ...]:
+        """z of each leg's tip, with its drone."""
+        return tuple((rf"$z_{i}$ [m]", f"tip {i} (drone {i})", "joint", i - 1, i - 1) for i in LEGS)
+
+    # ------------------------------------------------------------------ workspace
+    def workspace_margins(self, s, mode: str | None = None) -> dict[str, np.ndarray]:
+        """Signed margins (>= 0 where satisfied), each of shape (...): ``ground_<i>`` (tip i's height above
+        m_gd [m]), ``leg_<i>_low`` / ``leg_<i>_high`` (m_ga <= q_i <= arccos(-r_p / l) - m_ga [rad]),
+        ``distance_<ij>`` (tips i and j at least 2 (rotor arm + rotor disc radius) + m_gd apart [m]),
+        ``chart_low`` / ``chart_high`` (|theta| <= pi/2 - m_ga [rad]) and ``singular`` (det K / det K_ref minus
+        its value with every leg at m_ga, :mod:`fpr.robots.fpr3_geometry` [1]). ``mode`` is ignored (one
+        assembly mode).
+        """
+        s = last_axis(s, 9, "s")
+        margins, geometry = self.robot.margins, self.geometry
+        tips = geometry.tips(s)
+        out = {f"ground_{i}": tips[..., i - 1, 2] - (self.ground_height + margins.ground) for i in LEGS}
+        high = geometry.highest_leg_angle - margins.angle
+        for i in LEGS:
+            out[f"leg_{i}_low"] = s[..., 5 + i] - margins.angle
+            out[f"leg_{i}_high"] = high[i - 1] - s[..., 5 + i]
+        least = 2 * self.drone_radius + margins.ground
+        for i, j in ((1, 2), (1, 3), (2, 3)):
+            gap = tips[..., i - 1, :] - tips[..., j - 1, :]
+            out[f"distance_{i}{j}"] = np.sqrt(np.sum(gap * gap, axis=-1)) - least
+        out["chart_low"] = s[..., 4] + (np.pi / 2 - margins.angle)
+        out["chart_high"] = (np.pi / 2 - margins.angle) - s[..., 4]
+        reference, floor = self._singular_scale
+        out["singular"] = geometry.line_determinant(s[..., 6:9]) / reference - floor
+        return out
+
+    @cached_property
+    def drone_radius(self) -> float:
+        """A drone's reach from its centre: the rotor arm plus the rotor disc's radius of the quadrotor's drawing
+        (``urdf/quadrotor.xacro``: discs of 0.133 m on a 0.263 m arm, scaled to the rotor arm) [m].
+        """
+        arm = float(np.max([np.linalg.norm(r.positions, axis=1).max() for r in self.robot.rotors]))
+        return arm * (1.0 + 0.133 / 0.263)
+
+    def mission_region(self, space: str, mode: str | None) -> tuple[np.ndarray, np.ndarray]:
+        """Way points of random missions: the platform within 1 m of the reference pose's centre horizontally and
+        0.8..1.8 m high, yaw within 60 degrees, tilts within 0.3 rad, legs 0.5..1.2 rad (joint and task space
+        alike: the task coordinates are the planning ones) [m, rad].
+        """
+        low = np.array([-1.0, -1.0, 0.8, -np.pi / 3, -0.3, -0.3, 0.5, 0.5, 0.5])
+        high = np.array([1.0, 1.0, 1.8, np.pi / 3, 0.3, 0.3, 1.2, 1.2, 1.2])
+        return low, high
+
+    def coordinate_axes(self) -> list[tuple[str, tuple[float, float] | None]]:
+        """x, y, z, psi, phi unbounded; theta within pi/2 - m_ga; each leg in [m_ga, arccos(-r_p / l) - m_ga]."""
+        m = self.robot.margins.angle
+        high = self.geometry.highest_leg_angle - m
+        return ([("x [m]", None), ("y [m]", None), ("z [m]", None), (r"$\psi$ [rad]", None),
+                 (r"$\theta$ [rad]", (-(np.pi / 2 - m), np.pi / 2 - m)), (r"$\varphi$ [rad]", None)]
+                + [(rf"$q_{i}$ [rad]", (m, float(high[i - 1]))) for i in LEGS])
+
+    # ------------------------------------------------------------------ what the drones must do along a motion
+    def motion_inputs(self, motion, external=None) -> MotionInputs:
+        """Thrust vectors, ball angles, torques and rotor speeds along a motion
+        (:func:`fpr.robots.fpr3_motion.spatial_motion_inputs`). ``attitude`` holds each drone's (pitch_i, yaw_i,
+        roll_i), ``attitude_rate_squared`` |w_i|^2, ``angular_velocity`` w_i in the drone's axes; the planar
+        ``roll`` fields hold each drone's tilt from the vertical [rad], its angular speed |w_i| [rad/s] and the
+        magnitude of its angular acceleration [rad/s^2] (for files and figures).
+        """
+        return spatial_motion_inputs(self, motion, external)
+
+    def attitude_margins(self, inputs, scaled: bool) -> list[list[tuple[str, str, np.ndarray]]]:
+        """Each drone's tilt from the vertical at most pi/2 - m_ga: ``tilt_<i>``; scaled, the smooth
+        F_z / |F| - sin(m_ga) (the cosine of the tilt minus that of its bound) [1]; unscaled, the angle's margin
+        pi/2 - m_ga - tilt [rad].
+        """
+        m = self.robot.margins.angle
+        force = inputs.thrust_vector
+        rows = []
+        for i in range(self.robot.n_drones):
+            f = force[:, i]
+            if scaled:
+                norm = np.sqrt(f[:, 0] * f[:, 0] + f[:, 1] * f[:, 1] + f[:, 2] * f[:, 2])
+                rows.append([(f"tilt_{i + 1}", "", f[:, 2] / norm - np.sin(m))])
+            else:
+                tilt = np.arctan2(np.hypot(f[:, 0], f[:, 1]), f[:, 2])
+                rows.append([(f"tilt_{i + 1}", "", (np.pi / 2 - m) - tilt)])
+        return rows
 
     # ---- control and simulation (fpr3_control)
     @cached_property
     def _control(self) -> fpr3_control.Fpr3Control:
         """The control constants read from the model (:class:`fpr.robots.fpr3_control.Fpr3Control`)."""
         return fpr3_control.Fpr3Control(self)
-
-    @property
-    def ground_height(self) -> float:
-        """z of the ground [m]: 0 (the drones sit on their balls at the legs' tips, no link below them)."""
-        return 0.0
 
     def closed_chain(self, model, axis_offset: float) -> ClosureTree:
         """The platform a free flyer, the legs a tree on it, three free drones, three point closures

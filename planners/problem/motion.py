@@ -443,7 +443,9 @@ class MotionProblem:
         return sum(1 for name in self._rows_names if constraint_kind(name) in kinds)
 
     def _quantities(self, motion):
-        """Raw per-drone integrand pieces (N, 2 n_d): [F_i . r_i' ..., phi_i' ...], and the rows."""
+        """Raw integrand pieces (N, n_d + n_d k_w): [F_i . r_i' ..., the drones' angular velocity components ...]
+        (a planar robot's roll rates phi_i', k_w = 1), and the rows.
+        """
         inputs = self._inputs(motion)
         power = np.sum(inputs.thrust_vector * inputs.joint_velocity, axis=-1)
         sign = workspace = None
@@ -454,7 +456,8 @@ class MotionProblem:
         rows, names, _ = constraint_rows(self.robot, motion, inputs, scaled=True, crossing_sign=sign,
                                          min_thrust=self.min_thrust, workspace=workspace)
         self._rows_names = names
-        return np.concatenate([power, inputs.roll_rate], axis=-1), rows
+        rates = inputs.angular_velocity
+        return np.concatenate([power, rates.reshape(rates.shape[0], -1)], axis=-1), rows
 
     def _between_nodes(self, motion) -> dict:
         """The workspace margins of the nodes, each the lower of a node's and half a spacing after it.
@@ -503,7 +506,7 @@ class MotionProblem:
         else:
             raw, rows, sens_raw, sens_rows = self._node_derivatives(points, motion)
             local = _chain_basis(sens_raw, self._basis_by_node).reshape(n_s, raw.shape[1], -1)
-            n_d = raw.shape[1] // 2  # raw holds [powers..., roll rates...]
+            n_d = self.robot.n_drones  # raw holds [powers..., angular velocity components...]
             power, rate = raw[:, :n_d], raw[:, n_d:]
             smooth = np.sqrt(power * power + POWER_SMOOTHING**2)
             # J = sum_i w_i (a_e sum_d |P_id|_eps + a_phi sum_d rate_id^2)
@@ -531,7 +534,7 @@ class MotionProblem:
 
                 def power_gram(weight, power_local=power_local):
                     return self._assemble(np.asarray(weight, dtype=float).reshape(n_s, n_d), power_local)
-        n_d = raw.shape[1] // 2
+        n_d = self.robot.n_drones
         terms = self.weights @ _integrands(raw[:, :n_d], raw[:, n_d:] ** 2, POWER_SMOOTHING)
         value = float(a_e * terms[0] + a_phi * terms[1])
         if self.dips:
