@@ -119,7 +119,10 @@ class _Scene:
         model = robot.model
         carriers = {o.parentJoint for o in self.visual_model.geometryObjects}
         self.joint_ids = tuple(j for j in range(1, model.njoints) if j in carriers or _is_hinge(model, j))
-        self.end_effector_frame = model.getFrameId("end_effector")
+        # the carried body's path: the 'end_effector' link's, or the kind's task frame's (the spatial FPR's platform)
+        main = "end_effector" if model.existFrame("end_effector") else robot.kind.task_frame
+        self.end_effector_name = main
+        self.end_effector_frame = model.getFrameId(main)
         if self.end_effector_frame >= model.nframes:
             raise SceneError("robot", f"the {robot.name} URDF has no 'end_effector' link: name the link "
                                       "that carries the end-effector (or the task point) 'end_effector'")
@@ -213,9 +216,9 @@ class _Scene:
 
     # -------------------------------------------------------------- paths, markers, environment
     def paths(self, name: str, poses: _Poses, color: int) -> None:
-        """Lines through the end-effector's and the drones' centres' positions."""
+        """Lines through the end-effector's (or the task frame's) and the drones' centres' positions."""
         mg = self.mg
-        lines = {"end_effector": poses.end_effector}
+        lines = {self.end_effector_name: poses.end_effector}
         lines.update({drone: poses.drones[:, i, :3, 3] for i, drone in enumerate(self.robot.layout.drones)})
         for part, points in lines.items():
             geometry = mg.PointsGeometry(np.asarray(points, dtype=np.float32).T)
