@@ -50,6 +50,12 @@ def _out_of_plane_panels(robot) -> list[tuple[str, str]]:
     return known + [(c, c) for c in names if c not in _OUT_OF_PLANE_LABELS]
 
 
+def _drone_color(i: int) -> str:
+    """Drone i's colour: the style's, then matplotlib's for a robot with more drones than the style names."""
+    colors = STYLE["drone_colors"]
+    return colors[i] if i < len(colors) else ("tab:brown", "tab:olive", "tab:cyan")[(i - len(colors)) % 3]
+
+
 @dataclass(frozen=True)
 class _Simulated:
     """A validated simulation log, in the arrays the figures draw (N inner-loop ticks)."""
@@ -58,10 +64,10 @@ class _Simulated:
     planned: np.ndarray  # (N, n_s) planned planning coordinates
     simulated: np.ndarray  # (N, n_s) measured planning coordinates
     simulated_rate: np.ndarray  # (N, n_s) their rates
-    planned_roll: np.ndarray  # (N, n_d) [rad]
-    desired_roll: np.ndarray  # (N, n_d) [rad], outer loop
-    roll: np.ndarray  # (N, n_d) [rad], plant
-    roll_rate: np.ndarray  # (N, n_d) [rad/s], plant
+    planned_roll: np.ndarray  # (N, n_a) [rad]: the drones' attitude coordinates (a planar robot's rolls, n_a = n_d)
+    desired_roll: np.ndarray  # (N, n_a) [rad], outer loop
+    roll: np.ndarray  # (N, n_a) [rad], plant
+    roll_rate: np.ndarray  # (N, n_a) [rad/s], plant
     thrust: np.ndarray  # (N, n_d) [N], allocated
     speed: np.ndarray  # (N, n_d, 4) [rad/s], plant rotors
     drone_height: np.ndarray  # (N, n_d) [m], drone centres of mass
@@ -103,8 +109,8 @@ def _simulated(robot, log) -> _Simulated:
         planned=_field("log", log, "reference", (None, n, n_s), "planned s, s', s''")[0],
         simulated=q[:, chain],
         simulated_rate=v[:, chain],
-        planned_roll=_field("log", log, "planned_roll", (n, n_d), "planned rolls [rad]"),
-        desired_roll=_field("log", log, "roll_desired", (n, n_d), "desired rolls [rad]"),
+        planned_roll=_field("log", log, "planned_roll", (n, len(rolls)), "planned rolls [rad]"),
+        desired_roll=_field("log", log, "roll_desired", (n, len(rolls)), "desired rolls [rad]"),
         roll=q[:, rolls],
         roll_rate=v[:, rolls],
         thrust=_field("log", log, "thrust", (n, n_d), "allocated thrusts [N]"),
@@ -140,6 +146,8 @@ def _simulated_line(width: float | None = None) -> dict[str, Any]:
 def _sim_path(robot, log, plan: SampledPlan | None = None) -> Figure:
     """Fig. 3.19 / 3.42: the task-space path, planned and simulated, with the way / via points of ``plan``."""
     sim = _simulated(robot, log)
+    if len(robot.kind.force_axes) != 2:
+        return _sim_path_spatial(robot, sim, plan)
     thin = STYLE["thin_width"]
     what, other = robot.kind.task_point_labels
     legends = robot.kind.joint_legends()
@@ -154,12 +162,82 @@ def _sim_path(robot, log, plan: SampledPlan | None = None) -> Figure:
                     **_planned_line(thin))
             label = f"simulated: {legends[k][0]}"
             ax.plot(*joints[:, k].T, label=label, gid=f"simulated joint {k + 1}",
-                    **dict(_simulated_line(thin), color=STYLE["drone_colors"][k]))
+                    **dict(_simulated_line(thin), color=_drone_color(k)))
         if plan is not None:
             tr = _trace(robot, plan, "plan", False)
             markers = _task_space_joints(robot, tr.point_positions)[0]
             _point_markers(ax, markers[:, 0], markers[:, 1], tr.is_way)
         return _finish(fig, _title(robot, "sim_path"), [ax], legend_below=True)
+
+
+def _sim_path_spatial(robot, sim: _Simulated, plan: SampledPlan | None) -> Figure:
+    """:func:`_sim_path` of a robot whose task points are in space (``force_axes`` x, y, z): the paths seen from
+    above (x, y) and from the side (x, z), with the ground and its margin in the side view."""
+    thin = STYLE["thin_width"]
+    what, other = robot.kind.task_point_labels
+    legends = robot.kind.joint_legends()
+    planned_main, planned_joints = _task_space_joints(robot, sim.planned)
+    main, joints = _task_space_joints(robot, sim.simulated)
+    markers = None
+    if plan is not None:
+        tr = _trace(robot, plan, "plan", False)
+        markers = (_task_space_joints(robot, tr.point_positions)[0], tr.is_way)
+    with _styled():
+        fig, axes = _new_figure(2, height=9.0, sharex=False)
+        for ax, (a, b) in zip(axes, ((0, 1), (0, 2)), strict=True):
+            ax.plot(planned_main[:, a], planned_main[:, b], label=f"planned: {what}", gid="planned",
+                    **_planned_line())
+            ax.plot(main[:, a], main[:, b], label=f"simulated: {what}", gid="simulated", **_simulated_line())
+            for k in range(joints.shape[1]):
+                ax.plot(planned_joints[:, k, a], planned_joints[:, k, b], label=f"planned: {other}" if k == 0 else None,
+                        gid=f"planned joint {k + 1}", **_planned_line(thin))
+                ax.plot(joints[:, k, a], joints[:, k, b], label=f"simulated: {legends[k][0]}",
+                        gid=f"simulated joint {k + 1}", **dict(_simulated_line(thin), color=_drone_color(k)))
+            if markers is not None:
+                _point_markers(ax, markers[0][:, a], markers[0][:, b], markers[1])
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.set_xlabel("x [m]")
+            ax.set_ylabel("xyz"[b] + " [m]")
+        ground = robot.kind.ground_height
+        axes[1].axhline(ground, color=STYLE["ground_color"], linewidth=STYLE["line_width"], label="ground",
+                        gid="ground", zorder=1)
+        _limit(axes[1], ground + robot.margins.ground)
+        axes[0].set_title("from above")
+        axes[1].set_title("from the side")
+        return _finish(fig, _title(robot, "sim_path"), axes, legend_below=True)
+
+
+def _drone_kinematics(robot, q, v) -> tuple[np.ndarray, np.ndarray]:
+    """Each drone's thrust axis in world axes and its angular velocity in its own axes along logged states q, v
+    (N, n) (Pinocchio's kinematics of the robot's model), shapes (N, n_d, 3)."""
+    import pinocchio as pin
+
+    model, data = robot.model, robot.model.createData()
+    n = len(q)
+    axes, rates = np.empty((n, robot.n_drones, 3)), np.empty((n, robot.n_drones, 3))
+    for k in range(n):
+        pin.forwardKinematics(model, data, robot.to_pinocchio(q[k]), robot.to_pinocchio(v[k]))
+        pin.updateFramePlacements(model, data)
+        for i, frame in enumerate(robot.drone_frame_ids):
+            axes[k, i] = data.oMf[frame].rotation[:, 2]
+            rates[k, i] = pin.getFrameVelocity(model, data, frame, pin.LOCAL).angular
+    return axes, rates
+
+
+def _tilts(robot, log, sim: _Simulated) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each drone's tilt from the vertical (N, n_d) [rad]: planned (the plan's chain and attitude), desired (the
+    measured chain, the controller's attitude targets) and simulated."""
+    coordinates = tuple(log.coordinates)
+    chain = [coordinates.index(c) for c in robot.layout.chain]
+    rolls = [coordinates.index(c) for c in robot.layout.rolls]
+    q = np.asarray(log.q, dtype=float)
+    zero = np.zeros_like(q)
+    planned = np.zeros_like(q)
+    planned[:, chain], planned[:, rolls] = sim.planned, sim.planned_roll
+    desired = q.copy()
+    desired[:, rolls] = sim.desired_roll
+    return tuple(np.arccos(np.clip(_drone_kinematics(robot, x, zero)[0][..., 2], -1.0, 1.0))
+                 for x in (planned, desired, q))
 
 
 def _sim_coordinates(robot, log, plan: SampledPlan | None = None) -> Figure:
@@ -219,19 +297,21 @@ def _sim_roll(robot, log, plan: SampledPlan | None = None) -> Figure:
     """
     sim = _simulated(robot, log)
     bound = np.pi / 2 - robot.margins.angle
-    n_d = sim.roll.shape[1]
+    spatial = len(robot.kind.force_axes) != 2  # each drone's tilt from the vertical instead of its roll
+    planned, desired, simulated = _tilts(robot, log, sim) if spatial else (sim.planned_roll, sim.desired_roll,
+                                                                           sim.roll)
+    n_d = simulated.shape[1]
     with _styled():
         fig, axes = _new_figure(n_d)
         for i, ax in enumerate(axes):
-            ax.plot(sim.t, sim.planned_roll[:, i], label="planned", gid="planned", **_planned_line())
-            ax.plot(sim.t, sim.desired_roll[:, i], color="tab:orange", linewidth=STYLE["thin_width"],
+            ax.plot(sim.t, planned[:, i], label="planned", gid="planned", **_planned_line())
+            ax.plot(sim.t, desired[:, i], color="tab:orange", linewidth=STYLE["thin_width"],
                     label="desired (outer loop)", gid="desired", zorder=2)
-            ax.plot(sim.t, sim.roll[:, i], label="simulated", gid="simulated", **_simulated_line())
-            _limit(ax, -bound)
-            _limit(ax, bound)
-            for side in (-1.0, 1.0):  # the physical limit: a drone on its side
-                ax.axhline(side * np.pi / 2, **_physical_line())
-            ax.set_ylabel(rf"$\varphi_{i + 1}$ [rad]")
+            ax.plot(sim.t, simulated[:, i], label="simulated", gid="simulated", **_simulated_line())
+            for side in (1.0,) if spatial else (-1.0, 1.0):
+                _limit(ax, side * bound)
+                ax.axhline(side * np.pi / 2, **_physical_line())  # the physical limit: a drone on its side
+            ax.set_ylabel(rf"tilt of drone {i + 1} [rad]" if spatial else rf"$\varphi_{i + 1}$ [rad]")
             if n_d > 1:
                 ax.set_title(f"drone {i + 1}")
         axes[-1].set_xlabel("t [s]")
@@ -248,7 +328,7 @@ def _sim_heights(robot, log, plan: SampledPlan | None = None) -> Figure:
     planned_main, planned_joints = _task_space_joints(robot, sim.planned)
     main, joints = _task_space_joints(robot, sim.simulated)
     points = {"main": (planned_main[:, None], main[:, None]), "joint": (planned_joints, joints)}
-    panels = [(ylabel, what, points[which][0][:, k, 1], points[which][1][:, k, 1], drone)
+    panels = [(ylabel, what, points[which][0][:, k, -1], points[which][1][:, k, -1], drone)  # z: the last axis
               for ylabel, what, which, k, drone in robot.kind.height_panels()]
     ground = robot.kind.ground_height + robot.margins.ground
     with _styled():
@@ -258,7 +338,7 @@ def _sim_heights(robot, log, plan: SampledPlan | None = None) -> Figure:
             ax.plot(sim.t, simulated, label=f"simulated: {what}", gid="simulated", **_simulated_line())
             if drone is not None:
                 ax.plot(sim.t, sim.drone_height[:, drone], label="simulated: drone centre of mass", gid="com",
-                        **dict(_simulated_line(STYLE["thin_width"]), color=STYLE["drone_colors"][drone]))
+                        **dict(_simulated_line(STYLE["thin_width"]), color=_drone_color(drone)))
             _limit(ax, ground)
             ax.axhline(robot.kind.ground_height, **_physical_line("ground (physical limit)"))
             ax.set_ylabel(ylabel)
@@ -344,6 +424,11 @@ def simulated_indices(robot, log) -> tuple[np.ndarray, np.ndarray]:
     """
     sim = _simulated(robot, log)
     velocity = _drone_joint_velocities(robot, sim.simulated, sim.simulated_rate)
+    if len(robot.kind.force_axes) != 2:  # in space: the thrust axes and the drones' angular velocities (J_w)
+        axes, rates = _drone_kinematics(robot, np.asarray(log.q, dtype=float), np.asarray(log.v, dtype=float))
+        rows = ["xyz".index(a) for a in robot.kind.force_axes]
+        power = np.abs(np.sum(sim.thrust[..., None] * axes[..., rows] * velocity, axis=-1)).sum(axis=1)
+        return cumulative_integral(sim.t, power), cumulative_integral(sim.t, np.sum(rates**2, axis=(1, 2)))
     force = sim.thrust[..., None] * np.stack([-np.sin(sim.roll), np.cos(sim.roll)], axis=-1)
     power = np.abs(np.sum(force * velocity, axis=-1)).sum(axis=1)
     return cumulative_integral(sim.t, power), cumulative_integral(sim.t, np.sum(sim.roll_rate**2, axis=1))
@@ -391,8 +476,11 @@ def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None
     * ``sim_path.png``: task-space path, planned and simulated (Fig. 3.19 / 3.42);
     * ``sim_coordinates.png``: planning coordinates with their bounds, and the tracking errors
       (Fig. 3.21-3.22, 3.25-3.26 / 3.43-3.45);
-    * ``sim_out_of_plane.png``: x (FPR), pitch, yaw (Fig. 3.20, 3.23-3.24);
-    * ``sim_roll.png``: rolls planned, desired, simulated, ``|phi_i| <= pi/2 - m_ga`` (Fig. 3.27-3.28 / 3.48);
+    * ``sim_out_of_plane.png``: x (FPR), pitch, yaw (Fig. 3.20, 3.23-3.24): the kind's ``out_of_plane``
+      coordinates, not written for a kind without any (the spatial FPR);
+    * ``sim_roll.png``: rolls planned, desired, simulated, ``|phi_i| <= pi/2 - m_ga`` (Fig. 3.27-3.28 / 3.48); for
+      a robot whose thrust vectors are in space (``force_axes`` x, y, z), each drone's tilt from the vertical,
+      <= pi/2 - m_ga;
     * ``sim_heights.png``: drone joint / joint 2 and 3 heights and the drones' centres of mass, with
       z >= -L + m_gd (Fig. 3.29-3.30 / 3.46-3.47);
     * ``sim_rotor_speeds.png`` and ``sim_rotor_forces.png``: the plant's rotors against 0 and
@@ -424,7 +512,8 @@ def simulation_figures(out_dir: str | Path, robot, log, plan: SampledPlan | None
         _trace(robot, plan, "plan", False)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    names = [n for n in SIMULATION_FIGURES if n != "sim_out_of_plane" or robot.kind.out_of_plane]  # none to draw
     with figure_context(figure_numbers, crossing):
-        return [_save(_SIM_BUILDERS[name](robot, log, plan), out / f"{name}.png") for name in SIMULATION_FIGURES]
+        return [_save(_SIM_BUILDERS[name](robot, log, plan), out / f"{name}.png") for name in names]
 
 
