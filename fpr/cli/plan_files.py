@@ -23,7 +23,9 @@ def csv_columns(robot) -> list[tuple[str, str]]:
     cols = [("t", "s")] + coords + [(n + "_d", u + "/s") for n, u in coords] + [(n + "_dd", u + "/s^2")
                                                                                  for n, u in coords]
     for i in range(1, robot.n_drones + 1):
-        cols += [(f"y_j{i}", "m"), (f"z_j{i}", "m"), (f"phi{i}", "rad"), (f"phi{i}_d", "rad/s"), (f"f{i}", "N"),
+        angle = robot.kind.drone_angle_column
+        cols += [(f"{axis}_j{i}", "m") for axis in robot.kind.force_axes]
+        cols += [(f"{angle}{i}", "rad"), (f"{angle}{i}_d", "rad/s"), (f"f{i}", "N"),
                  (f"tau{i}_x", "N m"), (f"tau{i}_y", "N m"), (f"tau{i}_z", "N m")]
         cols += [(f"w{i}_{m}", "rad/s") for m in range(1, 5)]
     return cols
@@ -39,7 +41,8 @@ def _simulated_columns(robot, log, t) -> tuple[list[str], np.ndarray]:
         data[c] = log.q[:, log.coordinates.index(c)]
         data[c + "_d"] = log.v[:, log.coordinates.index(c)]
     for i in range(robot.n_drones):
-        data[f"y_j{i + 1}"], data[f"z_j{i + 1}"] = joints[:, i, 0], joints[:, i, 1]
+        for k, axis in enumerate(robot.kind.force_axes):
+            data[f"{axis}_j{i + 1}"] = joints[:, i, k]
         data[f"f{i + 1}"] = log.thrust[:, i]
         for k, axis in enumerate("xyz"):
             data[f"tau{i + 1}_{axis}"] = log.torque[:, i, k]

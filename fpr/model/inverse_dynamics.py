@@ -124,7 +124,8 @@ def motion_array(robot, motion) -> np.ndarray:
 def thrust_vectors(robot, motion: Jet, order: int | None = None, external=None) -> Jet:
     """F = J_h^-T (M_s s'' + c_s) along a motion (planning model), Jet of shape (N, n_d, 2).
 
-    The generalised force b = M_s s'' + c_s comes from the point-drone planar model; the solve
+    The generalised force b = M_s s'' + c_s comes from the robot kind's point-drone model
+    (``robot.kind.generalized_forces``: the planar model's for the planar robots); the solve
     J_h^T F = b is the robot kind's (``robot.kind.thrust_vectors``): :func:`solve_thrust_vectors` for
     most robots, a solve that stays exact through a Type-2 singularity for the prototype.
 
@@ -136,7 +137,7 @@ def thrust_vectors(robot, motion: Jet, order: int | None = None, external=None) 
             [N or N m] (constant: its time derivatives 0), or a Jet of it with its time derivatives, or
             None: then J_h^T F = M_s s'' + c_s - Q_ext.
     """
-    generalized = robot.planar("point").inverse_dynamics_jet(motion)
+    generalized = robot.kind.generalized_forces(motion)
     if external is not None:
         generalized = generalized - (external if isinstance(external, Jet) else np.asarray(external))
     return robot.kind.thrust_vectors(motion, generalized, order)

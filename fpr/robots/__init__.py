@@ -10,7 +10,8 @@ adds it under its ``name`` and :func:`load` builds a :class:`~fpr.model.robot.Ro
     from my_lab.tripod import Tripod                         # a robot of your own:
     fpr.robots.register(Tripod)                              # one line, then load("tripod")
 
-The built-in robots: ``"fpr"`` (:mod:`fpr.robots.fpr`) and ``"prototype"`` (:mod:`fpr.robots.prototype`).
+The built-in robots: ``"fpr"`` (:mod:`fpr.robots.fpr`), ``"prototype"`` (:mod:`fpr.robots.prototype`) and
+``"fpr3"``, the spatial FPR (:mod:`fpr.robots.fpr3`).
 An installed package can also declare its robots as entry points of the group ``fpr.robots``
 (``tripod = "my_lab.tripod:Tripod"`` under ``[project.entry-points."fpr.robots"]`` of its pyproject):
 they are registered on the first look-up, so that the command lines know them too.
@@ -28,6 +29,7 @@ from fpr.model.parameters import PARAMETER_RANGES, check_parameters, load_parame
 from fpr.model.robot import Robot
 from fpr.robots.base import RobotKind
 from fpr.robots.fpr import Fpr
+from fpr.robots.fpr3 import Fpr3
 from fpr.robots.prototype import Prototype
 
 logger = logging.getLogger(__name__)
@@ -142,7 +144,7 @@ def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Rob
 
     Args:
         name: a registered robot: "fpr" (two drones and the end-effector), "prototype" (one drone,
-            chain pinned), or one you registered.
+            chain pinned), "fpr3" (three drones carrying a platform in 6 DOF), or one you registered.
         urdf: a URDF file to use instead of the kind's (``kind.urdf``, e.g. the committed ``urdf/fpr.urdf``).
         **xacro_args: overrides of the description's xacro arguments (the geometric and inertial
             keys of ``urdf/parameters.yaml`` and ``rotor_arm``, e.g. ``link_length=1.0``, and the
@@ -175,9 +177,10 @@ def load(name: str = "fpr", urdf: str | Path | None = None, **xacro_args) -> Rob
 
 register(Fpr)
 register(Prototype)
+register(Fpr3)
 
 BUILTIN: tuple[str, ...] = tuple(_REGISTRY)
-"""The names of the robots that come with the library: ("fpr", "prototype")."""
+"""The names of the robots that come with the library: ("fpr", "prototype", "fpr3")."""
 
 __all__ = [
     "BUILTIN",

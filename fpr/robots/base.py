@@ -12,14 +12,14 @@ The members come in two groups, in the manner of Pink's ``Task`` or Crocoddyl's 
   ``name``, ``xacro``, ``urdf``, ``layout``, ``chain_units``, ``task_coordinates``, ``assembly_modes``,
   ``crosses_singularity``, ``singular_margins``, ``margin_hints``, ``reference_chain``,
   ``mass_parameters``, ``titles``, ``task_point_labels``, ``task_frame``, ``fixed_point``, ``force_axes``,
-  ``out_of_plane``, ``constraint_kinds``, ``attitude_kinds``;
+  ``out_of_plane``, ``constraint_kinds``, ``attitude_kinds``, ``drone_angle_column``;
 * **methods** of the bound instance, which read the robot's geometry from its model: link lengths and
   ground, kinematics (``drone_joints``, ``drone_joint_velocities``, ``chain_jacobian``,
   ``task_points``; for figures ``joint_legends``, ``height_panels``), workspace and assembly modes
   (``workspace_margins``, ``crossing_margins``, ``planning_pose``, ``check_pose``, ``assembly_mode``,
   ``coordinate_axes``, ``mission_region``), what the drones must do along a motion (``motion_inputs``,
-  ``thrust_vectors``, ``needs_high_derivatives``, ``attitude_margins``, ``full_state``), the closure of the
-  plant (``closed_chain``, ``closure_reader``) and the simulator's take-off (``level_attitude``), the
+  ``generalized_forces``, ``thrust_vectors``, ``needs_high_derivatives``, ``attitude_margins``,
+  ``full_state``), the closure of the plant (``closed_chain``, ``closure_reader``) and the simulator's take-off (``level_attitude``), the
   controller's outer-loop solve (``outer_loop_forces``), the attitude of a thrust vector (``force_attitude``)
   and its inner loop's targets (``attitude_targets``, ``lateral_loop``, ``compiled_inner_constants``).
 
@@ -41,7 +41,7 @@ import numpy as np
 from fpr.model import inverse_dynamics
 from fpr.model.errors import FprError, ModelArgumentError, RobotDefinitionError
 from fpr.model.jets import Jet
-from fpr.model.kinematics import check_margins, last_axis
+from fpr.model.kinematics import check_margins, last_axis, singularity_margin
 from fpr.model.robot import Layout
 from fpr.robots import planar_control
 
@@ -98,6 +98,9 @@ class RobotKind:
             named by two robots has one unit.
         attitude_kinds: which of ``constraint_kinds`` bound the drones' attitude (the others bound the
             workspace, a function of the planning coordinates alone).
+        drone_angle_column: the name (followed by the drone's number) of the ``trajectory.csv`` columns that hold
+            the ``roll`` and ``roll_rate`` fields of :class:`~fpr.model.inverse_dynamics.MotionInputs` ("phi":
+            phi1, phi1_d...).
     """
 
     name: ClassVar[str]
@@ -120,6 +123,7 @@ class RobotKind:
     out_of_plane: ClassVar[tuple[str, ...]] = ()
     constraint_kinds: ClassVar[Mapping[str, tuple[str, str]]] = {}
     attitude_kinds: ClassVar[tuple[str, ...]] = ()
+    drone_angle_column: ClassVar[str] = "phi"
 
     def __init__(self, robot):
         """Bind the kind to ``robot`` (a :class:`~fpr.model.robot.Robot` built from this kind's layout)."""
@@ -243,6 +247,13 @@ class RobotKind:
         """
         raise FprError(f"the {self.name} cannot plan a crossing of its Type-2 singularity")
 
+    def singularity_distance(self, s) -> np.ndarray:
+        """The angular distance of planning poses to the robot's Type-2 singular set, shape (...) [rad] (reports).
+
+        Default: the last planning coordinate's distance to {k pi} (the FPR's q21, the prototype's q2).
+        """
+        return singularity_margin(np.asarray(s)[..., -1])
+
     def check_pose(self, pose, mode: str | None, what: str) -> None:
         """Raise a WorkspaceError / SingularityError naming the first violated margin at a planning pose.
 
@@ -349,6 +360,18 @@ class RobotKind:
         return tuple(out)
 
     # ------------------------------------------------------------------ thrust from motion
+    def generalized_forces(self, motion: Jet) -> Jet:
+        """b = M_s s'' + c_s of the point-drone model (each drone a point mass at its joint) along a motion.
+
+        Args:
+            motion: s as a Jet of order K >= 2, shape (N, n_s).
+
+        Returns:
+            b, Jet of order K - 2, shape (N, n_s) [N or N m]. Default: the planar point model's
+            (``robot.planar("point").inverse_dynamics_jet``).
+        """
+        return self.robot.planar("point").inverse_dynamics_jet(motion)
+
     def thrust_vectors(self, motion: Jet, generalized: Jet, order: int | None = None) -> Jet:
         """Thrust vectors F_i from J_h(s)^T F = b along a motion (seed 2.16, 3.12, 3.37).
 

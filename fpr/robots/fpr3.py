@@ -19,9 +19,11 @@ from functools import cached_property
 import numpy as np
 import pinocchio as pin
 
+from fpr.model import jets
 from fpr.model.constrained import ClosureTree
 from fpr.model.description import URDF_DIR
 from fpr.model.inverse_dynamics import MotionInputs
+from fpr.model.jets import Jet
 from fpr.model.kinematics import last_axis
 from fpr.model.robot import Layout
 from fpr.model.spatial import SpatialChain
@@ -118,6 +120,7 @@ class Fpr3(RobotKind):
         "tilt": ("rad", "drone tilt from the vertical <= pi/2 - m_ga"),
     }
     attitude_kinds = ("tilt",)
+    drone_angle_column = "tilt"
     margin_hints = {
         "leg": "keep every leg angle between m_ga and arccos(-r_p / l) - m_ga",
         "distance": "move the legs' tips apart (open the legs towards the platform's plane)",
@@ -254,6 +257,13 @@ class Fpr3(RobotKind):
         out["singular"] = geometry.line_determinant(s[..., 6:9]) / reference - floor
         return out
 
+    def singularity_distance(self, s) -> np.ndarray:
+        """The legs' least angular distance to the singular sets their angles alone reach: a leg in the platform's
+        plane (q_i = 0) or its tip on the platform's axis (q_i = arccos(-r_p / l)), shape (...) [rad].
+        """
+        legs = np.asarray(s, dtype=float)[..., 6:9]
+        return np.min(np.minimum(legs, self.geometry.highest_leg_angle - legs), axis=-1)
+
     @cached_property
     def drone_radius(self) -> float:
         """A drone's reach from its centre: the rotor arm plus the rotor disc's radius of the quadrotor's drawing
@@ -288,6 +298,18 @@ class Fpr3(RobotKind):
         magnitude of its angular acceleration [rad/s^2] (for files and figures).
         """
         return spatial_motion_inputs(self, motion, external)
+
+    def generalized_forces(self, motion: Jet) -> Jet:
+        """b = M s'' + c of the planning model (:attr:`point_model`) along a motion, by the spatial jets."""
+        return self.spatial_chain.generalized_forces(motion)
+
+    def thrust_vectors(self, motion: Jet, generalized: Jet, order: int | None = None) -> Jet:
+        """F from J^T F = b, J the tips' Jacobian (world axes) along the motion, Jet of shape (N, 3, 3) [N]."""
+        if order is not None:
+            generalized = generalized.truncate(order)
+        jacobian = self.spatial_chain.evaluate(motion.truncate(generalized.order + 2), forces=False).jacobian
+        force = jets.solve(jacobian.mT, generalized)
+        return force.reshape(force.shape[:-1] + (self.robot.n_drones, 3))
 
     def attitude_margins(self, inputs, scaled: bool) -> list[list[tuple[str, str, np.ndarray]]]:
         """Each drone's tilt from the vertical at most pi/2 - m_ga: ``tilt_<i>``; scaled, the smooth

@@ -162,7 +162,7 @@ def spatial_motion_inputs(kind, motion, external=None) -> MotionInputs:
     # from the world's vertical, its angular speed |w_i| and the magnitude of its angular acceleration
     f_value = _value(force.value)
     tilt = np.arctan2(np.hypot(f_value[..., 0], f_value[..., 1]), f_value[..., 2])
-    speed = np.sqrt(_value(rate_squared))
+    speed = np.sqrt(np.maximum(_value(rate_squared), 0.0))  # (a complex step's real part may dip below 0)
     w_dot_value = np.stack([_value(c) for c in w_dot], axis=-1)
     return MotionInputs(
         motion=m[:5],

@@ -4,5 +4,5 @@ Importing this package imports nothing else (the command lines' ``--help`` reads
 :mod:`planners.missions.mission` reads and checks missions.
 """
 
-BUILTIN_MISSIONS = ("square", "study", "prototype-tour", "cross-singularity", "moving-target", "gust")
+BUILTIN_MISSIONS = ("square", "study", "prototype-tour", "cross-singularity", "moving-target", "gust", "fpr3-tour")
 """Names of the built-in missions, files ``planners/missions/<name>.toml``."""

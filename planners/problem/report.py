@@ -15,12 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from fpr.model.inverse_dynamics import MOTION_ORDER, MotionInputs, inverse_dynamics
-from fpr.model.kinematics import singularity_margin
 from planners.problem.motion import CONSTRAINT_KINDS, constraint_kind, constraint_rows, objective_rates
 from planners.trajectory.polynomial import PiecewisePolynomial
 
 #: Largest violation of a constraint still counted as satisfied on the dense grid, per unit.
-FEASIBILITY_TOLERANCE = {"m": 1e-6, "rad": 1e-6, "rad/s": 1e-3, "N": 1e-6}
+FEASIBILITY_TOLERANCE = {"m": 1e-6, "rad": 1e-6, "rad/s": 1e-3, "N": 1e-6, "1": 1e-6}
 
 
 @dataclass(frozen=True)
@@ -89,15 +88,16 @@ class MotionReport:
     def peaks(self, robot) -> dict:
         """Peak values people compare (thrust, rotor force and speed, clearances)."""
         w2 = self.inputs.rotor_speed_squared
-        singular = self.motion[0][:, -1]
+        kind = robot.kind
+        height = self.inputs.joint_position[..., kind.force_axes.index("z")]
         return {
             "peak_thrust_N": float(self.inputs.thrust.max()),
             "peak_rotor_force_N": float(robot.rotor_constants.thrust_coefficient * w2.max()),
             "peak_rotor_speed_rad_s": float(self.inputs.rotor_speed.max()),
             "least_rotor_speed_rad_s": float(self.inputs.rotor_speed.min()),
             "peak_roll_rad": float(np.abs(self.inputs.roll).max()),
-            "least_ground_clearance_m": float(self.inputs.joint_position[..., 1].min() + robot.link_length),
-            "least_singularity_margin_rad": float(singularity_margin(singular).min()),
+            "least_ground_clearance_m": float(height.min() - kind.ground_height),
+            "least_singularity_margin_rad": float(kind.singularity_distance(self.motion[0]).min()),
         }
 
 

@@ -19,7 +19,11 @@ from fpr.views.figures.style import STYLE, _new_figure, _styled
 
 
 def _columns(robot, log):
-    """(t, s, rolls) of ``log``, checked against ``robot``."""
+    """(t, s, rolls) of ``log``, checked against ``robot`` (a planar one: its chain moves in the y-z plane)."""
+    if len(robot.kind.force_axes) != 2:
+        raise FigureError("robot", robot.name, f"the {robot.name} is not planar (force axes "
+                                               f"{', '.join(robot.kind.force_axes)}): the chain's drawing in the "
+                                               "plane does not apply; use the 3D scene (--meshcat)")
     if getattr(log, "robot_name", None) != robot.name:
         raise FigureError("log", getattr(log, "robot_name", log), f"draw a log of the {robot.name} with it")
     coords = list(log.coordinates)

@@ -66,7 +66,11 @@ def _path_axes(robot) -> tuple[Figure, Axes]:
 
 
 def _path_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:
-    """Fig. 3.11 (FPR: end-effector and drone joint paths) or 3.36 (prototype: drone and elbow paths)."""
+    """Fig. 3.11 (FPR: end-effector and drone joint paths) or 3.36 (prototype: drone and elbow paths); a robot
+    with three force axes gets two projections (:func:`_projections_figure`).
+    """
+    if len(robot.kind.force_axes) == 3:
+        return _projections_figure(robot, plan, reference)
     traces = _traces(robot, plan, reference)
     thin = STYLE["thin_width"]
     with _styled():
@@ -87,6 +91,41 @@ def _path_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None)
                 _point_markers(ax, markers[:, 0], markers[:, 1], tr.is_way)
                 _direction_marks(ax, tr.t, main, markers[tr.is_way], tr.knots[tr.is_way])
         return _finish(fig, _title(robot, "path"), [ax], legend_below=True)
+
+
+def _projections_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:
+    """The paths of a spatial robot's main point and joints (``task_points``, world x, y, z) seen from above (x-y)
+    and from the side (x-z, with the ground and its margin m_gd).
+    """
+    traces = _traces(robot, plan, reference)
+    thin = STYLE["thin_width"]
+    views = ((0, 1, "x [m]", "y [m]", "from above"), (0, 2, "x [m]", "z [m]", "from the side"))
+    with _styled():
+        fig, axes = _new_figure(2, height=9.0, sharex=False)
+        what, other = robot.kind.task_point_labels
+        legends = robot.kind.joint_legends()
+        ground = robot.kind.ground_height
+        axes[1].axhline(ground, color=STYLE["ground_color"], linewidth=STYLE["line_width"], label="ground",
+                        gid="ground", zorder=1)
+        _limit(axes[1], ground + robot.margins.ground)
+        for ax, (a, b, xlabel, ylabel, view) in zip(axes, views, strict=True):
+            for tr in traces:
+                main, joints = _task_space_joints(robot, tr.s)
+                ax.plot(main[:, a], main[:, b], label=f"{tr.label}: {what}", gid="main", **tr.line)
+                for i, (legend, gid) in enumerate(legends):
+                    kw = dict(tr.line, linewidth=thin)
+                    if not tr.is_reference:
+                        kw["color"] = STYLE["drone_colors"][i % len(STYLE["drone_colors"])]
+                    label = f"{tr.label}: {other if tr.is_reference else legend}"
+                    ax.plot(joints[:, i, a], joints[:, i, b], label=label, gid=gid, **kw)
+                if not tr.is_reference:
+                    markers = _task_space_joints(robot, tr.point_positions)[0]
+                    _point_markers(ax, markers[:, a], markers[:, b], tr.is_way, label=a == 0 and b == 1)
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(ylabel)
+            ax.set_title(view)
+        return _finish(fig, _title(robot, "path"), [axes[0]], legend_below=True)
 
 
 def _direction_marks(ax, t: np.ndarray, path: np.ndarray, way: np.ndarray, way_times: np.ndarray) -> None:
@@ -202,11 +241,18 @@ def _thrust_figure(robot, plan: SampledPlan, reference: SampledPlan | None = Non
 
 
 def _roll_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:
-    """Fig. 3.17-3.18 / 3.41: roll phi_i of each drone [rad], with |phi_i| <= pi/2 - m_ga (3.33, 3.45)."""
+    """Fig. 3.17-3.18 / 3.41: roll phi_i of each drone [rad], with |phi_i| <= pi/2 - m_ga (3.33, 3.45); for a robot
+    whose drones' angle is another (``kind.drone_angle_column``, e.g. the spatial FPR's tilt from the vertical,
+    >= 0), that angle with its bound pi/2 - m_ga.
+    """
     bound = np.pi / 2 - robot.margins.angle
+    column = robot.kind.drone_angle_column
+    if column == "phi":
+        return _per_drone_figure(robot, _traces(robot, plan, reference), "roll",
+                                 lambda i: rf"$\varphi_{i + 1}$ [rad]", lambda tr, i: tr.roll[:, i],
+                                 (-bound, bound))
     return _per_drone_figure(robot, _traces(robot, plan, reference), "roll",
-                             lambda i: rf"$\varphi_{i + 1}$ [rad]", lambda tr, i: tr.roll[:, i],
-                             (-bound, bound))
+                             lambda i: f"{column} {i + 1} [rad]", lambda tr, i: tr.roll[:, i], (bound,))
 
 
 def _rotor_speeds_figure(robot, plan: SampledPlan, reference: SampledPlan | None = None) -> Figure:

@@ -66,10 +66,10 @@ class _Trace:
     label: str
     t: np.ndarray  # (N,) [s]
     s: np.ndarray  # (N, n_s) positions in planning coordinates
-    joints: np.ndarray  # (N, n_d, 2) drone joints [m]
+    joints: np.ndarray  # (N, n_d, len(force_axes)) drone joints [m]
     thrust: np.ndarray  # (N, n_d) [N]
-    roll: np.ndarray  # (N, n_d) [rad]
-    roll_rate: np.ndarray  # (N, n_d) [rad/s]
+    roll: np.ndarray  # (N, n_d) [rad] (a spatial robot's: its kind's motion_inputs says what)
+    roll_rate: np.ndarray  # (N, n_d) [rad/s]: roll_rate**2 is the perturbation index's integrand
     rotor_speed: np.ndarray  # (N, n_d, 4) [rad/s]
     power: np.ndarray  # (N, n_d) [W]
     knots: np.ndarray  # (m+1,) [s]
@@ -157,7 +157,8 @@ def _trace(robot, plan, owner: str, is_reference: bool) -> _Trace:
         label=str(getattr(plan, "label", "reference" if is_reference else "plan")),
         t=t,
         s=motion[0],
-        joints=_field(where, inputs, "joint_position", (n, n_d, 2), "drone joints (y, z) [m]"),
+        joints=_field(where, inputs, "joint_position", (n, n_d, len(robot.kind.force_axes)),
+                      f"drone joints ({', '.join(robot.kind.force_axes)}) [m]"),
         thrust=_field(where, inputs, "thrust", (n, n_d), "thrust of each drone [N]"),
         roll=_field(where, inputs, "roll", (n, n_d), "roll of each drone [rad]"),
         roll_rate=_field(where, inputs, "roll_rate", (n, n_d), "roll rate of each drone [rad/s]"),

@@ -43,7 +43,7 @@ STYLE = MappingProxyType({
     "ground_color": "saddlebrown",
     "knot_color": "0.6",
     "knot_alpha": 0.5,
-    "drone_colors": ("tab:green", "tab:purple"),
+    "drone_colors": ("tab:green", "tab:purple", "tab:orange"),
     "rotor_colors": ("tab:blue", "tab:orange", "tab:green", "tab:purple"),
     "width": 6.4,  # figure width [inch]
     "row_height": 2.1,  # height of one row of subplots [inch]
