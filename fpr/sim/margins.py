@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
+import pinocchio as pin
 
 from fpr.model.errors import ModelArgumentError
 from fpr.model.parameters import Margins
@@ -147,13 +148,36 @@ def _crossing_sign(robot, s, planned_time: float, t) -> np.ndarray:
     return np.sign(at - t) * (np.abs(t - at) > 1e-12)
 
 
+class _Measured(SimpleNamespace):
+    """What the plant did, as the kind's ``attitude_margins`` reads a plan's inputs: the drones' measured attitude
+    coordinates (``roll``, ``attitude``), rotor speeds and allocated thrusts, and, computed when a kind reads it,
+    ``thrust_vector``: each allocated thrust along the drone's measured thrust axis, in ``force_axes`` (N, n_d, k)
+    [N] (Pinocchio's kinematics of the logged states)."""
+
+    def __init__(self, robot, log, **fields):
+        super().__init__(**fields)
+        self._robot, self._q = robot, log.q
+
+    @property
+    def thrust_vector(self) -> np.ndarray:
+        robot = self._robot
+        model, data = robot.model, robot.model.createData()
+        rows = ["xyz".index(a) for a in robot.kind.force_axes]
+        axes = np.empty((len(self._q), robot.n_drones, len(rows)))
+        for k, q in enumerate(self._q):
+            pin.framesForwardKinematics(model, data, robot.to_pinocchio(q))
+            for i, frame in enumerate(robot.drone_frame_ids):
+                axes[k, i] = data.oMf[frame].rotation[rows, 2]
+        return self.thrust[..., None] * axes
+
+
 def _rows(robot, log, crossing_sign, floor):
     """Constraint rows of the logged run (N, R), their names and details, for ``robot``'s limits."""
     index = {c: i for i, c in enumerate(log.coordinates)}
     s = log.q[:, [index[c] for c in log.chain]]
     rolls = log.q[:, [index[c] for c in robot.layout.rolls]]
-    measured = SimpleNamespace(roll=rolls, attitude=rolls.reshape(len(rolls), robot.n_drones, -1),
-                               rotor_speed=log.speed, rotor_speed_squared=log.speed**2, thrust=log.thrust)
+    measured = _Measured(robot, log, roll=rolls, attitude=rolls.reshape(len(rolls), robot.n_drones, -1),
+                         rotor_speed=log.speed, rotor_speed_squared=log.speed**2, thrust=log.thrust)
     motion = s[None]
     return constraint_rows(robot, motion, measured, scaled=False, crossing_sign=crossing_sign,
                            min_thrust=floor)
