@@ -14,6 +14,7 @@ from fpr.robots.fpr3_control import ball_angles_of
 from fpr.sim.plant import Plant
 
 SEED = 23
+FPS = 30.0
 
 
 @pytest.fixture(scope="module")
@@ -210,3 +211,82 @@ def test_closed_loop_tracks_a_smooth_motion(robot):
     worst, closure = _fly(robot, motion, 4.0)
     assert worst.max() < 3e-3, worst
     assert closure < 1e-6
+
+
+# ------------------------------------------------------------------------------------------ simulation and scene
+@pytest.fixture(scope="module")
+def flown(robot):
+    """A short rest-to-rest motion of the platform and legs (up, across, yawed and tilted, back) as a plan, and its
+    closed-loop simulation by :func:`fpr.sim.closed_loop.simulate`."""
+    from types import SimpleNamespace
+
+    from fpr.sim.closed_loop import SimulationSettings, simulate
+    from planners.trajectory.polynomial import PiecewisePolynomial
+
+    s0 = np.array(robot.kind.reference_chain)
+    points = np.zeros((3, 5, 9))
+    points[0, 0] = points[2, 0] = s0
+    points[1, 0] = s0 + [0.5, 0.2, 0.3, 0.6, 0.2, -0.1, 0.1, -0.1, 0.1]
+    result = SimpleNamespace(robot=robot, trajectory=PiecewisePolynomial(points, np.array([2.5, 2.5])),
+                             is_way=np.array([True, True, True]), method="none")
+    return result, simulate(result, SimulationSettings(hold=0.2))
+
+
+def test_simulate_tracks_a_rest_to_rest_motion(flown, robot):
+    """The simulator's closed loop (the plan's ball-angle feed-forward from the kind's motion_inputs) on the
+    spatial FPR: within 2 mm and 2 mrad (0.9 mm and 0.9 mrad when written), the loop closed to 1e-9 m."""
+    _, log = flown
+    assert log.failure is None
+    error = np.abs(log.tracking_error)
+    assert error[:, :3].max() < 2e-3 and error[:, 3:].max() < 2e-3, error.max(axis=0)
+    assert log.closure_error.max() < 1e-9
+    assert log.attitude_desired.shape == (log.t.size, 9) and log.planned_attitude.shape == (log.t.size, 9)
+    assert log.summary()["max_abs_out_of_plane"] == {}
+
+
+def test_scene_shows_platform_legs_drones_and_the_plan_as_a_ghost(flown, robot):
+    """The meshcat scene of the simulation: the robot's bodies with an axle on every revolute joint along its axis,
+    the ghost where the plan puts the drones, the platform's path (its task frame: no 'end_effector' link)."""
+    pin_model = robot.model
+    from fpr.views.scene import view
+
+    plan, log = flown
+    scene = view(robot, plan, log, fps=FPS)
+    paths = set(scene.paths)
+    expected = {f"/meshcat/{who}/{j}" for who in ("robot", "ghost")
+                for j in ("q1", "q2", "q3", "drone_1_hinge", "drone_3_hinge", "drone_2_ball_pitch")}
+    expected |= {f"/meshcat/paths/{p}/{part}" for p in ("planned", "tracked") for part in ("platform", "drone_3")}
+    assert expected <= paths
+    # an axle on each leg hinge (axis z of its joint frame) and on the ball's pitch joint (axis y)
+    for joint, axis in (("q2", 2), ("drone_1_ball_pitch", 1), ("drone_1_hinge", 0)):
+        node = {c["name"]: c for c in scene.object(f"robot/{joint}")["object"]["children"]}["hinge"]
+        matrix = np.array(node["matrix"]).reshape(4, 4).T  # three.js: column-major
+        direction = matrix[:3, :3] @ [0.0, 1.0, 0.0]  # the cylinder's own axis (three.js: y) in the joint frame
+        assert abs(direction[axis]) == pytest.approx(1.0, abs=1e-12), (joint, direction)
+    assert pin_model.joints[pin_model.getJointId("q2")].shortname() == "JointModelRZ"
+    # the ghost's drones where the plan's chain and ball angles put them
+    t, ghost = scene.track("ghost/drone_3_hinge", "position")
+    q = np.zeros((t.size, robot.nq))
+    q[:, :9] = plan.trajectory.evaluate_held(t, order=0)[0]
+    q[:, 9:] = np.stack([robot.kind.force_attitude(f, qk) for f, qk in
+                         zip(robot.kind.motion_inputs(plan.trajectory.evaluate_held(t, order=6)).thrust_vector, q)])
+    for k in range(0, t.size, 20):
+        np.testing.assert_allclose(ghost[k], robot.hinge_positions(q[k])[2], atol=1e-9)
+
+
+def test_the_live_server_takes_the_spatial_fpr():
+    """meshcat's own (headless) server receives the scene of the spatial FPR standing still."""
+    import urllib.request
+
+    import fpr
+    from fpr.views import scene as scene_module
+
+    visualizer = scene_module.serve(fpr.load("fpr3"))
+    try:
+        with urllib.request.urlopen(visualizer.url(), timeout=10) as response:
+            assert b"main.min.js" in response.read()
+        assert "embedded-json" in visualizer.static_html()
+    finally:
+        process = visualizer.window.server_proc
+        process.kill()
+        process.wait(timeout=10)
