@@ -41,12 +41,18 @@ def _allocators(robot, *args):
     return fast, reference
 
 
-def _walk(name, count, seed, spread=0.5):
+#: u_a's spread of a robot whose attitude rows are its drones' ball angles alone (the spatial FPR: small inertias, so
+#: the same angular accelerations ask little torque; a larger spread reaches the rotors' lower bound) [rad/s^2].
+SPREAD = {"fpr3": 3.0}
+
+
+def _walk(name, count, seed, spread=None):
     """(robot, [(attitude, thrust, u_a)]): a random walk of states near hover and of the thrust factor within
     [0.2, 3.5] (the ticks warm-start each other as in a loop, bounds come and go), u_a of about ``spread``
     rad/s^2.
     """
     robot = fpr.load(name)
+    spread = SPREAD.get(name, 0.5) if spread is None else spread
     rng = np.random.default_rng(seed)
     q0, hover = hover_thrusts(robot)
     n_a = len(robot.layout.attitude)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import hover_thrusts
+from helpers import hover_thrusts, saturating_factor
 
 import fpr
 from controllers.allocation import Allocator, selectors
@@ -72,7 +72,7 @@ def test_bounded_result_is_its_definition(name):
     seen = 0
     for _ in range(30):
         q, v = q0 + 0.02 * rng.normal(size=robot.nq), 0.02 * rng.normal(size=robot.nq)
-        thrust = 3.0 * hover * (1 + 0.02 * rng.normal(size=hover.size))
+        thrust = saturating_factor(robot, hover) * hover * (1 + 0.02 * rng.normal(size=hover.size))
         result = allocator.solve(robot.attitude_model(q, v), thrust, 0.3 * rng.normal(size=len(robot.layout.attitude)))
         z = result.speeds_squared.reshape(-1)
         assert result.iterations > 0 and z.min() >= 0.0 and z.max() <= w_max2

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import hover_thrusts, near_hover
+from helpers import hover_thrusts, near_hover, saturating_factor
 
 import fpr
 from controllers.allocation import Allocator, allocation_qp, selectors
@@ -87,11 +87,14 @@ def test_observe_is_measure_and_the_logged_kinematics(name):
 
 def _allocation_cases(name, thrust_factor, count, seed, spread=0.3):
     """(robot, [(attitude, thrust, u_a)]) near hover, u_a of standard deviation ``spread`` [rad/s^2];
-    thrust_factor 3 makes rotors saturate.
+    thrust_factor 3 makes rotors saturate (raised to past the drones' full thrust where it does not:
+    :func:`helpers.saturating_factor`).
     """
     robot = fpr.load(name)
     rng = np.random.default_rng(seed)
     q0, hover = hover_thrusts(robot)
+    if thrust_factor == 3.0:
+        thrust_factor = saturating_factor(robot, hover)
     n_a = len(robot.layout.attitude)
     cases = []
     for _ in range(count):

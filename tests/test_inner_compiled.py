@@ -20,8 +20,8 @@ needs_kernel = needs_native
 
 
 def _reference(robot, rng):
-    n_s, n_d = len(robot.layout.chain), robot.n_drones
-    return Reference(rng.normal(size=(5, n_s)), rng.normal(size=n_d), rng.normal(size=n_d))
+    n_s, n_a = len(robot.layout.chain), len(robot.layout.rolls)  # the drones' attitude coordinates
+    return Reference(rng.normal(size=(5, n_s)), rng.normal(size=n_a), rng.normal(size=n_a))
 
 
 @needs_kernel
@@ -32,13 +32,16 @@ def test_compiled_inner_loop_is_the_python_part_to_round_off(name):
     rng = np.random.default_rng(12)
     controller = CascadedController(robot)
     kernel = controller._inner_kernel()
+    if robot.kind.compiled_inner_constants(controller.settings) is None:  # the kind's inner loop is Python only
+        assert kernel is None
+        pytest.skip(f"the {name}'s inner loop has no compiled form")
     clamped = set()
     for k in range(400):
         if k == 200:  # other gains: the constants follow
             controller.settings = dataclasses.replace(controller.settings, attitude_frequency=31.0,
                                                       lateral_frequency=2.5, max_pitch=0.1)
         q, v = rng.normal(scale=4.0, size=robot.nq), rng.normal(scale=3.0, size=robot.nq)
-        controller._force = rng.normal(scale=10.0, size=(robot.n_drones, 2))
+        controller._force = rng.normal(scale=10.0, size=(robot.n_drones, len(robot.kind.force_axes)))
         reference = _reference(robot, rng)
         expected = controller._inner_python(q, v, reference)
         controller._attitude_gains()

@@ -181,23 +181,35 @@ def test_rotors_without_thrust_let_the_fpr_fall_freely():
 @pytest.mark.parametrize("name", fpr.ROBOTS)
 def test_drone_hinges_tilts_and_speeds(name):
     """What the simulator's watch reads: the hinges are the minimal model's drone joints; in the plane, a
-    drone's tilt is |its roll|; spinning the whole robot about z at 0.5 rad/s gives each drone that angular
-    speed and its hinge the speed 0.5 |r_y| (r_y its distance to the axis).
+    drone's tilt is |its roll| (in space, the angle of its z axis in the minimal model from the vertical);
+    spinning the whole robot about z at 0.5 rad/s gives each drone that angular speed and its hinge the speed
+    0.5 times its distance to the axis.
     """
     robot, q, w = hovering(name)
     plant = Plant.from_minimal(robot, q, w=w)
     joints = robot.kind.drone_joints(q[robot.indices(robot.layout.chain)])
-    np.testing.assert_allclose(plant.drone_joint_positions()[:, 1:], joints, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(plant.drone_joint_positions()[:, 0], 0.0, atol=1e-12)
-    np.testing.assert_allclose(plant.drone_tilts(), np.abs(q[robot.indices(robot.layout.rolls)]), atol=1e-9)
+    rows = ["xyz".index(a) for a in robot.kind.force_axes]
+    np.testing.assert_allclose(plant.drone_joint_positions()[:, rows], joints, rtol=0, atol=1e-12)
+    others = [k for k in range(3) if k not in rows]  # a planar robot's hinges are in the plane x = 0
+    np.testing.assert_allclose(plant.drone_joint_positions()[:, others], 0.0, atol=1e-12)
+
+    def tilts(q):
+        if len(rows) == 2:  # in the plane: |roll|
+            return np.abs(q[robot.indices(robot.layout.rolls)])
+        return np.arccos(np.clip([p.rotation[2, 2] for p in robot.frame_placements(q)], -1, 1))
+
+    np.testing.assert_allclose(plant.drone_tilts(), tilts(q), atol=1e-9)
     np.testing.assert_allclose(plant.drone_speeds(), 0.0, atol=0)
-    q[robot.index["phi1"]] = 2.0  # past pi/2: the thrust points down
-    assert Plant.from_minimal(robot, q).drone_tilts()[0] == pytest.approx(2.0, abs=1e-9)
+    roll = robot.layout.drone_attitude[0][-1]  # drone 1's roll (the planar robots' phi1)
+    q[robot.index[roll]] = 2.0  # past pi/2: the thrust points down
+    assert Plant.from_minimal(robot, q).drone_tilts()[0] == pytest.approx(tilts(q)[0], abs=1e-9)
+    assert tilts(q)[0] > np.pi / 2
     v = robot.configuration(psi=0.5)
-    q[robot.index["phi1"]] = 0.0
+    q[robot.index[roll]] = 0.0
     linear, angular = Plant.from_minimal(robot, q, v).drone_speeds()
     np.testing.assert_allclose(angular, 0.5, atol=1e-12)
-    np.testing.assert_allclose(linear, 0.5 * np.abs(joints[:, 0]), atol=1e-12)
+    hinges = plant.drone_joint_positions()
+    np.testing.assert_allclose(linear, 0.5 * np.hypot(hinges[:, 0], hinges[:, 1]), atol=1e-12)
 
 
 def test_plant_errors():
