@@ -333,7 +333,7 @@ class Fpr3(RobotKind):
     @cached_property
     def _control(self) -> fpr3_control.Fpr3Control:
         """The control constants read from the model (:class:`fpr.robots.fpr3_control.Fpr3Control`)."""
-        return fpr3_control.Fpr3Control(self)
+        return fpr3_control.Fpr3Control(self, ball_angles)
 
     def closed_chain(self, model, axis_offset: float) -> ClosureTree:
         """The platform a free flyer, the legs a tree on it, three free drones, three point closures

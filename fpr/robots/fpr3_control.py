@@ -166,7 +166,9 @@ def model_next(model, joint: int) -> int:
 class Fpr3Control:
     """The spatial FPR's control constants, read once from the model (:class:`fpr.robots.fpr3.Fpr3` builds it)."""
 
-    def __init__(self, kind):
+    def __init__(self, kind, ball_angles):
+        """Args: kind: the bound :class:`fpr.robots.fpr3.Fpr3`; ball_angles: the kind's attitude rule
+        (:func:`fpr.robots.fpr3.ball_angles`, the one the planner uses)."""
         r = kind.robot
         self.kind = kind
         self.position = r.indices(("x", "y", "z"))
@@ -180,7 +182,6 @@ class Fpr3Control:
         self.leg_angles = [math.atan2(*src.jointPlacements[leg].translation[[1, 0]]) for leg, _ in leg_joint_ids(r)]
         self.mass_offset = (np.array(r.drone_masses) * np.array(r.hinge_offsets)).tolist()
         self._robot, self._root = r, root
-        from fpr.robots.fpr3 import ball_angles  # the planner's formula (fpr3 imports this module: here, not above)
         self._ball_angles = ball_angles
 
     def platform_rotation(self, q) -> np.ndarray:
