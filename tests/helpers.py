@@ -38,7 +38,8 @@ def hover_thrusts(robot):
 def saturating_factor(robot, hover, factor=3.0):
     """A factor on the hover thrusts ``hover`` (n_d,) past every drone's full thrust: ``factor`` (3, past it on the
     planar robots), or 1.1 times the full thrust over the least hover thrust where ``factor`` is not enough (the
-    spatial FPR's drones hover at a third of theirs)."""
+    spatial FPR's drones hover at a third of theirs).
+    """
     full = 4 * robot.rotor_constants.thrust_coefficient * robot.rotor_constants.max_speed**2
     return max(factor, 1.1 * full / float(min(hover)))
 

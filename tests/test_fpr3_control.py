@@ -1,5 +1,6 @@
 """The spatial FPR's plant and controller hooks (fpr/robots/fpr3_control.py): the closed chain against the minimal
-model, the reader, the drones' attitude targets, and the closed loop at hover and along a smooth motion."""
+model, the reader, the drones' attitude targets, and the closed loop at hover and along a smooth motion.
+"""
 
 import numpy as np
 import pinocchio as pin
@@ -37,7 +38,8 @@ def closed(robot):
 
 def random_state(robot, rng):
     """A configuration within 0.3 rad / 0.3 m of the reference pose (ball angles around the level drone's) and a
-    random velocity."""
+    random velocity.
+    """
     q = np.zeros(robot.nq)
     q[:9] = robot.kind.reference_chain
     q[9:] = robot.kind.level_attitude(q)[9:]
@@ -93,7 +95,8 @@ def test_constrained_dynamics_agree_with_the_minimal_model(closed, robot):
     """Same state, same thrusts and torques: pin.constraintDynamics on the free platform, the legs and the three
     free drones closed at the balls gives the minimal model's motion (drone twists' derivatives, joint
     accelerations). Two formulations: a tree of 18 joints in one, 4 free flyers and 3 hinges with 9 closure rows
-    in the other; the ball's rings ride on the leg in the closed chain (1e-12 kg m^2 left out)."""
+    in the other; the ball's rings ride on the leg in the closed chain (1e-12 kg m^2 left out).
+    """
     rng = np.random.default_rng(SEED + 3)
     for _ in range(10):
         q, v = random_state(robot, rng)
@@ -123,7 +126,8 @@ def test_native_plant_steps_are_the_python_ones(robot):
 
 def test_force_attitude_points_each_thrust_axis_along_its_force(robot):
     """At a random pose, the drones' z axes with the ball angles of force_attitude are along F_i, and the inner
-    loop's targets at that state are the measured ball angles, its thrusts |F_i|."""
+    loop's targets at that state are the measured ball angles, its thrusts |F_i|.
+    """
     rng = np.random.default_rng(SEED + 5)
     control = robot.kind._control
     for _ in range(5):
@@ -150,7 +154,8 @@ def test_level_attitude_puts_every_drone_upright(robot):
 
 def _planned(controller, motion):
     """The planning model's thrust vectors F (3, 3) and the drones' ball angles along them at a chain motion's
-    sample (5, 9): F = J_h^-T (M_s s'' + c_s)."""
+    sample (5, 9): F = J_h^-T (M_s s'' + c_s).
+    """
     robot = controller.robot
     m, c, jac = controller._point_dynamics(motion[0], motion[1])
     force = np.linalg.solve(jac.T, m.dot(motion[2]) + c).reshape(3, 3)
@@ -162,12 +167,14 @@ def _planned(controller, motion):
 def _fly(robot, motion, seconds):
     """The closed loop (the plant at 1 kHz, the controller's inner loop at 500 Hz) along ``motion(t)`` (5, 9), the
     ball angles' feed-forward by central differences of the planned ball angles. Returns the largest
-    |s - s_d| of each chain coordinate and the largest closure error."""
+    |s - s_d| of each chain coordinate and the largest closure error.
+    """
     controller = CascadedController(robot)
     force, attitude = _planned(controller, motion(0.0))
     q0 = np.zeros(robot.nq)
     q0[:9], q0[9:] = motion(0.0)[0], attitude
-    w = np.sqrt([rotor.speeds_squared(np.linalg.norm(f), np.zeros(3)) for rotor, f in zip(robot.rotors, force)])
+    w = np.sqrt([rotor.speeds_squared(np.linalg.norm(f), np.zeros(3))
+                 for rotor, f in zip(robot.rotors, force, strict=True)])
     plant = Plant.from_minimal(robot, q0, w=w)
     h, worst, closure = 1e-4, np.zeros(9), 0.0
     for k in range(int(round(seconds / 2e-3))):
@@ -184,7 +191,8 @@ def _fly(robot, motion, seconds):
 
 def test_closed_loop_holds_the_hover(robot):
     """At the reference pose with the hover thrusts (each drone tilted inward along its F_i), the closed loop
-    holds still for 2 s."""
+    holds still for 2 s.
+    """
     s0 = np.array(robot.kind.reference_chain)
 
     def still(t):
@@ -198,7 +206,8 @@ def test_closed_loop_holds_the_hover(robot):
 
 def test_closed_loop_tracks_a_smooth_motion(robot):
     """A smooth 4 s motion of every chain coordinate (0.3 m, 0.5 rad of yaw, 0.2 rad of tilt, legs +-0.2 rad):
-    the closed loop tracks it within 3 mm and 3 mrad (0.7 mm and 0.7 mrad when written)."""
+    the closed loop tracks it within 3 mm and 3 mrad (0.7 mm and 0.7 mrad when written).
+    """
     s0 = np.array(robot.kind.reference_chain)
     amp = np.array([0.3, -0.2, 0.2, 0.5, 0.2, -0.15, 0.2, -0.1, 0.15])
     omega = 2 * np.pi / 4.0
@@ -217,7 +226,8 @@ def test_closed_loop_tracks_a_smooth_motion(robot):
 @pytest.fixture(scope="module")
 def flown(robot):
     """A short rest-to-rest motion of the platform and legs (up, across, yawed and tilted, back) as a plan, and its
-    closed-loop simulation by :func:`fpr.sim.closed_loop.simulate`."""
+    closed-loop simulation by :func:`fpr.sim.closed_loop.simulate`.
+    """
     from types import SimpleNamespace
 
     from fpr.sim.closed_loop import SimulationSettings, simulate
@@ -234,7 +244,8 @@ def flown(robot):
 
 def test_simulate_tracks_a_rest_to_rest_motion(flown, robot):
     """The simulator's closed loop (the plan's ball-angle feed-forward from the kind's motion_inputs) on the
-    spatial FPR: within 2 mm and 2 mrad (0.9 mm and 0.9 mrad when written), the loop closed to 1e-9 m."""
+    spatial FPR: within 2 mm and 2 mrad (0.9 mm and 0.9 mrad when written), the loop closed to 1e-9 m.
+    """
     _, log = flown
     assert log.failure is None
     error = np.abs(log.tracking_error)
@@ -246,7 +257,8 @@ def test_simulate_tracks_a_rest_to_rest_motion(flown, robot):
 
 def test_scene_shows_platform_legs_drones_and_the_plan_as_a_ghost(flown, robot):
     """The meshcat scene of the simulation: the robot's bodies with an axle on every revolute joint along its axis,
-    the ghost where the plan puts the drones, the platform's path (its task frame: no 'end_effector' link)."""
+    the ghost where the plan puts the drones, the platform's path (its task frame: no 'end_effector' link).
+    """
     pin_model = robot.model
     from fpr.views.scene import view
 
@@ -268,8 +280,8 @@ def test_scene_shows_platform_legs_drones_and_the_plan_as_a_ghost(flown, robot):
     t, ghost = scene.track("ghost/drone_3_hinge", "position")
     q = np.zeros((t.size, robot.nq))
     q[:, :9] = plan.trajectory.evaluate_held(t, order=0)[0]
-    q[:, 9:] = np.stack([robot.kind.force_attitude(f, qk) for f, qk in
-                         zip(robot.kind.motion_inputs(plan.trajectory.evaluate_held(t, order=6)).thrust_vector, q)])
+    forces = robot.kind.motion_inputs(plan.trajectory.evaluate_held(t, order=6)).thrust_vector
+    q[:, 9:] = np.stack([robot.kind.force_attitude(f, qk) for f, qk in zip(forces, q, strict=True)])
     for k in range(0, t.size, 20):
         np.testing.assert_allclose(ghost[k], robot.hinge_positions(q[k])[2], atol=1e-9)
 

@@ -44,7 +44,8 @@ _TWO_PI = 2 * math.pi
 
 def _single_dof(joint) -> pin.JointModel:
     """A fresh 1-DoF joint model of the same type as ``joint`` (RX, RY, RZ, PX, PY, PZ, or a revolute about any
-    axis)."""
+    axis).
+    """
     name = joint.shortname()
     simple = {"JointModelRX": pin.JointModelRX, "JointModelRY": pin.JointModelRY, "JointModelRZ": pin.JointModelRZ,
               "JointModelPX": pin.JointModelPX, "JointModelPY": pin.JointModelPY, "JointModelPZ": pin.JointModelPZ}
@@ -57,7 +58,8 @@ def _single_dof(joint) -> pin.JointModel:
 
 def leg_joint_ids(robot) -> tuple[tuple[int, int], ...]:
     """(leg hinge, drone's first ball joint) of each drone, joint ids of the minimal model: the leg is the parent
-    of the ball's first joint, which is the third parent of the drone's hinge (pitch, yaw, hinge)."""
+    of the ball's first joint, which is the third parent of the drone's hinge (pitch, yaw, hinge).
+    """
     model = robot.model
     out = []
     for hinge in robot.hinge_joint_ids:
@@ -168,20 +170,19 @@ class Fpr3Control:
 
     def __init__(self, kind, ball_angles):
         """Args: kind: the bound :class:`fpr.robots.fpr3.Fpr3`; ball_angles: the kind's attitude rule
-        (:func:`fpr.robots.fpr3.ball_angles`, the one the planner uses)."""
+        (:func:`fpr.robots.fpr3.ball_angles`, the one the planner uses).
+        """
         r = kind.robot
-        self.kind = kind
-        self.position = r.indices(("x", "y", "z"))
         self.euler = r.indices(("psi", "theta", "phi")).tolist()
-        self.legs = r.indices(tuple(f"q{i}" for i in (1, 2, 3))).tolist()
-        self.balls = [r.indices(names).tolist() for names in r.layout.drone_attitude]
-        self.attitude = r.indices(r.layout.attitude).tolist()
         src = r.model
-        root = src.getJointId(EULER_ROOT_NAME)
+        # each leg's coordinate q_i: the one its hinge joint reads (Layout.joints)
+        legs = tuple(next(iter(r.layout.joints[src.names[leg]])) for leg, _ in leg_joint_ids(r))
+        self.legs = r.indices(legs).tolist()
+        self.balls = [r.indices(names).tolist() for names in r.layout.drone_attitude]
         # the legs' a_i from their hinges' placements: the hinge at R_p Rz(a_i) [r_p 0 0]
         self.leg_angles = [math.atan2(*src.jointPlacements[leg].translation[[1, 0]]) for leg, _ in leg_joint_ids(r)]
         self.mass_offset = (np.array(r.drone_masses) * np.array(r.hinge_offsets)).tolist()
-        self._robot, self._root = r, root
+        self._robot = r
         self._ball_angles = ball_angles
 
     def platform_rotation(self, q) -> np.ndarray:

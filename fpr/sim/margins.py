@@ -152,7 +152,8 @@ class _Measured(SimpleNamespace):
     """What the plant did, as the kind's ``attitude_margins`` reads a plan's inputs: the drones' measured attitude
     coordinates (``roll``, ``attitude``), rotor speeds and allocated thrusts, and, computed when a kind reads it,
     ``thrust_vector``: each allocated thrust along the drone's measured thrust axis, in ``force_axes`` (N, n_d, k)
-    [N] (Pinocchio's kinematics of the logged states)."""
+    [N] (Pinocchio's kinematics of the logged states).
+    """
 
     def __init__(self, robot, log, **fields):
         super().__init__(**fields)

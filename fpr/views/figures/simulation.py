@@ -172,7 +172,8 @@ def _sim_path(robot, log, plan: SampledPlan | None = None) -> Figure:
 
 def _sim_path_spatial(robot, sim: _Simulated, plan: SampledPlan | None) -> Figure:
     """:func:`_sim_path` of a robot whose task points are in space (``force_axes`` x, y, z): the paths seen from
-    above (x, y) and from the side (x, z), with the ground and its margin in the side view."""
+    above (x, y) and from the side (x, z), with the ground and its margin in the side view.
+    """
     thin = STYLE["thin_width"]
     what, other = robot.kind.task_point_labels
     legends = robot.kind.joint_legends()
@@ -209,7 +210,8 @@ def _sim_path_spatial(robot, sim: _Simulated, plan: SampledPlan | None) -> Figur
 
 def _drone_kinematics(robot, q, v) -> tuple[np.ndarray, np.ndarray]:
     """Each drone's thrust axis in world axes and its angular velocity in its own axes along logged states q, v
-    (N, n) (Pinocchio's kinematics of the robot's model), shapes (N, n_d, 3)."""
+    (N, n) (Pinocchio's kinematics of the robot's model), shapes (N, n_d, 3).
+    """
     import pinocchio as pin
 
     model, data = robot.model, robot.model.createData()
@@ -226,7 +228,8 @@ def _drone_kinematics(robot, q, v) -> tuple[np.ndarray, np.ndarray]:
 
 def _tilts(robot, log, sim: _Simulated) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each drone's tilt from the vertical (N, n_d) [rad]: planned (the plan's chain and attitude), desired (the
-    measured chain, the controller's attitude targets) and simulated."""
+    measured chain, the controller's attitude targets) and simulated.
+    """
     coordinates = tuple(log.coordinates)
     chain = [coordinates.index(c) for c in robot.layout.chain]
     rolls = [coordinates.index(c) for c in robot.layout.rolls]

@@ -90,7 +90,8 @@ def _is_hinge(model, joint_id: int) -> bool:
 
 def _axle_matrix(model, joint_id: int) -> np.ndarray:
     """The 4x4 transform that turns a cylinder along z onto a revolute joint's axis (:data:`_Z_TO_X` for an axis
-    along x, the planar chain's)."""
+    along x, the planar chain's).
+    """
     axis = _revolute_axis(model, joint_id)
     if axis[0] == 1.0 and not axis[1:].any():
         return _Z_TO_X
