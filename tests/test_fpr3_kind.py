@@ -86,13 +86,13 @@ def test_singular_lines_determinant(robot):
     legs at one angle (DESIGN's hand formula); zero with two legs in the platform's plane, not with one.
     """
     kind = robot.kind
-    l, r_p = kind.geometry.lengths[0], kind.geometry.radius[0]
+    length, r_p = kind.geometry.lengths[0], kind.geometry.radius[0]
     rng = np.random.default_rng(SEED)
     for s in _poses(rng, 8):
         det_j = np.linalg.det(kind.chain_jacobian(s))
-        assert det_j == pytest.approx(np.cos(s[4]) * l**3 * kind.geometry.line_determinant(s[6:9]), rel=1e-10)
+        assert det_j == pytest.approx(np.cos(s[4]) * length**3 * kind.geometry.line_determinant(s[6:9]), rel=1e-10)
     for q in (0.2, 0.7, 1.3):
-        hand = 27 / 4 * np.sin(q) ** 3 * (r_p + l * np.cos(q)) ** 3
+        hand = 27 / 4 * np.sin(q) ** 3 * (r_p + length * np.cos(q)) ** 3
         assert kind.geometry.line_determinant(np.full(3, q)) == pytest.approx(hand, rel=1e-12)
     assert abs(kind.geometry.line_determinant(np.array([0.0, 0.0, 0.8]))) < 1e-14
     assert abs(kind.geometry.line_determinant(np.array([0.0, 0.8, 0.8]))) > 1e-2
