@@ -293,3 +293,23 @@ def test_one_step_nlp_dual_equals_complex_step():
     for ref, got in zip(out["complex"], out["dual"], strict=True):
         scale = np.abs(ref).max()
         np.testing.assert_allclose(got, ref, atol=1e-11 * scale, rtol=0)
+
+
+def test_attitude_margins_scaled_and_unscaled_agree(robot):
+    """The tilt rows: unscaled the angle to the bound, scaled the cosine's margin (same sign); the ball-roll rows
+    the roll's margins; a drone thrusting along its leg's hinge axis breaks them.
+    """
+    motion = _motions(np.random.default_rng(SEED), 6)
+    inputs = robot.kind.motion_inputs(motion)
+    bound = np.pi / 2 - robot.margins.angle
+    scaled, natural = robot.kind.attitude_margins(inputs, True), robot.kind.attitude_margins(inputs, False)
+    for i in range(3):
+        force = inputs.thrust_vector[:, i]
+        tilt = np.arccos(force[:, 2] / np.linalg.norm(force, axis=1))
+        assert [name for name, _, _ in natural[i]] == [f"tilt_{i + 1}"] + [f"ball_roll_{i + 1}"] * 2
+        np.testing.assert_allclose(natural[i][0][2], bound - tilt, atol=1e-12)
+        np.testing.assert_allclose(scaled[i][0][2], np.cos(tilt) - np.cos(bound), atol=1e-12)
+        np.testing.assert_allclose(natural[i][2][2], bound - inputs.attitude[:, i, 2], atol=1e-15)
+    hinge_axis = _rotation(motion[0, 0]) @ pin.rpy.rpyToMatrix(0.0, 0.0, LEG_ANGLES[0])[:, 1]
+    sideways = ball_angles(_rotation(motion[0, 0]), motion[0, 0, 6:9], np.array([hinge_axis, [0, 0, 1], [0, 0, 1]]))
+    assert abs(sideways[0, 2]) == pytest.approx(np.pi / 2) and abs(sideways[0, 2]) > bound
