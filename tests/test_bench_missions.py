@@ -32,11 +32,11 @@ def loaded():
 def test_builtin_families_cover_each_robots_spaces_and_modes():
     labels = [f.label for f in builtin_families(8)]
     assert labels == ["fpr task", "prototype task down", "prototype task up", "prototype joint down",
-                      "prototype joint up"]
+                      "prototype joint up", "fpr3 task"]
     assert all(f.way_points == 8 and f.via_points == (0, 2) for f in builtin_families(8))
 
 
-@pytest.mark.parametrize("index", range(5))
+@pytest.mark.parametrize("index", range(6))
 def test_a_familys_mission_is_reproducible_valid_and_feasible_to_stop(loaded, index):
     """Same seed, same mission; another seed, another; every way point in the region and the workspace (the
     mission's own check), via points in range, and the stop-at-way-points motion feasible on the 500 Hz grid with

@@ -127,7 +127,7 @@ def _mission_file(tmp_path, text):
 @pytest.mark.parametrize("edit, expected", [
     (lambda t: t.replace("times = [", "times = [-1.0, "), "times"),
     (lambda t: t + "\nthis is not toml\n", "<toml>"),
-    (lambda t: t.replace('robot = "fpr"', 'robot = "fpr3"'), "robot"),
+    (lambda t: t.replace('robot = "fpr"', 'robot = "fpr9"'), "robot"),
 ], ids=["negative-time", "malformed-toml", "unknown-robot"])
 def test_bad_mission_file_exits_2_naming_the_field(tmp_path, capsys, edit, expected):
     text = edit(builtin_mission_text("square"))

@@ -86,13 +86,13 @@ def test_singular_lines_determinant(robot):
     legs at one angle (DESIGN's hand formula); zero with two legs in the platform's plane, not with one.
     """
     kind = robot.kind
-    l, r_p = kind.geometry.lengths[0], kind.geometry.radius[0]
+    length, r_p = kind.geometry.lengths[0], kind.geometry.radius[0]
     rng = np.random.default_rng(SEED)
     for s in _poses(rng, 8):
         det_j = np.linalg.det(kind.chain_jacobian(s))
-        assert det_j == pytest.approx(np.cos(s[4]) * l**3 * kind.geometry.line_determinant(s[6:9]), rel=1e-10)
+        assert det_j == pytest.approx(np.cos(s[4]) * length**3 * kind.geometry.line_determinant(s[6:9]), rel=1e-10)
     for q in (0.2, 0.7, 1.3):
-        hand = 27 / 4 * np.sin(q) ** 3 * (r_p + l * np.cos(q)) ** 3
+        hand = 27 / 4 * np.sin(q) ** 3 * (r_p + length * np.cos(q)) ** 3
         assert kind.geometry.line_determinant(np.full(3, q)) == pytest.approx(hand, rel=1e-12)
     assert abs(kind.geometry.line_determinant(np.array([0.0, 0.0, 0.8]))) < 1e-14
     assert abs(kind.geometry.line_determinant(np.array([0.0, 0.8, 0.8]))) > 1e-2
@@ -209,6 +209,22 @@ def test_offset_drone_torques_and_thrust():
         assert np.abs(lateral).max() > 1e-3  # the pendulum's lateral force is there
 
 
+def test_offset_drones_perturb_the_chain_to_first_order():
+    """The full model's forward dynamics under the planned inputs leaves the plan by a residual first order in the
+    drones' offset d (the pendulum the point-drone plan leaves out), 0 at d = 0.
+    """
+    motion = _motions(np.random.default_rng(SEED), 5, scale=0.3)
+    residuals = []
+    for d in (0.0, 0.01, 0.02):
+        robot = fpr.load("fpr3", ball_offset=d)
+        inputs = robot.kind.motion_inputs(motion)
+        q, v, a = inputs.full_state(robot)
+        residuals.append(max(np.abs(robot.forward_dynamics(q[k], v[k], inputs.thrust[k], inputs.torque[k])
+                                    - a[k]).max() for k in range(q.shape[0])))
+    assert residuals[0] < 1e-6 < 1e-3 < residuals[1]  # (at 0.1 m the second order shows: 0.09 against 0.03 at 0.05)
+    assert residuals[2] / residuals[1] == pytest.approx(2.0, rel=0.25)
+
+
 # ------------------------------------------------------------------------------------------ derivatives
 
 
@@ -277,3 +293,23 @@ def test_one_step_nlp_dual_equals_complex_step():
     for ref, got in zip(out["complex"], out["dual"], strict=True):
         scale = np.abs(ref).max()
         np.testing.assert_allclose(got, ref, atol=1e-11 * scale, rtol=0)
+
+
+def test_attitude_margins_scaled_and_unscaled_agree(robot):
+    """The tilt rows: unscaled the angle to the bound, scaled the cosine's margin (same sign); the ball-roll rows
+    the roll's margins; a drone thrusting along its leg's hinge axis breaks them.
+    """
+    motion = _motions(np.random.default_rng(SEED), 6)
+    inputs = robot.kind.motion_inputs(motion)
+    bound = np.pi / 2 - robot.margins.angle
+    scaled, natural = robot.kind.attitude_margins(inputs, True), robot.kind.attitude_margins(inputs, False)
+    for i in range(3):
+        force = inputs.thrust_vector[:, i]
+        tilt = np.arccos(force[:, 2] / np.linalg.norm(force, axis=1))
+        assert [name for name, _, _ in natural[i]] == [f"tilt_{i + 1}"] + [f"ball_roll_{i + 1}"] * 2
+        np.testing.assert_allclose(natural[i][0][2], bound - tilt, atol=1e-12)
+        np.testing.assert_allclose(scaled[i][0][2], np.cos(tilt) - np.cos(bound), atol=1e-12)
+        np.testing.assert_allclose(natural[i][2][2], bound - inputs.attitude[:, i, 2], atol=1e-15)
+    hinge_axis = _rotation(motion[0, 0]) @ pin.rpy.rpyToMatrix(0.0, 0.0, LEG_ANGLES[0])[:, 1]
+    sideways = ball_angles(_rotation(motion[0, 0]), motion[0, 0, 6:9], np.array([hinge_axis, [0, 0, 1], [0, 0, 1]]))
+    assert abs(sideways[0, 2]) == pytest.approx(np.pi / 2) and abs(sideways[0, 2]) > bound

@@ -85,7 +85,8 @@ def test_constraint_kinds_are_the_generic_ones_and_the_registered_robots():
         for key, entry in kind.constraint_kinds.items():
             assert CONSTRAINT_KINDS[key][0] == entry[0]
         assert set(kind.attitude_kinds) <= set(kind.constraint_kinds)
-    assert workspace_kinds() == {"ground", "fixed_point", "phi", "q21", "q1", "q2", "crossing"}
+    assert workspace_kinds() == {"ground", "fixed_point", "phi", "q21", "q1", "q2", "crossing",
+                                 "leg", "distance", "chart", "singular"}  # the last four: the spatial FPR's
     assert constraint_kind("q21_low") == "q21" and constraint_kind("q2_high") == "q2"
 
 
@@ -99,19 +100,19 @@ def test_every_margin_a_robot_gives_has_a_kind_it_registered(robot):
 def test_a_registered_kind_adds_its_constraint_kinds_and_a_unit_clash_is_refused():
     tilted = type("Tilted", (Fpr,), {"name": "tilted_test_kind",
                                      "constraint_kinds": {**Fpr.constraint_kinds,
-                                                          "tilt": ("rad", "drone tilt from the vertical")},
-                                     "attitude_kinds": ("roll", "tilt")})
-    assert "tilt" not in CONSTRAINT_KINDS
+                                                          "sway": ("rad", "drone sway")},
+                                     "attitude_kinds": ("roll", "sway")})
+    assert "sway" not in CONSTRAINT_KINDS
     with pytest.raises(StopIteration):
-        constraint_kind("tilt_3")  # (an answer constraint_kind remembers only while the registry stays)
+        constraint_kind("sway_3")  # (an answer constraint_kind remembers only while the registry stays)
     fpr.robots.register(tilted)
     try:
-        assert CONSTRAINT_KINDS["tilt"][0] == "rad"
-        assert constraint_kind("tilt_3") == "tilt"
-        assert "tilt" not in workspace_kinds()
+        assert CONSTRAINT_KINDS["sway"][0] == "rad"
+        assert constraint_kind("sway_3") == "sway"
+        assert "sway" not in workspace_kinds()
     finally:
         fpr.robots.unregister(tilted.name)
-    assert "tilt" not in CONSTRAINT_KINDS
+    assert "sway" not in CONSTRAINT_KINDS
     assert constraint_kind("ground_1") == "ground"
     clash = type("Clash", (Fpr,), {"name": "clash_test_kind", "constraint_kinds": {"ground": ("rad", "?")}})
     fpr.robots.register(clash)

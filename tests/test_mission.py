@@ -65,8 +65,12 @@ def test_builtin_loads_and_satisfies_margins(name, robots):
     assert mission.name == name and mission.source == f"built-in {name}"
     s = mission.positions(robot)
     for i, pose in enumerate(s):  # each way point in its own assembly mode (a crossing ends in the other)
-        margins = fpr_workspace_margins(pose, robot.link_length, robot.margins) if mission.robot == "fpr" \
-            else prototype_workspace_margins(pose, robot.link_length, robot.margins, mission.arm_of(i))
+        if mission.robot == "fpr":
+            margins = fpr_workspace_margins(pose, robot.link_length, robot.margins)
+        elif mission.robot == "prototype":
+            margins = prototype_workspace_margins(pose, robot.link_length, robot.margins, mission.arm_of(i))
+        else:
+            margins = robot.kind.workspace_margins(pose)
         worst = {key: float(np.min(v)) for key, v in margins.items()}
         assert min(worst.values()) >= 0, (i, worst)
     # every field of the file format is documented in the file (as a key or a commented key)

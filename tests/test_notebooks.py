@@ -124,6 +124,12 @@ for key, first in breaks.items():  # each margin breaks at a value of its sweep,
     assert all(v is None or v in values for v in first.values())
 assert len(written) == 8 and all(p.is_file() and p.stat().st_size > 0 for p in written)
 """),
+    "08_spatial_fpr": Expected(images=4, html=0, checks="""
+assert robot.name == "fpr3" and result.feasible and reference.feasible and result.J < 1.0
+assert abs(hover.thrust_vector[0, :, 2].sum() - robot.total_mass * 9.81) < 1e-9
+assert np.allclose(hover.attitude[0][:, 1], 0.0)
+assert len(paths) == 8 and all(p.is_file() for p in paths)
+"""),
 }
 
 

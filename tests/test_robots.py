@@ -23,6 +23,11 @@ def robots():
     return {name: fpr.load(name) for name in fpr.ROBOTS}
 
 
+def _planar(robots):
+    """The robots whose chain moves in the y-z plane (the planar closed-form model applies to them)."""
+    return [r for r in robots.values() if len(r.kind.force_axes) == 2]
+
+
 def test_unknown_robot_and_bad_shapes(robots):
     with pytest.raises(UnknownRobotError, match="'fpr', 'prototype'"):
         fpr.load("hexapod")
@@ -33,8 +38,8 @@ def test_unknown_robot_and_bad_shapes(robots):
 
 
 def test_registry_maps_names_to_kinds():
-    assert fpr.ROBOTS == fpr.robots.BUILTIN == ("fpr", "prototype")
-    assert fpr.robots.names()[:2] == ("fpr", "prototype")
+    assert fpr.ROBOTS == fpr.robots.BUILTIN == ("fpr", "prototype", "fpr3")
+    assert fpr.robots.names()[:3] == ("fpr", "prototype", "fpr3")
     assert fpr.robots.get("fpr") is Fpr and fpr.robots.get("prototype") is Prototype
     with pytest.raises(UnknownRobotError, match="'fpr', 'prototype'"):
         fpr.robots.get("hexapod")
@@ -158,8 +163,10 @@ def test_passive_robot_conserves_energy(robots, name):
 
     x = np.concatenate([q, v])
     e0 = r.kinetic_energy(q, v) + r.potential_energy(q)
-    dt, drift = 1e-3, 0.0
-    for _ in range(2000):
+    # (a step of 0.5 ms resolves the spatial FPR's spinning drones near their ball chart's lock, yaw +-pi/2, where
+    # the random state takes them: 1 ms drifts by 3e-7 there, and the drift falls as dt^4)
+    dt, drift = 5e-4, 0.0
+    for _ in range(4000):
         k1 = f(x)
         k2 = f(x + dt / 2 * k1)
         k3 = f(x + dt / 2 * k2)
@@ -174,7 +181,7 @@ def test_passive_robot_conserves_energy(robots, name):
 def test_planar_model_equals_pinocchio(robots):
     """The closed-form in-plane model (used by the planner) against Pinocchio's CRBA / RNEA."""
     rng = np.random.default_rng(RNG_SEED + 6)
-    for r in robots.values():
+    for r in _planar(robots):
         for kind in ("rigid", "point", "none"):
             planar = r.planar(kind)
             reference = r if kind == "rigid" else r.with_drones_as(kind)
@@ -197,7 +204,7 @@ def test_planar_model_equals_pinocchio(robots):
 
 def test_planar_jacobians_against_finite_differences(robots):
     rng = np.random.default_rng(RNG_SEED + 7)
-    for r in robots.values():
+    for r in _planar(robots):
         planar = r.planar("rigid")
         q = rng.normal(size=planar.n)
         v = rng.normal(size=planar.n)

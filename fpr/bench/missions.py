@@ -175,8 +175,8 @@ def least_stop_times(robot, poses, precision: float = 0.01, clearance: float = 0
             the robot cannot hold at rest).
     """
     poses = np.asarray(poses, dtype=float)
-    length = robot.link_length or max(robot.kind.link_lengths)  # a drone on a ball at a leg's tip: the leg's
-    high = np.full(len(poses) - 1, math.sqrt(length / -float(robot.model.gravity.linear[2])))
+    length = robot.link_length or max(robot.kind.link_lengths)  # (a robot whose drones sit on no link: its links')
+    high = np.full(len(poses) - 1, math.sqrt(length / float(-robot.model.gravity.linear[2])))
     ok = _stop_feasible(robot, poses, high, clearance)
     for _ in range(16):
         if ok.all():

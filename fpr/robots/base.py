@@ -19,9 +19,10 @@ The members come in two groups, in the manner of Pink's ``Task`` or Crocoddyl's 
   (``workspace_margins``, ``crossing_margins``, ``planning_pose``, ``check_pose``, ``assembly_mode``,
   ``coordinate_axes``, ``mission_region``), what the drones must do along a motion (``motion_inputs``,
   ``generalized_forces``, ``thrust_vectors``, ``needs_high_derivatives``, ``attitude_margins``,
-  ``full_state``), the closure of the plant (``closed_chain``, ``closure_reader``) and the simulator's take-off (``level_attitude``), the
-  controller's outer-loop solve (``outer_loop_forces``), the attitude of a thrust vector (``force_attitude``)
-  and its inner loop's targets (``attitude_targets``, ``lateral_loop``, ``compiled_inner_constants``).
+  ``full_state``, ``singularity_distance``), the closure of the plant (``closed_chain``, ``closure_reader``) and
+  the simulator's take-off (``level_attitude``), the controller's outer-loop solve (``outer_loop_forces``), the
+  attitude of a thrust vector (``force_attitude``) and its inner loop's targets (``attitude_targets``,
+  ``lateral_loop``, ``compiled_inner_constants``).
 
 Members marked *required* must be given by every robot; the others have defaults here that suit a
 robot whose planning coordinates are its task coordinates and whose drone-joint Jacobian is invertible

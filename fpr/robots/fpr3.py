@@ -118,8 +118,10 @@ class Fpr3(RobotKind):
         "singular": ("1", "det J (the legs' six lines) at least its value with every leg at m_ga, relative to the "
                           "reference pose's"),
         "tilt": ("rad", "drone tilt from the vertical <= pi/2 - m_ga"),
+        "ball_roll": ("rad", "drone ball roll |roll_i| <= pi/2 - m_ga (the attitude rule's lock: the thrust along "
+                             "the leg's hinge axis)"),
     }
-    attitude_kinds = ("tilt",)
+    attitude_kinds = ("tilt", "ball_roll")
     drone_angle_column = "tilt"
     margin_hints = {
         "leg": "keep every leg angle between m_ga and arccos(-r_p / l) - m_ga",
@@ -314,7 +316,9 @@ class Fpr3(RobotKind):
     def attitude_margins(self, inputs, scaled: bool) -> list[list[tuple[str, str, np.ndarray]]]:
         """Each drone's tilt from the vertical at most pi/2 - m_ga: ``tilt_<i>``; scaled, the smooth
         F_z / |F| - sin(m_ga) (the cosine of the tilt minus that of its bound) [1]; unscaled, the angle's margin
-        pi/2 - m_ga - tilt [rad].
+        pi/2 - m_ga - tilt [rad]. And its ball roll within pi/2 - m_ga, away from the attitude rule's lock (the
+        thrust along the leg's hinge axis, where the rule's pitch is undefined): ``ball_roll_<i>`` "negative" and
+        "positive" [rad], scaled or not.
         """
         m = self.robot.margins.angle
         force = inputs.thrust_vector
@@ -327,6 +331,9 @@ class Fpr3(RobotKind):
             else:
                 tilt = np.arctan2(np.hypot(f[:, 0], f[:, 1]), f[:, 2])
                 rows.append([(f"tilt_{i + 1}", "", (np.pi / 2 - m) - tilt)])
+            roll = inputs.attitude[:, i, 2]
+            rows[-1] += [(f"ball_roll_{i + 1}", "negative", (np.pi / 2 - m) + roll),
+                         (f"ball_roll_{i + 1}", "positive", (np.pi / 2 - m) - roll)]
         return rows
 
     # ---- control and simulation (fpr3_control)

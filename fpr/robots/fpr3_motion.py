@@ -98,7 +98,7 @@ def spatial_motion_inputs(kind, motion, external=None) -> MotionInputs:
     robot = kind.robot
     m = motion_array(robot, motion)
     s = Jet(m[:5])
-    n, n_d = m.shape[1], robot.n_drones
+    n_d = robot.n_drones
     spatial = kind.spatial_chain.evaluate(s, forces=False)
     b = spatial.b
     if external is not None:

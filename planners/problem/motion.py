@@ -190,7 +190,7 @@ def constraint_rows(robot, motion, inputs: MotionInputs, *, scaled: bool, crossi
             details += [f"rotor {m + 1}"] * 2
         if min_thrust is not None:
             margin = inputs.thrust[:, i] - min_thrust
-            cols.append(margin / (robot.drone_mass * robot.planar("point").gravity) if scaled else margin)
+            cols.append(margin / (robot.drone_mass * float(-robot.model.gravity.linear[2])) if scaled else margin)
             names.append(f"thrust_low_{i + 1}")
             details.append("")
     return np.stack(cols, axis=-1), names, details
