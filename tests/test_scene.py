@@ -462,3 +462,19 @@ def test_plan_page_renders_offline_in_a_browser(chromium, tmp_path, square_scene
     text = dom.read_text(encoding="utf-8", errors="replace")
     assert re.search(r"<canvas[^>]*width=\"\d+\"", text)  # meshcat's WebGL canvas
     assert "dg main" in text or "Open Controls" in text  # and its control panel
+
+
+def test_the_same_scene_gives_the_same_bytes(square, square_log):
+    """The three.js ids are numbered in the order the objects are made (ours and meshcat's), so that the same
+    scene writes the same page; meshcat's own ids are random again afterwards."""
+    import uuid
+
+    from fpr.views.scene.geometry import _meshcat
+
+    scene = view(square.robot, square, square_log, fps=FPS)
+    assert view(square.robot, square, square_log, fps=FPS).html == scene.html
+    numbered = re.compile(r"0{8}-0{4}-0{4}-0{4}-[0-9a-f]{12}")
+    drone = scene.object("robot/drone_1_hinge")
+    assert numbered.fullmatch(drone["object"]["uuid"]) and numbered.fullmatch(drone["geometries"][0]["uuid"])
+    assert numbered.fullmatch(scene.object("paths/planned/drone_1")["object"]["uuid"])  # one of meshcat's
+    assert _meshcat().geometry.uuid is uuid

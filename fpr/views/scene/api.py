@@ -21,6 +21,7 @@ from fpr.views.scene.builder import (
     _Scene,
     _tracked_motion,
 )
+from fpr.views.scene.geometry import deterministic_ids
 from fpr.views.scene.page import SceneView
 
 THRUST_SCALE = 0.03
@@ -68,7 +69,13 @@ def view(robot, plan=None, log=None, *, configuration=None, fps: float = DEFAULT
     if log is not None:
         _check_log(robot, log)
 
-    scene = _Scene(robot, float(fps), float(thrust_scale))
+    with deterministic_ids():  # the same scene, the same bytes
+        return _build(robot, plan, log, configuration, float(fps), title, float(thrust_scale))
+
+
+def _build(robot, plan, log, configuration, fps: float, title: str | None, thrust_scale: float) -> SceneView:
+    """:func:`view` once its arguments are checked."""
+    scene = _Scene(robot, fps, thrust_scale)
     if plan is None and log is None:
         q = _default_configuration(robot) if configuration is None else \
             check_shape("configuration", configuration, (robot.nq,))

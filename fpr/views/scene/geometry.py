@@ -7,7 +7,10 @@ meshcat is optional: :func:`_meshcat` imports it, or says how to install it.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import logging
+import types
 import uuid
 import warnings
 from functools import lru_cache
@@ -108,8 +111,31 @@ def _axle_matrix(model, joint_id: int) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------ geometry
+_ids = None  # the ids of the scene being built (deterministic_ids), or None: random ones
+
+
 def _uuid() -> str:
-    return str(uuid.uuid4())
+    return str(uuid.uuid4()) if _ids is None else str(uuid.UUID(int=next(_ids)))
+
+
+@contextlib.contextmanager
+def deterministic_ids():
+    """Within the block, the three.js objects' ids (ours and meshcat's own) are numbered 1, 2, ... in the order they
+    are made, instead of random: the same scene gives the same bytes.
+    """
+    global _ids
+    geometry = _meshcat().geometry
+    previous, previous_module = _ids, geometry.uuid
+    counter = _ids = itertools.count(1)
+
+    def numbered(*_args, **_kwargs):
+        return uuid.UUID(int=next(counter))
+
+    geometry.uuid = types.SimpleNamespace(uuid1=numbered, uuid4=numbered)  # what meshcat.geometry calls
+    try:
+        yield
+    finally:
+        _ids, geometry.uuid = previous, previous_module
 
 
 def _matrix(transform: np.ndarray) -> list[float]:
