@@ -466,7 +466,8 @@ def test_plan_page_renders_offline_in_a_browser(chromium, tmp_path, square_scene
 
 def test_the_same_scene_gives_the_same_bytes(square, square_log):
     """The three.js ids are numbered in the order the objects are made (ours and meshcat's), so that the same
-    scene writes the same page; meshcat's own ids are random again afterwards."""
+    scene writes the same page; meshcat's own ids are random again afterwards.
+    """
     import uuid
 
     from fpr.views.scene.geometry import _meshcat
