@@ -344,17 +344,21 @@ class Fpr3(RobotKind):
 
     def closed_chain(self, model, axis_offset: float) -> ClosureTree:
         """The platform a free flyer, the legs a tree on it, three free drones, three point closures
-        (:func:`fpr.robots.fpr3_control.closed_chain`)."""
+        (:func:`fpr.robots.fpr3_control.closed_chain`).
+        """
         return fpr3_control.closed_chain(self, model, axis_offset)
 
     def closure_reader(self, closed) -> fpr3_control.Fpr3Reader:
-        """The platform's pose and the ball angles off the closed chain (:class:`fpr.robots.fpr3_control.Fpr3Reader`)."""
+        """The platform's pose and the ball angles off the closed chain
+        (:class:`fpr.robots.fpr3_control.Fpr3Reader`).
+        """
         return fpr3_control.Fpr3Reader(closed)
 
     def force_attitude(self, force, q=None) -> np.ndarray:
         """The ball angles (``layout.drone_attitude`` flattened, (9,)) of drones whose thrust axes lie along
         ``force`` (3, 3) [N] by the yaw rule, relative to the platform and legs of ``q`` (the reference pose
-        without it) [rad]."""
+        without it) [rad].
+        """
         if q is None:
             q = np.zeros(self.robot.nq)
             q[self.robot.indices(self.layout.chain)] = self.reference_chain
@@ -362,11 +366,14 @@ class Fpr3(RobotKind):
 
     def attitude_targets(self, q, v, force, reference, settings) -> AttitudeTargets:
         """Thrusts along the measured thrust axes, the ball angles of F_i relative to the measured platform and
-        legs, the plan's ball-angle rates and accelerations (:meth:`fpr.robots.fpr3_control.Fpr3Control.targets`)."""
+        legs, the plan's ball-angle rates and accelerations (:meth:`fpr.robots.fpr3_control.Fpr3Control.targets`).
+        """
         return self._control.targets(q, v, force, reference)
 
     def level_attitude(self, q) -> np.ndarray:
-        """``q`` with each drone level in the world, yaw by the rule (:meth:`fpr.robots.fpr3_control.Fpr3Control.level`)."""
+        """``q`` with each drone level in the world, yaw by the rule
+        (:meth:`fpr.robots.fpr3_control.Fpr3Control.level`).
+        """
         return self._control.level(q)
 
 
