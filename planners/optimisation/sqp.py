@@ -145,6 +145,7 @@ class SqpOptions:
     power_width: float = POWER_WIDTH
     majoriser_share: float = MAJORISER_SHARE
     trial_derivatives: bool = True
+    kinks: bool = True
 
     def __post_init__(self):
         if self.stop not in STOPS:
@@ -460,6 +461,55 @@ def _second_order_correction(ev, d, multipliers, trial_constraints) -> np.ndarra
     return -a.T @ np.linalg.solve(gram, trial_constraints[work])
 
 
+def along_step(ev, d, penalty: float, predicted: float) -> tuple[np.ndarray, float]:
+    """The step t d, t in (0, 1], that minimises the merit's model with J_e's kinks along d, and its predicted
+    decrease.
+
+    The model along d: J_phi's Gauss-Newton quadratic, J_e = sum_k pw_k |P_k|_eps with each power linearised
+    (P_k + t dP_k) inside the objective's own smoothed absolute value, and the l1 penalty of the linearised
+    constraints,
+
+        m(t) = t g_phi^T d + t^2 d^T H_phi d / 2 + sum_k pw_k (|P_k + t dP_k|_eps - |P_k|_eps)
+               + rho (v(c + t A d) - v(c))
+
+    (v the l1 violation), is convex in t (each term is), so its minimiser on [0, 1] is found by bisection on m'(t).
+    The QP's own model
+    (:mod:`planners.optimisation.curvature`) gives |P| a smoothed curvature: where a step takes powers across zero
+    from afar it underestimates the cost of the kink and predicts a decrease where J grows. Here each |P_k| is
+    exact in P_k, so the predicted decrease follows the actual one up to the powers' own nonlinearity and the
+    constraints' curvature. Returns (d, ``predicted``) unchanged when m does not decrease along d (m'(0) >= 0).
+    """
+    pv, pw = ev.power, ev.power_weight
+    dp = ev.power_jacobian_sparse @ d if getattr(ev, "power_jacobian_sparse", None) is not None \
+        else ev.power_jacobian @ d
+    eps2 = POWER_SMOOTHING**2
+    smooth = np.sqrt(pv * pv + eps2)
+    g_phi_d = float(ev.gradient @ d) - float(pw @ (pv / smooth * dp))
+    dhd = float(d @ (ev.rate_hessian @ d))
+    c = np.asarray(ev.constraints)
+    ad = _jacobian(ev) @ d
+    pwdp = pw * dp
+
+    def slope(t: float) -> float:
+        p = pv + t * dp
+        kinks = float(pwdp @ (p / np.sqrt(p * p + eps2)))
+        return g_phi_d + t * dhd + kinks - penalty * float(ad[c + t * ad < 0.0].sum())
+
+    if slope(0.0) >= 0.0:
+        return d, predicted
+    t = 1.0
+    if slope(1.0) > 0.0:
+        low, high = 0.0, 1.0
+        for _ in range(50):
+            mid = 0.5 * (low + high)
+            low, high = (mid, high) if slope(mid) < 0.0 else (low, mid)
+        t = high
+    p = pv + t * dp
+    model = t * g_phi_d + 0.5 * t * t * dhd + float(pw @ (np.sqrt(p * p + eps2) - smooth)) \
+        + penalty * (_violation(c + t * ad) - _violation(c))
+    return t * d, -model
+
+
 def _floored(b: np.ndarray) -> np.ndarray:
     """The symmetric b with its eigenvalues floored at 1e-8 of the largest (positive definite)."""
     b = 0.5 * (b + b.T)
@@ -581,6 +631,9 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
             message = f"converged: no decrease predicted (KKT residual {kkt.residual:.2g})" if success else \
                 "stopped at a point where the linearised constraints cannot be met (locally infeasible)"
             break
+        if opt.kinks and opt.curvature == "smoothed" and getattr(ev, "power", None) is not None:
+            # the step's length along d by the model with J_e's kinks (the QP's smoothed curvature misses them)
+            d, predicted = along_step(ev, d, penalty, predicted)
         trial = problem.evaluate(x + d, trial_derivatives)
         gradients, evaluations = (gradients + 1, evaluations) if trial_derivatives else (gradients, evaluations + 1)
         actual = merit - (trial.J + penalty * _violation(trial.constraints))
