@@ -59,3 +59,63 @@ def smoothed_hessian(ev, width: float = POWER_WIDTH, share: float = MAJORISER_SH
         return ev.rate_hessian + ev.power_gram(weight)
     pj = ev.power_jacobian
     return np.asarray(ev.rate_hessian) + pj.T @ (weight[:, None] * pj)
+
+
+def along_step(ev, d, penalty: float, predicted: float) -> tuple[np.ndarray, float]:
+    """The step t d, t in (0, 1], that minimises the merit's model with J_e's kinks along d, and its predicted
+    decrease.
+
+    The model along d: J_phi's Gauss-Newton quadratic, J_e = sum_k pw_k |P_k|_eps with each power linearised
+    (P_k + t dP_k) inside the objective's own smoothed absolute value, and the l1 penalty of the linearised
+    constraints,
+
+        m(t) = t g_phi^T d + t^2 d^T H_phi d / 2 + sum_k pw_k (|P_k + t dP_k|_eps - |P_k|_eps)
+               + rho (v(c + t A d) - v(c))
+
+    (v the l1 violation), is convex in t (each term is), so its minimiser on [0, 1] is found by bisection on m'(t).
+    The QP's own model
+    (:mod:`planners.optimisation.curvature`) gives |P| a smoothed curvature: where a step takes powers across zero
+    from afar it underestimates the cost of the kink and predicts a decrease where J grows. Here each |P_k| is
+    exact in P_k, so the predicted decrease follows the actual one up to the powers' own nonlinearity and the
+    constraints' curvature. Returns (d, ``predicted``) unchanged when m does not decrease along d (m'(0) >= 0).
+    """
+    pv, pw = ev.power, ev.power_weight
+    dp = ev.power_jacobian_sparse @ d if getattr(ev, "power_jacobian_sparse", None) is not None \
+        else ev.power_jacobian @ d
+    eps2 = POWER_SMOOTHING**2
+    smooth = np.sqrt(pv * pv + eps2)
+    g_phi_d = float(ev.gradient @ d) - float(pw @ (pv / smooth * dp))
+    dhd = float(d @ (ev.rate_hessian @ d))
+    c = np.asarray(ev.constraints)
+    ad = _constraint_jacobian(ev) @ d
+    pwdp = pw * dp
+
+    def slope(t: float) -> float:
+        p = pv + t * dp
+        kinks = float(pwdp @ (p / np.sqrt(p * p + eps2)))
+        return g_phi_d + t * dhd + kinks - penalty * float(ad[c + t * ad < 0.0].sum())
+
+    if slope(0.0) >= 0.0:
+        return d, predicted
+    t = 1.0
+    if slope(1.0) > 0.0:
+        low, high = 0.0, 1.0
+        for _ in range(50):
+            mid = 0.5 * (low + high)
+            low, high = (mid, high) if slope(mid) < 0.0 else (low, mid)
+        t = high
+    p = pv + t * dp
+    model = t * g_phi_d + 0.5 * t * t * dhd + float(pw @ (np.sqrt(p * p + eps2) - smooth)) \
+        + penalty * (_l1(c + t * ad) - _l1(c))
+    return t * d, -model
+
+
+def _l1(c) -> float:
+    """The l1 violation sum_i max(0, -c_i)."""
+    return float(np.maximum(0.0, -np.asarray(c)).sum())
+
+
+def _constraint_jacobian(ev):
+    """The constraints' Jacobian of an Evaluation: its sparse copy when it has one."""
+    sparse_copy = getattr(ev, "jacobian_sparse", None)
+    return ev.jacobian if sparse_copy is None else sparse_copy

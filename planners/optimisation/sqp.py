@@ -45,6 +45,12 @@ but its QPs have one more variable and two more rows per drone and grid node tha
 each (its sparse backend and quadprog are no faster there): measured about 6 times slower per SQP
 iteration than Gauss-Newton, so it is not the default.
 
+**Step length** (``SqpOptions.kinks``, on by default, used with ``"smoothed"``). The QP's direction d is kept; its
+length is the minimiser along d of a second, convex model of the merit in which each drone power is linearised but
+its absolute value is exact (:func:`planners.optimisation.curvature.along_step`), and that model's decrease is the
+one the trust region's ratio test compares with the actual decrease. Without it, a step that takes powers across
+zero from afar is predicted a decrease where J grows, rejected, and the radius falls by a factor of 4 per rejection.
+
 **Stop** (``SqpOptions.stop``). ``"kkt"``: at x, with the multipliers lambda >= 0 of the QP
 solved there (constraint rows scaled to unit infinity norm, c_hat_i = c_i / max(1, |nabla c_i|_inf)),
 
@@ -73,7 +79,7 @@ from scipy import sparse
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
 from planners.optimisation.active_set import ActiveSet, shifted, solve_step_qp
-from planners.optimisation.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
+from planners.optimisation.curvature import MAJORISER_SHARE, POWER_WIDTH, along_step, smoothed_hessian
 from planners.optimisation.interior_point import solve_interior_point
 from planners.problem.banded import Banded
 from planners.problem.motion import POWER_SMOOTHING
@@ -121,6 +127,10 @@ class SqpOptions:
             along the step), it can save iterations (with the ``"smoothed"`` defaults it did not pay).
         power_width, majoriser_share: mu [W] and the majoriser's share of the ``"smoothed"`` curvature
             (:func:`planners.optimisation.curvature.power_curvature`).
+        kinks: with ``curvature="smoothed"``, cut each step d to t d, the minimiser over t in (0, 1] of the merit's
+            model with J_e's kinks (:func:`planners.optimisation.curvature.along_step`), and judge it (the trust
+            region's ratio) by that model's predicted decrease (module docstring, "Step length"). False: the
+            QP's step and its own predicted decrease, as before.
         trial_derivatives: evaluate a trial point with its derivatives (unless the trial before was
             rejected): an accepted trial is the next iterate, whose derivatives the next iteration needs,
             so one evaluation serves both; a rejected one costs the derivatives in vain. The planning
@@ -459,55 +469,6 @@ def _second_order_correction(ev, d, multipliers, trial_constraints) -> np.ndarra
     gram = a @ a.T
     gram += 1e-12 * max(float(np.trace(gram)), 1e-300) * np.eye(work.size)
     return -a.T @ np.linalg.solve(gram, trial_constraints[work])
-
-
-def along_step(ev, d, penalty: float, predicted: float) -> tuple[np.ndarray, float]:
-    """The step t d, t in (0, 1], that minimises the merit's model with J_e's kinks along d, and its predicted
-    decrease.
-
-    The model along d: J_phi's Gauss-Newton quadratic, J_e = sum_k pw_k |P_k|_eps with each power linearised
-    (P_k + t dP_k) inside the objective's own smoothed absolute value, and the l1 penalty of the linearised
-    constraints,
-
-        m(t) = t g_phi^T d + t^2 d^T H_phi d / 2 + sum_k pw_k (|P_k + t dP_k|_eps - |P_k|_eps)
-               + rho (v(c + t A d) - v(c))
-
-    (v the l1 violation), is convex in t (each term is), so its minimiser on [0, 1] is found by bisection on m'(t).
-    The QP's own model
-    (:mod:`planners.optimisation.curvature`) gives |P| a smoothed curvature: where a step takes powers across zero
-    from afar it underestimates the cost of the kink and predicts a decrease where J grows. Here each |P_k| is
-    exact in P_k, so the predicted decrease follows the actual one up to the powers' own nonlinearity and the
-    constraints' curvature. Returns (d, ``predicted``) unchanged when m does not decrease along d (m'(0) >= 0).
-    """
-    pv, pw = ev.power, ev.power_weight
-    dp = ev.power_jacobian_sparse @ d if getattr(ev, "power_jacobian_sparse", None) is not None \
-        else ev.power_jacobian @ d
-    eps2 = POWER_SMOOTHING**2
-    smooth = np.sqrt(pv * pv + eps2)
-    g_phi_d = float(ev.gradient @ d) - float(pw @ (pv / smooth * dp))
-    dhd = float(d @ (ev.rate_hessian @ d))
-    c = np.asarray(ev.constraints)
-    ad = _jacobian(ev) @ d
-    pwdp = pw * dp
-
-    def slope(t: float) -> float:
-        p = pv + t * dp
-        kinks = float(pwdp @ (p / np.sqrt(p * p + eps2)))
-        return g_phi_d + t * dhd + kinks - penalty * float(ad[c + t * ad < 0.0].sum())
-
-    if slope(0.0) >= 0.0:
-        return d, predicted
-    t = 1.0
-    if slope(1.0) > 0.0:
-        low, high = 0.0, 1.0
-        for _ in range(50):
-            mid = 0.5 * (low + high)
-            low, high = (mid, high) if slope(mid) < 0.0 else (low, mid)
-        t = high
-    p = pv + t * dp
-    model = t * g_phi_d + 0.5 * t * t * dhd + float(pw @ (np.sqrt(p * p + eps2) - smooth)) \
-        + penalty * (_violation(c + t * ad) - _violation(c))
-    return t * d, -model
 
 
 def _floored(b: np.ndarray) -> np.ndarray:
