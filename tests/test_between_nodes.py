@@ -61,10 +61,9 @@ def test_rows_between_nodes_have_exact_derivatives():
 
 def test_a_two_step_plan_that_fails_the_dense_check_is_refined_by_its_polish():
     """A random prototype mission whose rotor speeds peak between the nodes: the refined attempt is the polish
-    alone on the grid twice as fine (not both steps again), and the plan holds on the 500 Hz grid. Which mission's
-    first plan fails the dense check depends on where the SQP ends: this one's does with the planner's defaults.
+    alone on the grid twice as fine (not both steps again), and the plan holds on the 500 Hz grid.
     """
-    mission = MissionFamily("prototype", 32, space="task", arm="down").mission(1)
+    mission = MissionFamily("prototype", 32, space="joint", arm="down").mission(1)
     result = plan(mission, "two-step")
     refined = [st.name for st in result.stages if "refined" in st.name]
     assert refined == ["polish (one-step) (grid refined x2)"]
