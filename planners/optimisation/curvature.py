@@ -22,8 +22,8 @@ h(P(x)) keeps the outer function's curvature and drops P's own: grad P^T h''(P) 
   (28 and 84 iterations instead of 27 and 80 for the two-step square and tour): it is off.
 
 The model is only the QP's curvature: the trust-region ratio test of :mod:`planners.optimisation.sqp` judges every
-step on the exact merit, so a model that is too bold is corrected by shorter steps. (The figures above were
-measured with the QP's steps as they come; ``SqpOptions.kinks`` now cuts them, below.)
+step on the exact merit, so a model that is too bold is corrected by shorter steps. (The figures above are
+with the QP's steps as they come, the default; ``SqpOptions.kinks`` cuts them, below.)
 
 **Step length** (:func:`along_step`). The smoothed curvature spreads the bend of each |P_k| over +-mu: a step
 that takes a power from far on one side of zero to far on the other is predicted the linear decrease of |P_k|
@@ -31,8 +31,9 @@ where |P_k| actually stays or grows. Such steps were rejected at zero violation 
 missions), the trust region fell by 4 per rejection and grew back by 2 per very successful step. A second model
 of the merit along the QP's direction d, with each power linearised but its (eps-smoothed) absolute value kept
 exact, is convex in the step's length t, costs a few vector operations per t, and predicts the actual decrease
-to within a few per cent where the quadratic model was off in sign: the SQP takes the step to its minimiser on
-(0, 1] and judges it by that model's decrease.
+to within a few per cent where the quadratic model was off in sign: with ``SqpOptions(kinks=True)`` the SQP takes
+the step to its minimiser on (0, 1] and judges it by that model's decrease (an option: see
+:mod:`planners.optimisation.sqp`, "Step length").
 """
 
 from __future__ import annotations
