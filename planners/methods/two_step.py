@@ -25,30 +25,13 @@ from __future__ import annotations
 import numpy as np
 
 from planners.methods.one_step import one_step_problem
-from planners.methods.way_points import WayPointTask
+from planners.methods.way_points import WayPointTask, solve_travels, step1_problem, travel_problem
 from planners.optimisation.solving import GRID_FEASIBILITY, Grid, solve_refining, solve_stage
 from planners.options import PlanOptions
-from planners.problem.motion import MotionProblem, NodeDerivatives
+from planners.problem.motion import NodeDerivatives
 from planners.problem.report import evaluate_motion
 from planners.result import PlanResult
 from planners.trajectory.polynomial import PiecewisePolynomial
-
-
-def step1_problem(task: WayPointTask, grid: Grid, normalisation) -> MotionProblem:
-    """Step 1: the motion through the way points only, their derivatives 1..4 free (ends at rest)."""
-    free = np.zeros(task.stop.points.shape, dtype=bool)
-    free[1:-1, 1:] = True
-    return task.problem(task.stop.points, task.way_times, free, normalisation, grid)
-
-
-def travel_problem(task: WayPointTask, points, durations, begin: int, end: int, normalisation,
-                   grid: Grid) -> MotionProblem:
-    """Step 2 on one travel: the motion through ``points[begin:end + 1]`` (way point, via points, way
-    point; ``durations[begin:end]``), every entry of its via points free.
-    """
-    free = np.zeros(points[begin:end + 1].shape, dtype=bool)
-    free[1:-1] = True
-    return task.problem(points[begin:end + 1], durations[begin:end], free, normalisation, grid)
 
 
 def plan(mission, robot, options: PlanOptions) -> PlanResult:
@@ -72,19 +55,9 @@ def plan(mission, robot, options: PlanOptions) -> PlanResult:
         x, stage = solve_stage(step1, step1.x_of(start), "step 1" + grid.suffix, **options.solve_arguments)
         stages = [stage]
         points, durations, _ = task.with_via_points(PiecewisePolynomial(step1.points_of(x), task.way_times))
-        way_index = np.flatnonzero(is_way)
-        for j in range(len(task.way_times)):
-            if task.n_via[j] == 0:
-                continue
-            a, b = way_index[j], way_index[j + 1]
-            if previous is not None:  # a refinement restarts from the earlier via points
-                points[a + 1:b] = previous.points[a + 1:b]
-            travel = travel_problem(task, points, durations, a, b, normalisation, grid)
-            travel.share_node_derivatives(shared)
-            x, stage = solve_stage(travel, travel.x_of(points[a:b + 1]), f"step 2, travel {j + 1}{grid.suffix}",
-                                   **options.solve_arguments)
-            stages.append(stage)
-            points[a:b + 1] = travel.points_of(x)
+        points, travels = solve_travels(task, grid, points, durations, normalisation, options.solve_arguments, shared,
+                                        None if previous is None else previous.points)
+        stages += travels
         if options.polish and whole_differs and all(st.violation_end <= GRID_FEASIBILITY for st in stages):
             points = _polish(task, grid, points, stages, options, normalisation, shared)
         return PiecewisePolynomial(points, durations), stages
@@ -124,3 +97,6 @@ def _way_mask(task: WayPointTask, motion: PiecewisePolynomial) -> np.ndarray:
     if len(motion.points) != len(task.stop.points):
         return task.via_layout[2]
     return np.ones(len(motion.points), dtype=bool)
+
+
+__all__ = ["plan", "step1_problem", "travel_problem"]

@@ -14,8 +14,8 @@ from functools import cached_property
 
 import numpy as np
 
-from planners.optimisation.solving import Grid
-from planners.problem.motion import MotionProblem
+from planners.optimisation.solving import Grid, solve_stage
+from planners.problem.motion import MotionProblem, NodeDerivatives
 from planners.problem.report import MotionReport
 from planners.result import PlanResult, normalisation
 from planners.trajectory.polynomial import PiecewisePolynomial, stop_points, with_via_points
@@ -93,3 +93,60 @@ class WayPointTask:
         """The :class:`PlanResult` of a motion planned for this task (``wall_time`` left to ``plan``)."""
         return PlanResult(self.mission, method, self.alpha, trajectory, is_way, report, reference, stages,
                           robot=self.robot)
+
+
+def step1_problem(task: WayPointTask, grid: Grid, normalisation) -> MotionProblem:
+    """The two-step method's step 1: the motion through the way points only, their derivatives 1..4 free (it
+    ends at rest).
+    """
+    free = np.zeros(task.stop.points.shape, dtype=bool)
+    free[1:-1, 1:] = True
+    return task.problem(task.stop.points, task.way_times, free, normalisation, grid)
+
+
+def travel_problem(task: WayPointTask, points, durations, begin: int, end: int, normalisation,
+                   grid: Grid) -> MotionProblem:
+    """The two-step method's step 2 on one travel: the motion through ``points[begin:end + 1]`` (way point, via
+    points, way point; ``durations[begin:end]``), every entry of its via points free.
+    """
+    free = np.zeros(points[begin:end + 1].shape, dtype=bool)
+    free[1:-1] = True
+    return task.problem(points[begin:end + 1], durations[begin:end], free, normalisation, grid)
+
+
+def solve_travels(task: WayPointTask, grid: Grid, points, durations, normalisation, solve_arguments: dict,
+                  shared: NodeDerivatives | None = None, previous=None) -> tuple[np.ndarray, list]:
+    """The two-step method's step 2: the via points optimised travel by travel, the way points fixed.
+
+    Args:
+        task: the mission.
+        grid: the optimisation grid.
+        points: the points of the via-point layout (:attr:`WayPointTask.via_layout`) to start from; not changed.
+        durations: the layout's segment durations.
+        normalisation: (J_e0, J_phi0) of ``grid``.
+        solve_arguments: keyword arguments of :func:`~planners.optimisation.solving.solve_stage`.
+        shared: a :class:`~planners.problem.motion.NodeDerivatives` the travels' problems share, or None.
+        previous: the points of an earlier motion of the same layout whose via points each travel starts from
+            (a refinement), or None.
+
+    Returns:
+        (the points with every travel's via points optimised, one stage ``"step 2, travel j"`` per travel with
+        via points).
+    """
+    points = np.array(points, dtype=float)
+    way_index = np.flatnonzero(task.via_layout[2])
+    stages = []
+    for j in range(len(task.way_times)):
+        if task.n_via[j] == 0:
+            continue
+        a, b = way_index[j], way_index[j + 1]
+        if previous is not None:  # a refinement restarts from the earlier via points
+            points[a + 1:b] = previous[a + 1:b]
+        travel = travel_problem(task, points, durations, a, b, normalisation, grid)
+        if shared is not None:
+            travel.share_node_derivatives(shared)
+        x, stage = solve_stage(travel, travel.x_of(points[a:b + 1]), f"step 2, travel {j + 1}{grid.suffix}",
+                               **solve_arguments)
+        stages.append(stage)
+        points[a:b + 1] = travel.points_of(x)
+    return points, stages

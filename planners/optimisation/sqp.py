@@ -45,6 +45,15 @@ but its QPs have one more variable and two more rows per drone and grid node tha
 each (its sparse backend and quadprog are no faster there): measured about 6 times slower per SQP
 iteration than Gauss-Newton, so it is not the default.
 
+**Step length** (``SqpOptions.kinks``, off by default, used with ``"smoothed"``). The QP's direction d is kept; its
+length is the minimiser along d of a second, convex model of the merit in which each drone power is linearised but
+its absolute value is exact (:func:`planners.optimisation.curvature.along_step`), and that model's decrease is the
+one the trust region's ratio test compares with the actual decrease. Without it, a step that takes powers across
+zero from afar is predicted a decrease where J grows, rejected, and the radius falls by a factor of 4 per rejection.
+On random missions of 32 way points it ends 0.3-0.5 % lower in J on average (up to 2.6 %) in a similar median
+time, but the runs that go deeper take longer (the 95th percentile of the plan times rose by about 10 % on the
+FPR's one-step and more on the prototype's two-step): it is an option, not the planner's default.
+
 **Stop** (``SqpOptions.stop``). ``"kkt"``: at x, with the multipliers lambda >= 0 of the QP
 solved there (constraint rows scaled to unit infinity norm, c_hat_i = c_i / max(1, |nabla c_i|_inf)),
 
@@ -73,7 +82,7 @@ from scipy import sparse
 from fpr.model.errors import PlannerArgumentError
 from fpr.model.qp import proxsuite_module
 from planners.optimisation.active_set import ActiveSet, shifted, solve_step_qp
-from planners.optimisation.curvature import MAJORISER_SHARE, POWER_WIDTH, smoothed_hessian
+from planners.optimisation.curvature import MAJORISER_SHARE, POWER_WIDTH, along_step, smoothed_hessian
 from planners.optimisation.interior_point import solve_interior_point
 from planners.problem.banded import Banded
 from planners.problem.motion import POWER_SMOOTHING
@@ -121,6 +130,10 @@ class SqpOptions:
             along the step), it can save iterations (with the ``"smoothed"`` defaults it did not pay).
         power_width, majoriser_share: mu [W] and the majoriser's share of the ``"smoothed"`` curvature
             (:func:`planners.optimisation.curvature.power_curvature`).
+        kinks: with ``curvature="smoothed"``, cut each step d to t d, the minimiser over t in (0, 1] of the merit's
+            model with J_e's kinks (:func:`planners.optimisation.curvature.along_step`), and judge it (the trust
+            region's ratio) by that model's predicted decrease (module docstring, "Step length"). False (the
+            default): the QP's step and its own predicted decrease.
         trial_derivatives: evaluate a trial point with its derivatives (unless the trial before was
             rejected): an accepted trial is the next iterate, whose derivatives the next iteration needs,
             so one evaluation serves both; a rejected one costs the derivatives in vain. The planning
@@ -145,6 +158,7 @@ class SqpOptions:
     power_width: float = POWER_WIDTH
     majoriser_share: float = MAJORISER_SHARE
     trial_derivatives: bool = True
+    kinks: bool = False
 
     def __post_init__(self):
         if self.stop not in STOPS:
@@ -581,6 +595,9 @@ def solve_sqp(problem, x0, options: SqpOptions | None = None, progress=None, nam
             message = f"converged: no decrease predicted (KKT residual {kkt.residual:.2g})" if success else \
                 "stopped at a point where the linearised constraints cannot be met (locally infeasible)"
             break
+        if opt.kinks and opt.curvature == "smoothed" and getattr(ev, "power", None) is not None:
+            # the step's length along d by the model with J_e's kinks (the QP's smoothed curvature misses them)
+            d, predicted = along_step(ev, d, penalty, predicted)
         trial = problem.evaluate(x + d, trial_derivatives)
         gradients, evaluations = (gradients + 1, evaluations) if trial_derivatives else (gradients, evaluations + 1)
         actual = merit - (trial.J + penalty * _violation(trial.constraints))
