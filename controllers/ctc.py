@@ -89,6 +89,7 @@ import pinocchio as pin
 
 from controllers.allocation import AllocationResult, Allocator
 from controllers.observer import MomentumObserver
+from controllers.saturation import ForceLimiter
 from fpr import _native as native
 
 
@@ -120,6 +121,9 @@ class ControllerSettings:
             Above the chain loop's frequency, below the attitude loop's, and a tenth of the outer rate.
         momentum_feedback: the outer loop feeds back the chain state that the full model's momentum stands for
             (module docstring), free of the drones' roll torques; False: the measured s and s' (the thesis).
+        force_limits: a new F the rotors cannot follow (the allocation's law beyond a rotor bound) is moved from
+            the held one towards it only as far as they can, the integral held meanwhile
+            (:mod:`controllers.saturation`); False: F as the chain loop computes it.
     """
 
     outer_rate: float = 100.0
@@ -140,6 +144,7 @@ class ControllerSettings:
     singular_band: float = 0.03
     observer_bandwidth: float = 10.0
     momentum_feedback: bool = True
+    force_limits: bool = True
 
     @property
     def chain_gains(self) -> tuple[float, float]:
@@ -259,6 +264,7 @@ class CascadedController:
         self._applied = np.zeros(r.nq)  # sum of the inputs' generalised forces since the last observer update
         self._ticks = 0
         self._seen = None  # (J_p, J_h) of the last outer update, for estimated_forces
+        self.limiter = ForceLimiter(self)  # F within what the rotors can give (controllers/saturation.py)
 
     def reset(self) -> None:
         """Forget the held outer-loop output, the integrated error and the observer (a new run)."""
@@ -266,6 +272,7 @@ class CascadedController:
         self._integral = np.zeros(len(self.chain))
         self.observer, self._seen = None, None
         self._applied, self._ticks = np.zeros(self.robot.nq), 0
+        self.limiter = ForceLimiter(self)
 
     @property
     def disturbance(self) -> np.ndarray:
@@ -478,7 +485,7 @@ class CascadedController:
         """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""
         st = self.settings
         if self._force is None or t - self._last_outer >= 1.0 / st.outer_rate - 1e-9:
-            if np.isfinite(self._last_outer):
+            if np.isfinite(self._last_outer) and not self.limiter.limited:  # held while F is limited
                 error = q[self.chain] - reference.motion[0]
                 self._integral = np.minimum(np.maximum(self._integral + error * (t - self._last_outer),
                                                     -st.integral_limit), st.integral_limit)  # np.clip
@@ -486,7 +493,8 @@ class CascadedController:
             mass = self.robot.mass_matrix(q) if st.observer_bandwidth > 0 or st.momentum_feedback else None
             if st.observer_bandwidth > 0:
                 self._observe(t - self._last_outer if np.isfinite(self._last_outer) else 0.0, q, v, mass)
-            self._force = self.outer(q, v, reference, mass)
+            force = self.outer(q, v, reference, mass)
+            self._force = self.limiter.limit(q, v, reference, force, self._force) if st.force_limits else force
             self._last_outer = t
         kernel = self.__dict__.get("_inner")
         if kernel is None or kernel[0] is not native.use("inner"):  # the switch read again when it changed

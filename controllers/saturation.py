@@ -1,0 +1,188 @@
+r"""The outer loop's forces kept within what the rotors can give: a constraint-aware step of the chain loop.
+
+The chain loop (:mod:`controllers.ctc`) asks each drone for a force F_i; the inner loop turns it into a thrust
+and an attitude target, and the attitude loop into accelerations u_a that the rotor allocation
+(:mod:`controllers.allocation`) must produce with 0 <= w^2 <= w_max^2. A drone whose thrust is small (an upward
+push on the robot takes weight off it) has little roll authority: its rotors can give a roll torque of at most
+about its thrust times half its arm. When the chain loop then asks it to re-tilt by a large angle at once (a
+gust that turns the direction of F_i), the attitude loop's demand is beyond the rotors: a rotor sits at a bound
+for many ticks, the allocation gives up thrust to keep the attitude, and the chain is pushed further off.
+
+**What this does.** At every outer-loop update, before the new F is held, :meth:`ForceLimiter.limit` takes the
+inner loop's first tick on it at the measured state (the robot kind's ``attitude_targets``, the attitude loop
+2.23, the attitude model 2.12 with the known and estimated winds) and the allocation's unconstrained law (2.24)
+on that command: when every rotor's w^2 of the law lies within its bounds the rotors can give the command, and
+F is held as the chain loop computed it (to the bit: the controller is then the one without this module).
+When a rotor would be beyond a bound, the new F is moved from the force held until now (which the drones were
+following) towards the wanted one as far as the rotors allow: F = F_held + lambda (F_wanted - F_held), the
+largest lambda in [0, 1] whose command is within the bounds (bisection; lambda = 0 when none is), one lambda
+per drone, each drone's found with the others at their wanted force and then all shrunk together until the
+joint command is within the bounds. The chain loop's tracking is given up for as long as the rotors cannot
+follow, in proportion to what they can give: each drone turns towards the wanted direction at the rate its
+roll authority allows, rather than at a rate the allocation clips. The drone's thrust along its axis is
+moved alike, so that a drone that cannot re-tilt is not asked for a thrust in a direction it does not point.
+
+Nothing here is tuned: the bounds are the allocator's own (0 and w_max^2, the rotor model's), the gains the
+attitude loop's, the model the controller's. The check is made at the outer loop's update only; the inner
+ticks until the next one track the held F from states that have moved on (the drone turning towards the target
+gains authority as its thrust axis aligns with F_i).
+
+The integral of the chain loop is not advanced while the forces are limited (conditional integration: the
+error the rotors cannot remove is not accumulated, to be released as an overshoot afterwards).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+_TWO_PI = 2 * math.pi
+
+
+class ForceLimiter:
+    """The constraint-aware step of one controller's outer loop (module docstring).
+
+    Args:
+        controller: the :class:`controllers.ctc.CascadedController` (its robot, allocator, gains).
+        steps: bisection steps on each lambda (2^-steps: the resolution of the share of the change kept).
+    """
+
+    def __init__(self, controller, steps: int = 10):
+        self.controller = controller
+        self.steps = int(steps)
+        self.limited = False  # whether the last call limited the forces
+        self.share = np.ones(controller.robot.n_drones)  # the last call's lambda of each drone
+        allocator = controller.allocator
+        self._upper = float(allocator.scale)  # w_max^2: the law's z is in (rad/s)^2
+
+    def _command(self, q, v, reference, force):
+        """The inner loop's first tick on ``force`` at (q, v): (f_d (n_d,), u_a (n_a,), its targets)."""
+        c = self.controller
+        targets = c.robot.kind.attitude_targets(q, v, force, reference, c.settings)
+        kp, kd = c._attitude_gains()
+        att = c.attitude
+        error = q[att] - np.asarray(targets.target, dtype=float)
+        wrap = np.asarray(c._wrap)
+        error[wrap] = np.remainder(error[wrap] + np.pi, _TWO_PI) - np.pi
+        u_a = np.asarray(targets.acceleration) - kp * error - kd * (v[att] - np.asarray(targets.rate))
+        return np.asarray(targets.thrust, dtype=float), u_a, targets
+
+    def _law(self, attitude, f_d, u_a) -> np.ndarray:
+        """w^2 (n_d, 4) [(rad/s)^2] of the allocation's unconstrained law (2.24) for f_d and u_a."""
+        allocator = self.controller.allocator
+        a_tau = attitude.a_tau
+        x = np.linalg.solve(a_tau.dot(a_tau.T), u_a + attitude.m_inv_a.dot(attitude.c - attitude.j_f.T.dot(f_d)))
+        return (allocator._inv_f.dot(f_d) + allocator._inv_tau.dot(a_tau.T.dot(x))).reshape(-1, 4)
+
+    def speeds_squared(self, q, v, reference, force, attitude) -> np.ndarray:
+        """w^2 of every rotor (n_d, 4) [(rad/s)^2] that the allocation's unconstrained law (2.24) gives for the
+        inner loop's first tick on ``force`` (n_d, len(force_axes)) [N] at the measured (q, v), ``attitude`` the
+        attitude model there with the winds the controller uses (:meth:`attitude_at`).
+        """
+        f_d, u_a, _ = self._command(q, v, reference, force)
+        return self._law(attitude, f_d, u_a)
+
+    def arrived_speeds_squared(self, q, v, reference, force) -> np.ndarray:
+        """w^2 (n_d, 4) of the law once the drones point where ``force`` asks (the attitude coordinates at their
+        targets and rates, the chain where it is): whether the rotors can hold that attitude at all.
+        """
+        c = self.controller
+        _, _, targets = self._command(q, v, reference, force)
+        q2, v2 = q.copy(), v.copy()
+        q2[c.attitude] = targets.target
+        v2[c.attitude] = targets.rate
+        f_d, u_a, _ = self._command(q2, v2, reference, force)
+        return self._law(self.attitude_at(q2, v2, reference), f_d, u_a)
+
+    def attitude_at(self, q, v, reference):
+        """The attitude model at (q, v) with the known wind of ``reference`` and the observer's estimate, as the
+        controller's inner loop uses it.
+        """
+        c = self.controller
+        attitude = c.robot.attitude_model(q, v)
+        if reference.task_force is not None or reference.drone_forces is not None:
+            attitude = c._attitude_in_wind(q, attitude, reference.task_force, reference.drone_forces)
+        if c.observer is not None:
+            attitude = type(attitude)(attitude.m_inv_a, attitude.j_tau, attitude.j_f, attitude.a_tau,
+                                      attitude.c - c.observer.estimate)
+        return attitude
+
+    def _within(self, z) -> np.ndarray:
+        """Per drone: every rotor's w^2 within [0, w_max^2]."""
+        return np.all((z >= 0.0) & (z <= self._upper), axis=1)
+
+    def _feasible(self, q, v, reference, force, attitude) -> np.ndarray:
+        """Per drone: the rotors can give the first tick's command on ``force`` and hold its attitude."""
+        return (self._within(self.speeds_squared(q, v, reference, force, attitude))
+                & self._within(self.arrived_speeds_squared(q, v, reference, force)))
+
+    def limit(self, q, v, reference, wanted, held):
+        """The force to hold: ``wanted`` itself (the same object) when the rotors can give its command, else each
+        drone's force turned, its size kept, towards the drone's attitude so that the attitude loop's first tick
+        on it is that of a softer loop (module docstring). ``wanted`` (n_d, 2) [N]; ``held`` None (the first
+        update): ``wanted``.
+        """
+        self.limited = False
+        self.share = np.ones(len(wanted))
+        if held is None or np.shape(wanted)[1] != 2:
+            return wanted
+        attitude = self.attitude_at(q, v, reference)
+        within = self._within(self.speeds_squared(q, v, reference, wanted, attitude))
+        if within.all():
+            return wanted
+        c = self.controller
+        kind, st = c.robot.kind, c.settings
+        kp, kd = c._attitude_gains()
+        places = c._drone_places
+        columns = c.attitude[places]  # the drones' attitude coordinates in q
+        _, _, targets = self._command(q, v, reference, wanted)
+        goal = np.asarray(targets.target, dtype=float)[places]
+        error = np.remainder(goal - q[columns] + np.pi, _TWO_PI) - np.pi  # phi_w - phi
+        lead = (kd[places] / kp[places]) * (v[columns] - np.asarray(targets.rate, dtype=float)[places])
+        # the sign of each drone's target's change when its force turns counter-clockwise
+        signs = np.empty(len(places))
+        for i, k in enumerate(places):
+            probe = np.array(wanted, dtype=float)
+            probe[i] = _rotate(probe[i], 1e-6)
+            signs[i] = math.copysign(1.0, kind.attitude_targets(q, v, probe, reference, st).target[k] - goal[i])
+
+        def force_of(scales):
+            out = np.array(wanted, dtype=float)
+            for i in range(len(places)):
+                if scales[i] < 1.0:
+                    turn = (scales[i]**2 - 1.0) * error[i] + (1.0 - scales[i]) * lead[i]  # phi_d - phi_w
+                    out[i] = _rotate(out[i], signs[i] * turn)
+            return out
+
+        def fits(scales):
+            return self._within(self.speeds_squared(q, v, reference, force_of(scales), attitude))
+
+        scales = np.ones(len(places))
+        for _ in range(2):
+            for i in np.flatnonzero(~fits(scales)):
+                trial = scales.copy()
+                trial[i] = 0.0
+                if not fits(trial)[i]:  # not even coasting fits: nothing to gain
+                    continue
+                low, high = 0.0, 1.0
+                for _ in range(self.steps):
+                    trial[i] = 0.5 * (low + high)
+                    if fits(trial)[i]:
+                        low = trial[i]
+                    else:
+                        high = trial[i]
+                scales[i] = low
+        if np.all(scales == 1.0):
+            return wanted
+        self.limited, self.share = True, scales
+        return force_of(scales)
+
+
+def _rotate(vector, angle: float) -> np.ndarray:
+    """A 2-vector turned by ``angle`` [rad] (counter-clockwise)."""
+    cos, sin = math.cos(angle), math.sin(angle)
+    return np.array([cos * vector[0] - sin * vector[1], sin * vector[0] + cos * vector[1]])
+
+
+__all__ = ["ForceLimiter"]
