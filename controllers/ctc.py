@@ -121,9 +121,9 @@ class ControllerSettings:
             Above the chain loop's frequency, below the attitude loop's, and a tenth of the outer rate.
         momentum_feedback: the outer loop feeds back the chain state that the full model's momentum stands for
             (module docstring), free of the drones' roll torques; False: the measured s and s' (the thesis).
-        force_limits: a new F the rotors cannot follow (the allocation's law beyond a rotor bound) is moved from
-            the held one towards it only as far as they can, the integral held meanwhile
-            (:mod:`controllers.saturation`); False: F as the chain loop computes it.
+        force_limits: a new F whose first attitude tick the rotors cannot give (the allocation's law beyond a rotor
+            bound) is turned so that the attitude loop asks what a slower loop would, within the bounds, the chain
+            integral held meanwhile (:mod:`controllers.saturation`); False: F as the chain loop computes it.
     """
 
     outer_rate: float = 100.0

@@ -1,34 +1,39 @@
 r"""The outer loop's forces kept within what the rotors can give: a constraint-aware step of the chain loop.
 
 The chain loop (:mod:`controllers.ctc`) asks each drone for a force F_i; the inner loop turns it into a thrust
-and an attitude target, and the attitude loop into accelerations u_a that the rotor allocation
-(:mod:`controllers.allocation`) must produce with 0 <= w^2 <= w_max^2. A drone whose thrust is small (an upward
-push on the robot takes weight off it) has little roll authority: its rotors can give a roll torque of at most
-about its thrust times half its arm. When the chain loop then asks it to re-tilt by a large angle at once (a
-gust that turns the direction of F_i), the attitude loop's demand is beyond the rotors: a rotor sits at a bound
-for many ticks, the allocation gives up thrust to keep the attitude, and the chain is pushed further off.
+and an attitude target (the robot kind's ``attitude_targets``: the direction of F_i, 2.20), and the attitude
+loop (2.23) into accelerations u_a that the rotor allocation (:mod:`controllers.allocation`) must produce with
+0 <= w^2 <= w_max^2. A drone's roll authority is about its thrust times half its arm, so a drone whose thrust is
+small (a push from below takes weight off it) and that the chain loop asks to re-tilt by a large angle at once
+(a gust turns the direction of F_i, by up to a radian for a push on the drone itself) gets an attitude demand
+K_pa (phi_d - phi) beyond its rotors: a rotor sits at a bound for a few hundred milliseconds while the
+allocation clips the command, the drone overshoots and the chain is pushed further off.
 
-**What this does.** At every outer-loop update, before the new F is held, :meth:`ForceLimiter.limit` takes the
-inner loop's first tick on it at the measured state (the robot kind's ``attitude_targets``, the attitude loop
-2.23, the attitude model 2.12 with the known and estimated winds) and the allocation's unconstrained law (2.24)
-on that command: when every rotor's w^2 of the law lies within its bounds the rotors can give the command, and
-F is held as the chain loop computed it (to the bit: the controller is then the one without this module).
-When a rotor would be beyond a bound, the new F is moved from the force held until now (which the drones were
-following) towards the wanted one as far as the rotors allow: F = F_held + lambda (F_wanted - F_held), the
-largest lambda in [0, 1] whose command is within the bounds (bisection; lambda = 0 when none is), one lambda
-per drone, each drone's found with the others at their wanted force and then all shrunk together until the
-joint command is within the bounds. The chain loop's tracking is given up for as long as the rotors cannot
-follow, in proportion to what they can give: each drone turns towards the wanted direction at the rate its
-roll authority allows, rather than at a rate the allocation clips. The drone's thrust along its axis is
-moved alike, so that a drone that cannot re-tilt is not asked for a thrust in a direction it does not point.
+**The check** (at every outer-loop update, :meth:`ForceLimiter.limit`): the inner loop's first tick on the new
+F at the measured state (the kind's targets, the attitude loop, the attitude model 2.12 with the known and
+estimated winds, as the controller's own inner loop makes them) and the allocation's unconstrained law (2.24)
+on that command. When every rotor's w^2 of the law lies within [0, w_max^2] the rotors can give it and F is held
+as the chain loop computed it: the same object, so that a flight on which no rotor limit is near is the one of
+the controller without this module, to the bit.
 
-Nothing here is tuned: the bounds are the allocator's own (0 and w_max^2, the rotor model's), the gains the
-attitude loop's, the model the controller's. The check is made at the outer loop's update only; the inner
-ticks until the next one track the held F from states that have moved on (the drone turning towards the target
-gains authority as its thrust axis aligns with F_i).
+**The limited force.** Otherwise each drone i whose rotors cannot give it has its F_i turned (its size kept)
+so that the attitude loop's first tick on it is that of the same loop made slower by a factor sigma_i in
+(0, 1] (natural frequency sigma_i w_a, the same damping) towards the wanted direction phi_w:
 
-The integral of the chain loop is not advanced while the forces are limited (conditional integration: the
-error the rotors cannot remove is not accumulated, to be released as an overshoot afterwards).
+.. math:: \phi_d - \phi = \sigma^2 (\phi_w - \phi) + (1 - \sigma) \frac{K_{da}}{K_{pa}} (\dot\phi - \dot\phi_r),
+
+with sigma_i the largest (bisection) for which the law is within the rotor bounds, found drone by drone, the
+others at their own sigma. sigma = 1 is the wanted force; sigma = 0 asks for no attitude acceleration beyond
+the plan's (the drone coasts); a drone for which not even that fits keeps its wanted force (nothing to gain: the
+allocation then clips as before). A linear, critically damped attitude response, only slower, turns the drone
+towards the wanted direction at the rate its authority allows without the overshoot of a clipped one, and as it
+turns its thrust axis aligns with F_i, its thrust and authority grow and sigma returns to 1. The chain gets the
+wanted force late rather than a clipped thrust. Nothing is tuned: the bounds are the allocator's (the rotor
+model's), the gains the attitude loop's, the model the controller's. Thrust vectors in the plane
+(``len(robot.kind.force_axes) == 2``) only: the force of another robot kind is held as wanted.
+
+The integral of the chain loop is not advanced while the forces are limited (conditional integration: the error
+the rotors cannot remove yet is not accumulated, to be released as an overshoot afterwards).
 """
 
 from __future__ import annotations
@@ -45,14 +50,18 @@ class ForceLimiter:
 
     Args:
         controller: the :class:`controllers.ctc.CascadedController` (its robot, allocator, gains).
-        steps: bisection steps on each lambda (2^-steps: the resolution of the share of the change kept).
+        steps: bisection steps on each drone's sigma (its resolution 2^-steps).
+
+    Attributes:
+        limited: whether the last :meth:`limit` changed the force.
+        scale: sigma of each drone at the last :meth:`limit` (1: its wanted force).
     """
 
     def __init__(self, controller, steps: int = 10):
         self.controller = controller
         self.steps = int(steps)
-        self.limited = False  # whether the last call limited the forces
-        self.share = np.ones(controller.robot.n_drones)  # the last call's lambda of each drone
+        self.limited = False
+        self.scale = np.ones(controller.robot.n_drones)
         allocator = controller.allocator
         self._upper = float(allocator.scale)  # w_max^2: the law's z is in (rad/s)^2
 
@@ -83,18 +92,6 @@ class ForceLimiter:
         f_d, u_a, _ = self._command(q, v, reference, force)
         return self._law(attitude, f_d, u_a)
 
-    def arrived_speeds_squared(self, q, v, reference, force) -> np.ndarray:
-        """w^2 (n_d, 4) of the law once the drones point where ``force`` asks (the attitude coordinates at their
-        targets and rates, the chain where it is): whether the rotors can hold that attitude at all.
-        """
-        c = self.controller
-        _, _, targets = self._command(q, v, reference, force)
-        q2, v2 = q.copy(), v.copy()
-        q2[c.attitude] = targets.target
-        v2[c.attitude] = targets.rate
-        f_d, u_a, _ = self._command(q2, v2, reference, force)
-        return self._law(self.attitude_at(q2, v2, reference), f_d, u_a)
-
     def attitude_at(self, q, v, reference):
         """The attitude model at (q, v) with the known wind of ``reference`` and the observer's estimate, as the
         controller's inner loop uses it.
@@ -112,19 +109,14 @@ class ForceLimiter:
         """Per drone: every rotor's w^2 within [0, w_max^2]."""
         return np.all((z >= 0.0) & (z <= self._upper), axis=1)
 
-    def _feasible(self, q, v, reference, force, attitude) -> np.ndarray:
-        """Per drone: the rotors can give the first tick's command on ``force`` and hold its attitude."""
-        return (self._within(self.speeds_squared(q, v, reference, force, attitude))
-                & self._within(self.arrived_speeds_squared(q, v, reference, force)))
-
     def limit(self, q, v, reference, wanted, held):
         """The force to hold: ``wanted`` itself (the same object) when the rotors can give its command, else each
-        drone's force turned, its size kept, towards the drone's attitude so that the attitude loop's first tick
-        on it is that of a softer loop (module docstring). ``wanted`` (n_d, 2) [N]; ``held`` None (the first
-        update): ``wanted``.
+        drone's force turned, its size kept, so that the attitude loop's first tick on it is that of a slower
+        loop (module docstring). ``wanted``, ``held``: (n_d, len(force_axes)) [N], the new force and the one held
+        until now (None at the first update: ``wanted`` is held).
         """
         self.limited = False
-        self.share = np.ones(len(wanted))
+        self.scale = np.ones(len(wanted))
         if held is None or np.shape(wanted)[1] != 2:
             return wanted
         attitude = self.attitude_at(q, v, reference)
@@ -175,7 +167,7 @@ class ForceLimiter:
                 scales[i] = low
         if np.all(scales == 1.0):
             return wanted
-        self.limited, self.share = True, scales
+        self.limited, self.scale = True, scales
         return force_of(scales)
 
 

@@ -26,13 +26,20 @@ replanner may move it where the gust can be held: the built-in ``gust`` mission'
 7.6 s, a configuration where 6 N cannot be held at rest, which its replanned motion avoids.) A gust the
 robot cannot hold at such a way point cannot be flown through within the rotor limits by any controller.
 
-**Along a plan flown as it is** (``trajectory``: no replanner will move the path). The robot must then pass
-the plan's poses while the gust blows, whatever they are: the check is asked at the poses the plan passes
-from the gust's start to its end (every ``1 / rate`` s, and at the way points in between), each with the
-force the gust has at that instant (its ramp, :meth:`planners.missions.events.GustEvent.strength`). Way points
-are not enough there: the square passes, between its way points, poses where an upward push on the
-end-effector leaves a drone tilted by 0.6-0.7 rad with about 1-2 N of thrust, which cannot make the roll
-torque m_i g d_i sin(phi_i) that holds the tilt of a drone whose joint sits d_i below its centre.
+**Along a plan flown as it is** (``trajectory``: no replanner will move the path). The controller then tracks
+the plan, so the robot must fly the plan's motion while the gust blows: the check asks what the drones must do
+to fly it exactly with the gust's force of each instant held steady (its ramp,
+:meth:`planners.missions.events.GustEvent.strength`, without the rate of its own change), from the gust's start
+to its end or the end of the flight, every ``1 / rate`` s and at the way points in between: the inverse dynamics
+of the plan's motion (:func:`fpr.model.inverse_dynamics.inverse_dynamics`, the planner's model, the gust's
+generalised force as :func:`planners.problem.disturbance.generalized_gust` makes it), whose rotor speeds
+(seed 3.48) must lie within [0, w_max]. It includes the plan's accelerations, which the robot must produce
+whatever the gust: on the square, pushes of 5-6 N on a drone that can be held at rest at every pose of the plan
+need a rotor below 0 where the plan turns under them. Way points are not enough either: the square passes,
+between its way points, poses where an upward push on the end-effector leaves a drone tilted by 0.6-0.7 rad
+with about 1-2 N of thrust, which cannot make the roll torque m_i g d_i sin(phi_i) that holds the tilt of a
+drone whose joint sits d_i below its centre. (A closed loop that lags the plan need not fly it exactly: a run
+counted apart may still succeed.)
 """
 
 from __future__ import annotations
@@ -150,18 +157,18 @@ def _external_chain(robot, s, body, force) -> np.ndarray:
 
 @dataclass(frozen=True)
 class HoldVerdict:
-    """Whether a gust can be held as a steady force at the way points it blows on (:func:`hold_check`).
+    """Whether a gust can be held as a steady force where the robot must be while it blows (:func:`hold_check`).
 
     Attributes:
         holdable: every rotor within [0, w_max] at every way point checked.
         body, force: the gust's body and force (world [x, y, z] [N]).
-        worst_time: the mission's time of the way point with the least margin [s].
+        worst_time: the mission's time of the way point (or the plan's sample) with the least margin [s].
         drone, rotor: the rotor with the least margin there (1-based).
         speed: its rotor speed [rad/s] (signed: below 0 means no real speed gives it).
         margin: its distance to the nearer limit [rad/s] (negative: beyond it).
         limit: w_max [rad/s].
-        samples: way points (or poses of the plan) checked.
-        way_point: the way point with the least margin (index), or None when the poses of a plan were checked.
+        samples: way points (or samples of the plan's motion) checked.
+        way_point: the way point with the least margin (index), or None when a plan's motion was checked.
     """
 
     holdable: bool
@@ -181,7 +188,7 @@ class HoldVerdict:
         size = float(np.linalg.norm(self.force[1:]))
         at = "on the plan" if self.way_point is None else f"at way point {self.way_point}"
         where = f"rotor {self.rotor} of drone {self.drone} at {self.speed:.0f} rad/s {at}, t = {self.worst_time:.2f} s"
-        poses = "poses of the plan" if self.way_point is None else "way points"
+        poses = "poses of the plan flown" if self.way_point is None else "way points"
         if self.holdable:
             return (f"holdable: {size:.2g} N on {self.body} can be held as a steady force at the {poses} "
                     f"it blows on (least margin {self.margin:.0f} rad/s to the rotor limits 0 .. "
@@ -194,7 +201,7 @@ class HoldVerdict:
 def hold_check(robot, mission, gust, trajectory=None, end: float | None = None, rate: float = 100.0) -> HoldVerdict:
     """Whether ``gust`` (a :class:`planners.missions.events.GustEvent`) can be held as a steady force where the
     robot must be while it blows (module docstring): at its full force at the way points of ``mission`` the
-    robot must reach, or, with ``trajectory``, at the poses that plan passes with the gust's force of each instant.
+    robot must reach, or, with ``trajectory``, along the motion of that plan with the gust's force of each instant.
 
     Args:
         robot: the robot of the mission.
@@ -203,7 +210,7 @@ def hold_check(robot, mission, gust, trajectory=None, end: float | None = None, 
         trajectory: the plan flown as it is (a :class:`planners.trajectory.polynomial.PiecewisePolynomial`,
             held at its last point after its end), or None (a replanner may move the path: the way points).
         end: with ``trajectory``, the last time flown [s] (default: the gust's end).
-        rate: with ``trajectory``, poses checked per second [Hz].
+        rate: with ``trajectory``, samples of the plan checked per second [Hz].
     """
     times = np.concatenate([[0.0], np.cumsum(mission.times)])
     force = np.asarray(gust.force, dtype=float)
