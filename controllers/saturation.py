@@ -9,12 +9,13 @@ small (a push from below takes weight off it) and that the chain loop asks to re
 K_pa (phi_d - phi) beyond its rotors: a rotor sits at a bound for a few hundred milliseconds while the
 allocation clips the command, the drone overshoots and the chain is pushed further off.
 
-**The check** (at every outer-loop update, :meth:`ForceLimiter.limit`): the inner loop's first tick on the new
-F at the measured state (the kind's targets, the attitude loop, the attitude model 2.12 with the known and
-estimated winds, as the controller's own inner loop makes them) and the allocation's unconstrained law (2.24)
-on that command. When every rotor's w^2 of the law lies within [0, w_max^2] the rotors can give it and F is held
-as the chain loop computed it: the same object, so that a flight on which no rotor limit is near is the one of
-the controller without this module, to the bit.
+**The check** (at every outer-loop update, :meth:`CascadedController.update
+<controllers.ctc.CascadedController.update>`): the first inner tick on the new F is computed as always; when its
+allocation has a rotor at a bound, :meth:`ForceLimiter.limit` takes that tick's command (the kind's targets, the
+attitude loop, the attitude model 2.12 with the known and estimated winds) and the allocation's unconstrained law
+(2.24) on it; when every rotor's w^2 of the law lies within [0, w_max^2] the rotors can give it and F is held as
+the chain loop computed it. A flight on which no rotor reaches a bound is the one of the controller without this
+module, to the bit, and pays nothing for it.
 
 **The limited force.** Otherwise each drone i whose rotors cannot give it has its F_i turned (its size kept)
 so that the attitude loop's first tick on it is that of the same loop made slower by a factor sigma_i in
@@ -109,17 +110,17 @@ class ForceLimiter:
         """Per drone: every rotor's w^2 within [0, w_max^2]."""
         return np.all((z >= 0.0) & (z <= self._upper), axis=1)
 
-    def limit(self, q, v, reference, wanted, held):
+    def limit(self, q, v, reference, wanted, attitude=None):
         """The force to hold: ``wanted`` itself (the same object) when the rotors can give its command, else each
         drone's force turned, its size kept, so that the attitude loop's first tick on it is that of a slower
-        loop (module docstring). ``wanted``, ``held``: (n_d, len(force_axes)) [N], the new force and the one held
-        until now (None at the first update: ``wanted`` is held).
+        loop (module docstring). ``wanted``: the new force (n_d, len(force_axes)) [N]; ``attitude``: the attitude
+        model at (q, v) with the winds the controller uses, or None (:meth:`attitude_at`).
         """
         self.limited = False
         self.scale = np.ones(len(wanted))
-        if held is None or np.shape(wanted)[1] != 2:
+        if np.shape(wanted)[1] != 2:
             return wanted
-        attitude = self.attitude_at(q, v, reference)
+        attitude = self.attitude_at(q, v, reference) if attitude is None else attitude
         within = self._within(self.speeds_squared(q, v, reference, wanted, attitude))
         if within.all():
             return wanted

@@ -52,7 +52,7 @@ def test_a_force_the_rotors_can_give_is_held_as_it_is(hover):
     v = np.zeros(robot.nq)
     planned = inputs.thrust_vector[0]
     wanted = 1.05 * planned
-    assert controller.limiter.limit(q, v, reference, wanted, planned) is wanted
+    assert controller.limiter.limit(q, v, reference, wanted) is wanted
     assert not controller.limiter.limited
     # in the loop: the first update of the hover is the plain controller's, to the bit
     plain = CascadedController(robot, ControllerSettings(force_limits=False))
@@ -73,7 +73,7 @@ def test_a_force_the_rotors_cannot_follow_is_turned_until_they_can(hover):
     wanted = planned.copy()
     wanted[0] = 0.5 * _turned(planned[0], 0.9)
     assert not _law_within(limiter, q, v, reference, wanted)[0]
-    held = limiter.limit(q, v, reference, wanted, planned)
+    held = limiter.limit(q, v, reference, wanted)
     assert limiter.limited and 0.0 < limiter.scale[0] < 1.0
     assert _law_within(limiter, q, v, reference, held).all()
     np.testing.assert_allclose(np.linalg.norm(held, axis=1), np.linalg.norm(wanted, axis=1), rtol=1e-12)
