@@ -89,6 +89,7 @@ import pinocchio as pin
 
 from controllers.allocation import AllocationResult, Allocator
 from controllers.observer import MomentumObserver
+from controllers.saturation import ForceLimiter
 from fpr import _native as native
 
 
@@ -120,6 +121,9 @@ class ControllerSettings:
             Above the chain loop's frequency, below the attitude loop's, and a tenth of the outer rate.
         momentum_feedback: the outer loop feeds back the chain state that the full model's momentum stands for
             (module docstring), free of the drones' roll torques; False: the measured s and s' (the thesis).
+        force_limits: a new F whose first attitude tick the rotors cannot give (the allocation's law beyond a rotor
+            bound) is turned so that the attitude loop asks what a slower loop would, within the bounds, the chain
+            integral held meanwhile (:mod:`controllers.saturation`); False: F as the chain loop computes it.
     """
 
     outer_rate: float = 100.0
@@ -140,6 +144,7 @@ class ControllerSettings:
     singular_band: float = 0.03
     observer_bandwidth: float = 10.0
     momentum_feedback: bool = True
+    force_limits: bool = True
 
     @property
     def chain_gains(self) -> tuple[float, float]:
@@ -259,6 +264,7 @@ class CascadedController:
         self._applied = np.zeros(r.nq)  # sum of the inputs' generalised forces since the last observer update
         self._ticks = 0
         self._seen = None  # (J_p, J_h) of the last outer update, for estimated_forces
+        self.limiter = ForceLimiter(self)  # F within what the rotors can give (controllers/saturation.py)
 
     def reset(self) -> None:
         """Forget the held outer-loop output, the integrated error and the observer (a new run)."""
@@ -266,6 +272,7 @@ class CascadedController:
         self._integral = np.zeros(len(self.chain))
         self.observer, self._seen = None, None
         self._applied, self._ticks = np.zeros(self.robot.nq), 0
+        self.limiter = ForceLimiter(self)
 
     @property
     def disturbance(self) -> np.ndarray:
@@ -474,20 +481,10 @@ class CascadedController:
         self._attitude_gains()
         return module.inner if self._gains[5] is not None else None  # the kind's word: the compiled part fits
 
-    def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
-        """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""
-        st = self.settings
-        if self._force is None or t - self._last_outer >= 1.0 / st.outer_rate - 1e-9:
-            if np.isfinite(self._last_outer):
-                error = q[self.chain] - reference.motion[0]
-                self._integral = np.minimum(np.maximum(self._integral + error * (t - self._last_outer),
-                                                    -st.integral_limit), st.integral_limit)  # np.clip
-            # M(q) once for the observer and the momentum feedback
-            mass = self.robot.mass_matrix(q) if st.observer_bandwidth > 0 or st.momentum_feedback else None
-            if st.observer_bandwidth > 0:
-                self._observe(t - self._last_outer if np.isfinite(self._last_outer) else 0.0, q, v, mass)
-            self._force = self.outer(q, v, reference, mass)
-            self._last_outer = t
+    def _inner_tick(self, q, v, reference: Reference):
+        """The inner loop's float part on the held force: (thrust, u_a, attitude targets, pitch), natively where
+        it fits (:meth:`_inner_python`'s operations, in its order), else in Python.
+        """
         kernel = self.__dict__.get("_inner")
         if kernel is None or kernel[0] is not native.use("inner"):  # the switch read again when it changed
             kernel = self._inner = (native.use("inner"), self._inner_kernel())
@@ -496,7 +493,25 @@ class CascadedController:
             self._attitude_gains()  # its constants up to date, in self._gains
             inner = kernel[1](q, v, self._force, reference.attitude_rate, reference.attitude_acceleration,
                               self._gains[5])
-        thrust, u_a, attitude_target, pitch = self._inner_python(q, v, reference) if inner is None else inner
+        return self._inner_python(q, v, reference) if inner is None else inner
+
+    def update(self, t: float, q, v, reference: Reference) -> ControlOutput:
+        """One inner-loop tick at time t [s] with the measured (q, v); the outer loop when due."""
+        st = self.settings
+        updated = self._force is None or t - self._last_outer >= 1.0 / st.outer_rate - 1e-9
+        if updated:
+            if np.isfinite(self._last_outer) and not self.limiter.limited:  # held while F is limited
+                error = q[self.chain] - reference.motion[0]
+                self._integral = np.minimum(np.maximum(self._integral + error * (t - self._last_outer),
+                                                    -st.integral_limit), st.integral_limit)  # np.clip
+            self.limiter.limited = False
+            # M(q) once for the observer and the momentum feedback
+            mass = self.robot.mass_matrix(q) if st.observer_bandwidth > 0 or st.momentum_feedback else None
+            if st.observer_bandwidth > 0:
+                self._observe(t - self._last_outer if np.isfinite(self._last_outer) else 0.0, q, v, mass)
+            self._force = self.outer(q, v, reference, mass)
+            self._last_outer = t
+        thrust, u_a, attitude_target, pitch = self._inner_tick(q, v, reference)
         attitude = self.robot.attitude_model(q, v)
         own = attitude.c
         if reference.task_force is not None or reference.drone_forces is not None:  # the known wind (2.12)
@@ -504,6 +519,12 @@ class CascadedController:
         if self.observer is not None:  # the estimated one
             attitude = dataclasses.replace(attitude, c=attitude.c - self.observer.estimate)
         allocation = self.allocator.solve(attitude, thrust, u_a)
+        if updated and st.force_limits and allocation.any_saturated:  # a new F the rotors cannot follow
+            force = self.limiter.limit(q, v, reference, self._force, attitude)
+            if force is not self._force:  # F within what they can give (controllers/saturation.py)
+                self._force = force
+                thrust, u_a, attitude_target, pitch = self._inner_tick(q, v, reference)
+                allocation = self.allocator.solve(attitude, thrust, u_a)
         speeds = np.sqrt(np.maximum(allocation.speeds_squared, 0.0))
         if st.observer_bandwidth > 0:  # the inputs' generalised force until the next tick, and the known wind's
             known = own - attitude.c if self.observer is None else own - attitude.c - self.observer.estimate

@@ -210,3 +210,15 @@ def test_the_observers_estimate_is_assumed_after_its_delay_and_again_when_it_mov
     assert (round(3.0 + delay, 3), "wind estimate changed") in records, records
     assert all(t >= 2.0 + delay - 1e-9 for t, _ in records)
     assert replanner.assumed[0].force == (0.0, -6.0, 0.0) and replanner.assumed[0].body == "end_effector"
+
+
+def test_a_gust_whose_rise_is_half_its_duration_is_drawn_within_it():
+    """Draws whose rise was cut to half the duration (runs 11 and 34 of seed 5): rounded, the rise stays within
+    half the rounded duration, and the mission takes the gust (it refused a rise 1e-6 s over).
+    """
+    mission = load_mission("square")
+    robot = mission.load_robot()
+    for index in (11, 34):
+        gust = GustFamily().draw(mission, robot, event_generator(5, index))
+        assert gust.rise <= gust.duration / 2 and gust.rise == pytest.approx(gust.duration / 2, abs=1e-6)
+        mission.replace(events=(gust,))

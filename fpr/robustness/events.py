@@ -134,7 +134,10 @@ class GustFamily:
         at = float(rng.uniform(0.0, mission.duration))
         body = names[int(rng.integers(len(names)))]
         force = (0.0, round(strength * math.cos(angle), 6), round(strength * math.sin(angle), 6))
-        return GustEvent(round(at, 6), force, round(duration, 6), body, round(min(rise, duration / 2), 6))
+        duration = round(duration, 6)
+        # rounded, the rise stays within half the rounded duration (a rise of exactly half of it, rounded up,
+        # would not: GustEvent refuses it)
+        return GustEvent(round(at, 6), force, duration, body, min(round(rise, 6), math.floor(duration * 5e5) / 1e6))
 
 
 def family(name: str, **options):

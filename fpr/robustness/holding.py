@@ -25,6 +25,21 @@ its full force: poses the mission fixes, whatever the plan. (Between them the pl
 replanner may move it where the gust can be held: the built-in ``gust`` mission's offline plan passes, at
 7.6 s, a configuration where 6 N cannot be held at rest, which its replanned motion avoids.) A gust the
 robot cannot hold at such a way point cannot be flown through within the rotor limits by any controller.
+
+**Along a plan flown as it is** (``trajectory``: no replanner will move the path). The controller then tracks
+the plan, so the robot must fly the plan's motion while the gust blows: the check asks what the drones must do
+to fly it exactly with the gust's force of each instant held steady (its ramp,
+:meth:`planners.missions.events.GustEvent.strength`, without the rate of its own change), from the gust's start
+to its end or the end of the flight, every ``1 / rate`` s and at the way points in between: the inverse dynamics
+of the plan's motion (:func:`fpr.model.inverse_dynamics.inverse_dynamics`, the planner's model, the gust's
+generalised force as :func:`planners.problem.disturbance.generalized_gust` makes it), whose rotor speeds
+(seed 3.48) must lie within [0, w_max]. It includes the plan's accelerations, which the robot must produce
+whatever the gust: on the square, pushes of 5-6 N on a drone that can be held at rest at every pose of the plan
+need a rotor below 0 where the plan turns under them. Way points are not enough either: the square passes,
+between its way points, poses where an upward push on the end-effector leaves a drone tilted by 0.6-0.7 rad
+with about 1-2 N of thrust, which cannot make the roll torque m_i g d_i sin(phi_i) that holds the tilt of a
+drone whose joint sits d_i below its centre. (A closed loop that lags the plan need not fly it exactly: a run
+counted apart may still succeed.)
 """
 
 from __future__ import annotations
@@ -34,9 +49,10 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from fpr.model.inverse_dynamics import inverse_dynamics
+from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from fpr.model.jets import Jet
 from planners.missions.events import END_EFFECTOR
+from planners.problem.disturbance import generalized_gust
 
 
 @dataclass(frozen=True)
@@ -141,18 +157,18 @@ def _external_chain(robot, s, body, force) -> np.ndarray:
 
 @dataclass(frozen=True)
 class HoldVerdict:
-    """Whether a gust can be held as a steady force at the way points it blows on (:func:`hold_check`).
+    """Whether a gust can be held as a steady force where the robot must be while it blows (:func:`hold_check`).
 
     Attributes:
         holdable: every rotor within [0, w_max] at every way point checked.
         body, force: the gust's body and force (world [x, y, z] [N]).
-        worst_time: the mission's time of the way point with the least margin [s].
+        worst_time: the mission's time of the way point (or the plan's sample) with the least margin [s].
         drone, rotor: the rotor with the least margin there (1-based).
         speed: its rotor speed [rad/s] (signed: below 0 means no real speed gives it).
         margin: its distance to the nearer limit [rad/s] (negative: beyond it).
         limit: w_max [rad/s].
-        samples: way points checked.
-        way_point: the way point with the least margin (index).
+        samples: way points (or samples of the plan's motion) checked.
+        way_point: the way point with the least margin (index), or None when a plan's motion was checked.
     """
 
     holdable: bool
@@ -165,15 +181,16 @@ class HoldVerdict:
     margin: float
     limit: float
     samples: int
-    way_point: int = 0
+    way_point: int | None = 0
 
     def line(self) -> str:
         """One line for people."""
         size = float(np.linalg.norm(self.force[1:]))
-        where = (f"rotor {self.rotor} of drone {self.drone} at {self.speed:.0f} rad/s at way point "
-                 f"{self.way_point}, t = {self.worst_time:.2f} s")
+        at = "on the plan" if self.way_point is None else f"at way point {self.way_point}"
+        where = f"rotor {self.rotor} of drone {self.drone} at {self.speed:.0f} rad/s {at}, t = {self.worst_time:.2f} s"
+        poses = "poses of the plan flown" if self.way_point is None else "way points"
         if self.holdable:
-            return (f"holdable: {size:.2g} N on {self.body} can be held as a steady force at the way points "
+            return (f"holdable: {size:.2g} N on {self.body} can be held as a steady force at the {poses} "
                     f"it blows on (least margin {self.margin:.0f} rad/s to the rotor limits 0 .. "
                     f"{self.limit:.0f}: {where})")
         side = "below 0" if self.speed < self.limit / 2 else f"above {self.limit:.0f}"
@@ -181,36 +198,74 @@ class HoldVerdict:
                 f"rotor limits ({where}, {side})")
 
 
-def hold_check(robot, mission, gust) -> HoldVerdict:
-    """Whether ``gust`` (a :class:`planners.missions.events.GustEvent`) can be held at its full force at the
-    way points of ``mission`` the robot must reach while it blows (module docstring).
+def hold_check(robot, mission, gust, trajectory=None, end: float | None = None, rate: float = 100.0) -> HoldVerdict:
+    """Whether ``gust`` (a :class:`planners.missions.events.GustEvent`) can be held as a steady force where the
+    robot must be while it blows (module docstring): at its full force at the way points of ``mission`` the
+    robot must reach, or, with ``trajectory``, along the motion of that plan with the gust's force of each instant.
 
     Args:
         robot: the robot of the mission.
         mission: the :class:`planners.missions.mission.Mission` (its way points and times).
-        gust: the gust (``body``, ``force``, ``at``, ``duration``).
+        gust: the gust (``body``, ``force``, ``at``, ``duration``, ``rise``).
+        trajectory: the plan flown as it is (a :class:`planners.trajectory.polynomial.PiecewisePolynomial`,
+            held at its last point after its end), or None (a replanner may move the path: the way points).
+        end: with ``trajectory``, the last time flown [s] (default: the gust's end).
+        rate: with ``trajectory``, samples of the plan checked per second [Hz].
     """
-    poses = np.asarray(mission.positions(robot), dtype=float)
     times = np.concatenate([[0.0], np.cumsum(mission.times)])
-    inside = [j for j, t in enumerate(times) if gust.at <= t <= gust.at + gust.duration]
-    after = [j for j, t in enumerate(times) if t >= gust.at]
-    chosen = sorted(set(inside) | ({after[0]} if after else {len(times) - 1}))
+    force = np.asarray(gust.force, dtype=float)
+    if trajectory is None:
+        poses = np.asarray(mission.positions(robot), dtype=float)
+        inside = [j for j, t in enumerate(times) if gust.at <= t <= gust.at + gust.duration]
+        after = [j for j, t in enumerate(times) if t >= gust.at]
+        chosen = sorted(set(inside) | ({after[0]} if after else {len(times) - 1}))
+        cases = [(float(times[j]), poses[j], force, j) for j in chosen]
+    else:
+        stop = gust.at + gust.duration if end is None else min(gust.at + gust.duration, float(end))
+        when = np.arange(gust.at, stop, 1.0 / rate)
+        when = np.union1d(when, times[(times >= gust.at) & (times < stop)])
+        shares = np.atleast_1d(gust.strength(when)[0])
+        keep = shares > 0.0
+        when, shares = when[keep], shares[keep]
+        if when.size == 0:  # blows after the flight: its start, at full force
+            when, shares = np.array([gust.at]), np.array([1.0])
+        return _along_plan(robot, gust, trajectory, when)
     limit = float(robot.rotor_constants.max_speed)
     worst = None
-    for j in chosen:
-        speeds = static_hold(robot, poses[j], gust.body, gust.force).speeds
+    for t, pose, push, way_point in cases:
+        speeds = static_hold(robot, pose, gust.body, push).speeds
         margins = np.minimum(speeds, limit - speeds)
         i, k = np.unravel_index(np.argmin(margins), margins.shape)
         if worst is None or margins[i, k] < worst[0]:
-            worst = (float(margins[i, k]), float(times[j]), int(i) + 1, int(k) + 1, float(speeds[i, k]), j)
+            worst = (float(margins[i, k]), t, int(i) + 1, int(k) + 1, float(speeds[i, k]), way_point)
     margin, when, drone, rotor, speed, way_point = worst
     return HoldVerdict(margin >= 0.0, gust.body, tuple(float(f) for f in gust.force), when, drone, rotor,
-                       speed, margin, limit, len(chosen), way_point)
+                       speed, margin, limit, len(cases), way_point)
 
 
-def hold_verdict(robot, mission, gust) -> str:
+def _along_plan(robot, gust, trajectory, when) -> HoldVerdict:
+    """:func:`hold_check` along a plan flown as it is, at the times ``when`` (module docstring): the inverse
+    dynamics of the plan's motion there with the gust's force of each instant held steady.
+    """
+    motion = trajectory.evaluate_held(when, order=MOTION_ORDER)
+    push = generalized_gust(robot, (gust,), when, motion[0], rise=0.0)  # its force as it blows
+    steady = np.zeros((3, when.size, motion.shape[-1]))
+    if push is not None:
+        steady[0] = push[0]  # held steady: no rate of the force's own change
+    squared = np.asarray(inverse_dynamics(robot, motion, external=Jet(steady)).rotor_speed_squared, dtype=float)
+    squared = squared.reshape(when.size, robot.n_drones, -1)
+    speeds = np.sign(squared) * np.sqrt(np.abs(squared))
+    limit = float(robot.rotor_constants.max_speed)
+    margins = np.minimum(speeds, limit - speeds)
+    j, i, k = np.unravel_index(np.argmin(margins), margins.shape)
+    return HoldVerdict(bool(margins[j, i, k] >= 0.0), gust.body, tuple(float(f) for f in gust.force),
+                       float(when[j]), int(i) + 1, int(k) + 1, float(speeds[j, i, k]), float(margins[j, i, k]),
+                       limit, int(when.size), None)
+
+
+def hold_verdict(robot, mission, gust, trajectory=None, end: float | None = None) -> str:
     """:func:`hold_check`'s one line."""
-    return hold_check(robot, mission, gust).line()
+    return hold_check(robot, mission, gust, trajectory, end).line()
 
 
 __all__ = ["HoldVerdict", "StaticHold", "hold_check", "hold_verdict", "static_hold"]

@@ -26,7 +26,8 @@ A campaign of an event family (:mod:`fpr.robustness.events`; :class:`EventSetup`
 event (:func:`fly_event`), with the replanner when asked (``--replan``: the moves need it; a gust is not told to
 it, which estimates the wind from the controller's observer), and adds the event and what came of it
 (:data:`MOVE_COLUMNS`, :data:`GUST_COLUMNS`): for a move, how close the robot passed to the moved way point and,
-for a miss, why; for a gust, whether it could be held at all (:mod:`fpr.robustness.holding`), the physical
+for a miss, why; for a gust, whether it could be held at all (:mod:`fpr.robustness.holding`: at the poses of the
+plan while it blows, or at the mission's way points with ``--replan``), the physical
 limits broken and the share of saturated ticks; with ``without_observer`` the same run flown by the
 controller without its observer, its outcomes beside (``no_observer_*``). A run's replans' wall times are
 kept in its stored row (``replan_wall_s``, ``replan_cpu_s``: for the latency distribution of the summary), not
@@ -313,7 +314,9 @@ def fly_event(flight: Flight, robot, settings: SimulationSettings, event) -> dic
     setup = flight.setup
     row = {}
     if setup.family == "gust":
-        verdict = hold_check(robot, flight.mission, event)
+        # flown as planned, the robot passes the plan's poses; a replanner may move them (the way points stay)
+        planned = None if setup.replan else flight.trajectory
+        verdict = hold_check(robot, flight.mission, event, planned, flight.trajectory.total_duration + flight.hold)
         force = np.asarray(event.force, dtype=float)
         row.update(gust_body=event.body, gust_at_s=event.at, gust_duration_s=event.duration, gust_rise_s=event.rise,
                    gust_force_n=float(np.linalg.norm(force[1:])), gust_force_y_n=float(force[1]),
