@@ -114,13 +114,13 @@ class MissionFamily:
                               clearance=self.clearance, alpha=self.alpha)
 
 
-def builtin_families(way_points: int, **settings) -> list[MissionFamily]:
-    """One family per built-in robot, space and assembly mode (:data:`fpr.robots.BUILTIN`): the FPR in task
-    space (its task and joint coordinates are the same), the prototype in task and joint space, arm down and
-    up. ``settings`` are further :class:`MissionFamily` fields.
+def builtin_families(way_points: int, names: tuple[str, ...] | None = None, **settings) -> list[MissionFamily]:
+    """One family per robot, space and assembly mode: the FPR in task space (its task and joint coordinates are
+    the same), the prototype in task and joint space, arm down and up. ``names``: the robots (default: the
+    built-in ones, :data:`fpr.robots.BUILTIN`); ``settings`` are further :class:`MissionFamily` fields.
     """
     out = []
-    for name in robots.BUILTIN:
+    for name in robots.BUILTIN if names is None else names:
         kind = robots.get(name)
         spaces = ("task",) if kind.task_coordinates is None else ("task", "joint")
         for space in spaces:

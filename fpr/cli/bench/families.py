@@ -1,7 +1,7 @@
 """The planning section's families of random missions (``python -m fpr.bench --section planning``).
 
-Per built-in robot, seeded random missions of :data:`WAY_POINTS` way points (:mod:`fpr.bench.missions`: random
-walks in the robot's mission region, travel times derived from the stop motion's feasibility, 0-2 via points a
+Per planar built-in robot (:data:`FAMILY_ROBOTS`), seeded random missions of :data:`WAY_POINTS` way points
+(:mod:`fpr.bench.missions`: random walks in the robot's mission region, travel times derived from the stop motion's feasibility, 0-2 via points a
 travel), every family of the robot (task and joint space, both assembly modes of the prototype) with fixed seeds,
 :data:`SEEDS_PER_ROBOT` missions a robot in all (fewer with ``--quick``), each planned once by both methods
 (:func:`fpr.bench.families.plan_family`). Beside them, in the same run: ``loop_mission(32)`` (the loop,
@@ -30,6 +30,9 @@ from planners.optimize import plan
 
 #: Way points of the section's missions.
 WAY_POINTS = 32
+#: The robots whose planning goals the families check: the planar ones, which the loop (a planar FPR mission)
+#: measures the machine for. The spatial FPR's planning is timed on its tour, a row of the planning section.
+FAMILY_ROBOTS = ("fpr", "prototype")
 #: Missions per robot (shared among its families, seeds 0, 1, ... in each): full run / ``--quick``.
 SEEDS_PER_ROBOT = {False: 20, True: 6}
 #: Plans of the loop per method (the median is the ratio's reference): full run / ``--quick``.
@@ -92,7 +95,7 @@ def run_families(quick: bool, progress: bool) -> dict:
     loop = loop_rows(quick)
     rows = []
     by_robot: dict[str, list] = {}
-    for family in builtin_families(WAY_POINTS):
+    for family in builtin_families(WAY_POINTS, FAMILY_ROBOTS):
         by_robot.setdefault(family.robot, []).append(family)
     for name, families in by_robot.items():
         robot = robots.load(name)

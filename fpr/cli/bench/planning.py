@@ -59,6 +59,8 @@ PLANNING_SETTINGS = {  # quick / full
     True: {"repeats": 1, "segment_repeats": 5, "baseline_cap_s": 15.0},
     False: {"repeats": 3, "segment_repeats": 11, "baseline_cap_s": 120.0},
 }
+#: The spatial FPR's mission of the planning section (its plan times, J and feasibility, by both methods).
+SPATIAL_MISSION = "fpr3-tour"
 SAME_J_RTOL = 1e-4  # "same J": the SQP's stopping tolerance on J (about 1)
 TARGETS = {"two-step_s": 2.0, "one-step_s": 10.0, "speedup": 50.0, "segment_s": 0.05,
            "two-step_square_s": 0.25}  # the square's two-step plan, the tighter goal
@@ -202,6 +204,14 @@ def run_planning(quick: bool, progress: bool) -> dict:
         times.append(runs[-1].wall_time)
     items.append(_plan_item("(f) singularity crossing (cross-singularity mission)", runs, times))
     say(f"bench planning (f): {fmt(items[-1]['wall_time_s'])}, feasible {items[-1]['feasible']}")
+    spatial = load_mission(SPATIAL_MISSION)
+    spatial_robot = spatial.load_robot()
+    for method in ("two-step", "one-step"):
+        runs = [plan(spatial, method, robot=spatial_robot) for _ in range(settings["repeats"])]
+        items.append(_plan_item(f"(g) spatial FPR, {method} ({SPATIAL_MISSION} mission)", runs,
+                                [r.wall_time for r in runs]))
+        say(f"bench planning (g) {method}: {fmt(items[-1]['wall_time_s'])}, J {items[-1]['J']:.4f}, "
+            f"feasible {items[-1]['feasible']}")
     optimality = run_optimality(quick, progress)
     families = run_families(quick, progress)
     speedups = {}

@@ -24,7 +24,7 @@ import numpy as np
 from fpr import robots
 from fpr.bench.families import METHODS, plan_family
 from fpr.bench.missions import builtin_families, loop_mission
-from fpr.cli.bench.families import family_seeds, yardstick
+from fpr.cli.bench.families import FAMILY_ROBOTS, family_seeds, yardstick
 from fpr.cli.bench.timing import fmt
 from planners.optimize import plan
 
@@ -54,7 +54,7 @@ def run_scaling(quick: bool, progress: bool, way_points=WAY_POINTS) -> dict:
     plan(loop_mission(3, 0), "two-step", robot=loop_robot, max_iterations=2)  # warm up (imports, caches)
     for count in way_points:
         by_robot: dict[str, list] = {}
-        for family in builtin_families(count):
+        for family in builtin_families(count, FAMILY_ROBOTS):
             by_robot.setdefault(family.robot, []).append(family)
         for name, families in by_robot.items():
             robot = robots.load(name)
