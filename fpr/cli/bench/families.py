@@ -1,12 +1,12 @@
 """The planning section's families of random missions (``python -m fpr.bench --section planning``).
 
 Per planar built-in robot (:data:`FAMILY_ROBOTS`), seeded random missions of :data:`WAY_POINTS` way points
-(:mod:`fpr.bench.missions`: random walks in the robot's mission region, travel times derived from the stop
-motion's feasibility, 0-2 via points a travel), every family of the robot (task and joint space, both assembly
-modes of the prototype) with fixed seeds, :data:`SEEDS_PER_ROBOT` missions a robot in all (fewer with ``--quick``), each planned once by both methods
-(:func:`fpr.bench.families.plan_family`). Beside them, in the same run: ``loop_mission(32)`` (the loop,
-:func:`fpr.bench.missions.loop_mission`, median of :data:`LOOP_REPEATS` plans) and the yardstick, ``pin.crba`` of
-the FPR (:func:`yardstick`), so that a run on another machine can be compared.
+(:mod:`fpr.bench.missions`: random walks in the robot's mission region, travel times derived from the stop motion's
+feasibility, 0-2 via points a travel), every family of the robot (task and joint space, both assembly modes of the
+prototype) with fixed seeds, :data:`SEEDS_PER_ROBOT` missions a robot in all (fewer with ``--quick``), each planned
+once by both methods (:func:`fpr.bench.families.plan_family`). Beside them, in the same run: ``loop_mission(32)``
+(the loop, :func:`fpr.bench.missions.loop_mission`, median of :data:`LOOP_REPEATS` plans) and the yardstick,
+``pin.crba`` of the FPR (:func:`yardstick`), so that a run on another machine can be compared.
 
 Goals, per robot and method over its missions: the 95th percentile of the plan times at most
 :data:`P95_GOAL_S` and at most :data:`LOOP_RATIO_GOAL` times the loop's time (same method), no failure (every plan
