@@ -148,7 +148,7 @@ def run_residuals() -> list[dict]:
             worst, scale = max(worst, np.abs(ac - expected).max()), max(scale, np.abs(expected).max())
         out.append(dict(name=f"{name} max |a_closed - a_minimal|", value=float(worst), samples=100,
                         max_abs_acceleration=float(scale)))
-        for d in (0.0, robot.hinge_offset):
+        for d in dict.fromkeys((0.0, robot.hinge_offset)):  # once for a robot without a hinge offset
             model = fpr.load(name, hinge_offset=0.0) if d == 0.0 else robot
             inputs = inverse_dynamics(model, smooth_motion(model, 50))
             q, v, a = inputs.full_state(model)
