@@ -313,3 +313,23 @@ def test_attitude_margins_scaled_and_unscaled_agree(robot):
     hinge_axis = _rotation(motion[0, 0]) @ pin.rpy.rpyToMatrix(0.0, 0.0, LEG_ANGLES[0])[:, 1]
     sideways = ball_angles(_rotation(motion[0, 0]), motion[0, 0, 6:9], np.array([hinge_axis, [0, 0, 1], [0, 0, 1]]))
     assert abs(sideways[0, 2]) == pytest.approx(np.pi / 2) and abs(sideways[0, 2]) > bound
+
+
+def test_a_gust_acts_through_the_virtual_work_of_its_point(robot):
+    """A known gust's generalised force on the chain (planners.problem.disturbance.generalized_gust) is the force's
+    virtual work through its point's displacement (world x, y, z), by central differences of the point's position:
+    on the platform's centre and on a drone's tip.
+    """
+    from planners.missions.events import GustEvent
+    from planners.problem.disturbance import generalized_gust
+
+    rng = np.random.default_rng(7)
+    s = np.array(robot.kind.reference_chain) + rng.uniform(-0.1, 0.1, 9)
+    force = (0.0, 2.0, -3.0)  # a gust's force is drawn in the world's y-z plane
+    h = 1e-6
+    for body, point in (("end_effector", lambda x: robot.kind.task_points(x)[0]),
+                        ("drone_2", lambda x: robot.kind.drone_joints(x)[1])):
+        gust = GustEvent(0.0, force, 1.0, body, 0.0)
+        q = generalized_gust(robot, (gust,), [0.5], s[None], rise=0.0)[0, 0]
+        expected = [np.dot(force, (point(s + h * e) - point(s - h * e)) / (2 * h)) for e in np.eye(9)]
+        np.testing.assert_allclose(q, expected, atol=1e-7)

@@ -54,10 +54,12 @@ CONTROL_HEADROOM = 225.0
 
 
 def task_jacobian(robot, s) -> np.ndarray:
-    """d p / d s of the robot kind's task point p at samples s (N, n_s), shape (N, 2, n_s) [m/m, m/rad]."""
+    """d p / d s of the robot kind's task point p at samples s (N, n_s), shape (N, len(force_axes), n_s)
+    [m/m, m/rad].
+    """
     s = np.atleast_2d(np.asarray(s, dtype=float))
     n = s.shape[-1]
-    out = np.empty(s.shape[:-1] + (2, n))
+    out = np.empty(s.shape[:-1] + (len(robot.kind.force_axes), n))
     for j in range(n):
         probe = s.astype(complex)
         probe[..., j] += 1j * _STEP
@@ -88,26 +90,28 @@ def generalized_gust(robot, gusts, t, s, rise: float = RISE) -> np.ndarray | Non
     """Q_ext [N or N m] of the ``gusts`` at each time t (N,) [s], at positions s (N, n_s), with its first
     two time derivatives: shape (3, N, n_s), or None when none pushes.
 
-    Only the in-plane components (world y, z) of each force act on the planar chain; each force is
-    weighted by its :func:`gust_profile` (``rise`` [s]). The derivatives are those of the profile (J_p
-    held: exact for the FPR's end-effector).
+    Only the components of each force along the robot kind's force axes act on the chain (a planar robot's:
+    world y, z); each force is weighted by its :func:`gust_profile` (``rise`` [s]). The derivatives are those of
+    the profile (J_p held: exact for the FPR's end-effector).
     """
     t = np.atleast_1d(np.asarray(t, dtype=float))
     s = np.atleast_2d(np.asarray(s, dtype=float))
     out, jac_task, jac_hinges = None, None, None
+    axes = ["xyz".index(a) for a in robot.kind.force_axes]
+    k = len(axes)
     for gust in gusts:
         on = gust_profile(gust, t, rise)
         if not on.any():
             continue
-        force = np.asarray(gust.force, dtype=float)[1:]  # (y, z)
+        force = np.asarray(gust.force, dtype=float)[axes]
         index = gust.drone_index()
         if index is None:
             jac_task = task_jacobian(robot, s) if jac_task is None else jac_task
             jac = jac_task
         else:
             if jac_hinges is None:
-                jac_hinges = robot.planar("point").hinge_jacobian(s)
-            jac = jac_hinges[..., 2 * index : 2 * index + 2, :]
+                jac_hinges = robot.kind.chain_jacobian(s)
+            jac = jac_hinges[..., k * index : k * (index + 1), :]
         q = np.einsum("nij,i->nj", jac, force)[None] * on[:, :, None]
         out = q if out is None else out + q
     return out
