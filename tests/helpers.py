@@ -1,5 +1,11 @@
 """Shared test helpers."""
 
+import math
+
+#: The planar robots' hover poses of the controller's tests (the FPR's s0 = [0 0 5pi/4 pi/2], DESIGN.md; the
+#: prototype's elbow-down pose), planning coordinates.
+HOVER_POSES = {"fpr": (0.0, 0.0, 5 * math.pi / 4, math.pi / 2), "prototype": (-0.84, 1.68)}
+
 
 def random_state(robot, rng, scale=1.0):
     """A random configuration near the reference pose of ``robot`` and a random velocity of size ``scale``."""
@@ -54,3 +60,23 @@ times = [1.0]
 via_points = 0
 alpha = 0.5
 """
+
+
+def planned_hover(name):
+    """The robot ``name`` at rest at its :data:`HOVER_POSES` pose as the planner sees it: (robot, configuration
+    (rolls from the plan), the plan's inputs, the controller's reference).
+    """
+    import numpy as np
+
+    import fpr
+    from controllers.ctc import Reference
+    from fpr.model.inverse_dynamics import inverse_dynamics
+
+    robot = fpr.load(name)
+    s0 = np.array(HOVER_POSES[name])
+    motion = np.zeros((5, 1, s0.size))
+    motion[0, 0] = s0
+    inputs = inverse_dynamics(robot, motion)
+    q = inputs.full_state(robot)[0][0]
+    reference = Reference(motion[:, 0], inputs.roll_rate[0], inputs.roll_acceleration[0])
+    return robot, q, inputs, reference

@@ -4,26 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import HOVER_POSES, planned_hover
 
-import fpr
 from controllers.allocation import Allocator, allocation_qp, pseudo_inverse_law, selectors
 from controllers.ctc import CascadedController, ControllerSettings, Reference
 from fpr.model.inverse_dynamics import inverse_dynamics
-
-POSES = {"fpr": np.array([0.0, 0.0, 5 * np.pi / 4, np.pi / 2]), "prototype": np.array([-0.84, 1.68])}
 
 
 @pytest.fixture(scope="module", params=["fpr", "prototype"])
 def hover(request):
     """Robot, hover configuration (rolls from the plan), the plan's inputs and the reference."""
-    robot = fpr.load(request.param)
-    s0 = POSES[request.param]
-    motion = np.zeros((5, 1, s0.size))
-    motion[0, 0] = s0
-    inputs = inverse_dynamics(robot, motion)
-    q = inputs.full_state(robot)[0][0]
-    reference = Reference(motion[:, 0], inputs.roll_rate[0], inputs.roll_acceleration[0])
-    return robot, q, inputs, reference
+    return planned_hover(request.param)
 
 
 def _random_state(robot, q0, rng, spread=0.05):
@@ -117,7 +108,7 @@ def test_outer_loop_force_is_the_planning_inverse_dynamics(hover):
     rng = np.random.default_rng(5)
     n_s = len(robot.layout.chain)
     motion = np.zeros((5, 1, n_s))
-    motion[0, 0] = POSES[robot.name]
+    motion[0, 0] = np.array(HOVER_POSES[robot.name])
     motion[1:3, 0] = 0.3 * rng.normal(size=(2, n_s))
     planned = inverse_dynamics(robot, motion)
     q, v = (state[0] for state in planned.full_state(robot)[:2])  # the rolls and their rates on the plan too

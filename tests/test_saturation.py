@@ -8,10 +8,9 @@ import math
 
 import numpy as np
 import pytest
+from helpers import planned_hover
 
-import fpr
-from controllers.ctc import CascadedController, ControllerSettings, Reference
-from fpr.model.inverse_dynamics import inverse_dynamics
+from controllers.ctc import CascadedController, ControllerSettings
 from fpr.robustness.events import GustFamily
 from fpr.robustness.holding import hold_check
 from fpr.robustness.outcomes import EventSetup, Flight, fly_event
@@ -20,20 +19,11 @@ from planners.missions.events import GustEvent
 from planners.missions.mission import load_mission
 from planners.optimize import plan
 
-POSES = {"fpr": np.array([0.0, 0.0, 5 * np.pi / 4, np.pi / 2]), "prototype": np.array([-0.84, 1.68])}
-
 
 @pytest.fixture(scope="module", params=["fpr", "prototype"])
 def hover(request):
     """Robot, hover state (rolls from the plan), the plan's inputs and the reference."""
-    robot = fpr.load(request.param)
-    s0 = POSES[request.param]
-    motion = np.zeros((5, 1, s0.size))
-    motion[0, 0] = s0
-    inputs = inverse_dynamics(robot, motion)
-    q = inputs.full_state(robot)[0][0]
-    reference = Reference(motion[:, 0], inputs.roll_rate[0], inputs.roll_acceleration[0])
-    return robot, q, inputs, reference
+    return planned_hover(request.param)
 
 
 def _turned(vector, angle):
