@@ -333,3 +333,11 @@ def test_a_gust_acts_through_the_virtual_work_of_its_point(robot):
         q = generalized_gust(robot, (gust,), [0.5], s[None], rise=0.0)[0, 0]
         expected = [np.dot(force, (point(s + h * e) - point(s - h * e)) / (2 * h)) for e in np.eye(9)]
         np.testing.assert_allclose(q, expected, atol=1e-7)
+
+
+@pytest.mark.parametrize("key, value", [("leg_length", 0.0), ("platform_mass", -1.0), ("ball_offset", 5.0)])
+def test_a_spatial_parameter_out_of_its_physical_range_is_refused_by_name(key, value):
+    from fpr.model.errors import ModelArgumentError
+
+    with pytest.raises(ModelArgumentError, match=key):
+        fpr.load("fpr3", **{key: value})

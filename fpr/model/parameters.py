@@ -140,6 +140,25 @@ PARAMETER_RANGES: dict[str, ParameterRange] = {
     "pivot_mass": ParameterRange(1e-9, 10.0, "kg", "the prototype's pivot rings (a model detail: tiny by design)"),
     "pivot_inertia": ParameterRange(1e-15, 1.0, "kg m^2", "the prototype's pivot rings (a model detail: tiny by "
                                                           "design)"),
+    "leg_length": ParameterRange(0.05, 10.0, "m", "a leg of the spatial FPR, from a drone's own size to 10 m"),
+    "leg_mass": ParameterRange(1e-3, 100.0, "kg", "a leg of the spatial FPR, from 1 g"),
+    "leg_com": ParameterRange(1e-3, 10.0, "m", "a leg's centre of mass from its hinge, from 1 mm (0: at it)",
+                              zero=True),
+    "leg_radius": ParameterRange(5e-4, 0.5, "m", "a leg's tube, from 1 mm thick"),
+    "leg_ixx": ParameterRange(1e-12, 100.0, "kg m^2", "a leg's principal inertia about its hinge"),
+    "leg_iyy": ParameterRange(1e-12, 100.0, "kg m^2", "a leg's principal inertia about its hinge"),
+    "leg_izz": ParameterRange(1e-12, 100.0, "kg m^2", "a leg's principal inertia about its hinge"),
+    "platform_radius": ParameterRange(1e-3, 5.0, "m", "the spatial FPR's platform centre to a leg's hinge, from 1 mm"),
+    "platform_mass": ParameterRange(1e-3, 100.0, "kg", "the spatial FPR's platform, from 1 g"),
+    "platform_ixx": ParameterRange(1e-9, 100.0, "kg m^2", "the platform's principal inertia"),
+    "platform_iyy": ParameterRange(1e-9, 100.0, "kg m^2", "the platform's principal inertia"),
+    "platform_izz": ParameterRange(1e-9, 100.0, "kg m^2", "the platform's principal inertia"),
+    "ball_offset": ParameterRange(1e-3, 2.0, "m", "the ball joint below the drone's centre of mass, from 1 mm (0: at "
+                                                  "it)", zero=True),
+    "ball_ring_mass": ParameterRange(1e-9, 10.0, "kg", "the spatial FPR's ball rings (a model detail: tiny by "
+                                                       "design)"),
+    "ball_ring_inertia": ParameterRange(1e-15, 1.0, "kg m^2", "the spatial FPR's ball rings (a model detail: tiny by "
+                                                              "design)"),
 }
 """Physical range of the xacro arguments of the built-in descriptions [SI units]; :func:`check_parameters` applies
 it. The least values exclude subnormal and vanishing numbers (a body of 1e-300 kg), the largest a robot of
