@@ -193,3 +193,33 @@ def check_parameters(overrides: dict, parameters: dict) -> None:
                 raise ModelArgumentError(name, inertia[i], f"{name} = {inertia[i]:g} kg m^2 is more than the sum "
                                                            "of the two other principal inertias: no rigid body "
                                                            "has that inertia; give smaller or consistent values")
+    _check_leg_inertia(overrides, parameters)
+
+
+#: the spatial FPR's leg parameters that its inertia about the centre of mass depends on
+_LEG_INERTIA = ("leg_mass", "leg_com", "leg_iyy", "leg_izz")
+
+
+def _check_leg_inertia(overrides: dict, parameters: dict) -> None:
+    """The spatial FPR's leg inertia, given about the hinge, moved to the centre of mass by the xacro
+    (I_yy = leg_iyy - m c^2, likewise I_zz, m = leg_mass, c = leg_com): each must stay positive, which the xacro
+    would otherwise refuse with its own exception.
+
+    Raises:
+        ModelArgumentError: naming the inertia given (or, when only the mass or the centre moved, that one).
+    """
+    if not any(key in overrides for key in _LEG_INERTIA):
+        return
+    values = {key: parameters.get(key) for key in _LEG_INERTIA}
+    if not all(isinstance(v, numbers.Real) and math.isfinite(v) for v in values.values()):
+        return
+    transfer = values["leg_mass"] * values["leg_com"] ** 2
+    for name in ("leg_iyy", "leg_izz"):
+        if values[name] <= transfer:
+            field = name if name in overrides else next(k for k in _LEG_INERTIA if k in overrides)
+            given = "" if field == name else f"with {field} = {overrides[field]:g}, "
+            raise ModelArgumentError(field, overrides[field],
+                                     f"{given}{name} = {values[name]:g} kg m^2, the leg's inertia about its hinge, "
+                                     f"must exceed leg_mass leg_com^2 = {transfer:g} kg m^2 (the part of a point "
+                                     f"mass at the centre of mass): give a larger {name} or a smaller leg_mass or "
+                                     "leg_com")
