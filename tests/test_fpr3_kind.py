@@ -371,3 +371,16 @@ def test_a_mission_with_an_unphysical_leg_inertia_exits_2_naming_the_field(tmp_p
     assert run.returncode == 2, run.stderr
     assert run.stderr.count("\n") == 1 and "robot_parameters.leg_iyy" in run.stderr and "Traceback" not in run.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("overrides, field", [({"leg_iyy": 0.1}, "leg_iyy"), ({"leg_ixx": 0.03}, "leg_ixx"),
+                                              ({"platform_izz": 0.01}, "platform_izz")])
+def test_a_leg_or_platform_inertia_no_rigid_body_has_is_refused_by_name(overrides, field):
+    """The triangle inequalities of the principal inertias, the legs' taken about their centres of mass (where the
+    URDF holds them).
+    """
+    from fpr.model.errors import ModelArgumentError
+
+    with pytest.raises(ModelArgumentError, match=f"{field} = .*more than the sum of the two other") as error:
+        fpr.load("fpr3", **overrides)
+    assert error.value.argument == field

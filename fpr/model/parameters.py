@@ -170,8 +170,10 @@ def check_parameters(overrides: dict, parameters: dict) -> None:
     """Check xacro overrides before a robot is built from them.
 
     Each key of :data:`PARAMETER_RANGES` given in ``overrides`` must be a finite number in its range; with
-    every value (``parameters``: the parameter file's, overrides included), the drone's principal inertias
-    must satisfy the triangle inequalities (a physical, positive-definite inertia). Whether the rotors can
+    every value (``parameters``: the parameter file's, overrides included), the principal inertias of the drones,
+    of the spatial FPR's platform and of its legs (about their centres of mass) must satisfy the triangle
+    inequalities (a physical, positive-definite inertia), and a leg's inertia about its hinge must exceed the
+    part m c^2 of its mass at its centre. Whether the rotors can
     lift the robot is the planner's to say (a controller's model may well be too heavy to fly).
 
     Raises:
@@ -186,18 +188,32 @@ def check_parameters(overrides: dict, parameters: dict) -> None:
         if not bounds.contains(value):
             raise ModelArgumentError(key, value, f"{key} = {value:g} {bounds.unit} is outside the physical range "
                                                  f"{bounds.text()} ({bounds.meaning}): give a value in it")
-    inertia = [parameters.get(f"drone_i{a}{a}") for a in "xyz"]
-    if any(f"drone_i{a}{a}" in overrides for a in "xyz") and all(isinstance(i, numbers.Real) for i in inertia):
-        for i, name in enumerate(("drone_ixx", "drone_iyy", "drone_izz")):
-            if inertia[i] > inertia[i - 1] + inertia[i - 2]:
-                raise ModelArgumentError(name, inertia[i], f"{name} = {inertia[i]:g} kg m^2 is more than the sum "
-                                                           "of the two other principal inertias: no rigid body "
-                                                           "has that inertia; give smaller or consistent values")
+    for body in ("drone", "platform"):
+        names = tuple(f"{body}_i{a}{a}" for a in "xyz")
+        inertia = [parameters.get(name) for name in names]
+        if any(name in overrides for name in names) and all(isinstance(i, numbers.Real) for i in inertia):
+            _check_triangle(names, inertia)
     _check_leg_inertia(overrides, parameters)
 
 
 #: the spatial FPR's leg parameters that its inertia about the centre of mass depends on
-_LEG_INERTIA = ("leg_mass", "leg_com", "leg_iyy", "leg_izz")
+_LEG_INERTIA = ("leg_mass", "leg_com", "leg_ixx", "leg_iyy", "leg_izz")
+
+
+def _check_triangle(names, inertia, given=None, about: str = "") -> None:
+    """Principal inertias ``inertia`` (of the parameters ``names``, whose values are ``given``: the same unless the
+    inertias are derived from them) that no rigid body has: one larger than the sum of the two others.
+
+    Raises:
+        ModelArgumentError: naming the first such parameter.
+    """
+    given = inertia if given is None else given
+    for i, name in enumerate(names):
+        if inertia[i] > inertia[i - 1] + inertia[i - 2]:
+            value = f"{name} = {given[i]:g} kg m^2" + (f" ({about} {inertia[i]:g} kg m^2)" if about else "")
+            raise ModelArgumentError(name, given[i], f"{value} is more than the sum of the two other principal "
+                                                     "inertias: no rigid body has that inertia; give smaller or "
+                                                     "consistent values")
 
 
 def _check_leg_inertia(overrides: dict, parameters: dict) -> None:
@@ -223,3 +239,6 @@ def _check_leg_inertia(overrides: dict, parameters: dict) -> None:
                                      f"must exceed leg_mass leg_com^2 = {transfer:g} kg m^2 (the part of a point "
                                      f"mass at the centre of mass): give a larger {name} or a smaller leg_mass or "
                                      "leg_com")
+    names = ("leg_ixx", "leg_iyy", "leg_izz")  # about the centre of mass, as the URDF holds them
+    _check_triangle(names, [values["leg_ixx"], values["leg_iyy"] - transfer, values["leg_izz"] - transfer],
+                    [values[name] for name in names], "about the centre of mass")
