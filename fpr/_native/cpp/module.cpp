@@ -13,6 +13,7 @@
 //   (measure.cpp) on the closed chain's model and data; eulers: (joint, A 4x4, B 4x4, (x, y, z qp indices or
 //   -1), (psi, theta, phi qp indices), (their thesis indices)) tuples; angles: (joint, P 4x4, other, qp index)
 //   measure(qc, vc, reference) -> (q, v), or None when the velocity's normal equations are not positive definite
+// Loop(...): the closed loop's ticks natively (loop.cpp, which says its arguments)
 //
 // The CPython API with METH_FASTCALL: the tick calls these a few times per inner-loop tick, where every
 // microsecond of call overhead counts; pinocchio's objects are found once, at construction (bridge.cpp).
@@ -705,11 +706,46 @@ namespace
   PyType_Spec measure_spec = {"fpr._native._pinocchio.Measure", sizeof(MeasureObject), 0, Py_TPFLAGS_DEFAULT,
                               measure_slots};
 
+  PyObject * plant_type = nullptr;   // the module's types (borrowed: the module holds them)
+  PyObject * minimal_type = nullptr;
+  PyObject * measure_type = nullptr;
+
+  bool is_instance(PyObject * obj, PyObject * type, const char * what, const char * kind)
+  {
+    if (type != nullptr && PyObject_TypeCheck(obj, reinterpret_cast<PyTypeObject *>(type)))
+      return true;
+    PyErr_Format(PyExc_TypeError, "%s: expected a fpr._native._pinocchio.%s", what, kind);
+    return false;
+  }
+
   PyModuleDef module_def = {PyModuleDef_HEAD_INIT, "fpr._native._pinocchio",
                             "The closed loop's calls of Pinocchio's C++ library (fpr/_native/cpp).", -1, nullptr,
                             nullptr, nullptr, nullptr, nullptr};
 
 } // namespace
+
+namespace fpr_native
+{
+  Plant * plant_from(PyObject * obj, const char * what)
+  {
+    return is_instance(obj, plant_type, what, "Plant") ? plant_of(obj) : nullptr;
+  }
+
+  Minimal * minimal_from(PyObject * obj, const char * what)
+  {
+    return is_instance(obj, minimal_type, what, "Minimal") ? minimal_of(obj) : nullptr;
+  }
+
+  Measure * measure_from(PyObject * obj, const char * what)
+  {
+    if (!is_instance(obj, measure_type, what, "Measure"))
+      return nullptr;
+    Measure * m = reinterpret_cast<MeasureObject *>(obj)->measure;
+    if (m == nullptr)
+      PyErr_SetString(PyExc_RuntimeError, "Measure: not initialised");
+    return m;
+  }
+} // namespace fpr_native
 
 PyMODINIT_FUNC PyInit__pinocchio(void)
 {
@@ -719,6 +755,8 @@ PyMODINIT_FUNC PyInit__pinocchio(void)
     return nullptr;
   PyObject * plant = PyType_FromSpec(&plant_spec);
   PyObject * minimal = plant ? PyType_FromSpec(&minimal_spec) : nullptr;
+  plant_type = plant;
+  minimal_type = minimal;
   if (minimal == nullptr || PyModule_AddObject(module, "Plant", plant) < 0)
   {
     Py_XDECREF(plant);
@@ -733,9 +771,15 @@ PyMODINIT_FUNC PyInit__pinocchio(void)
     return nullptr;
   }
   PyObject * measure = PyType_FromSpec(&measure_spec);
+  measure_type = measure;
   if (measure == nullptr || PyModule_AddObject(module, "Measure", measure) < 0)
   {
     Py_XDECREF(measure);
+    Py_DECREF(module);
+    return nullptr;
+  }
+  if (!fpr_native::loop_register(module))
+  {
     Py_DECREF(module);
     return nullptr;
   }

@@ -136,4 +136,15 @@ namespace fpr_native
   bool measure(Measure * measure, const double * qc, const double * vc, const double * reference, double * q,
                double * v);
 
+  // ------------------------------------------------------------------ the Python objects (module.cpp)
+  // The C++ object behind a fpr._native._pinocchio Plant, Minimal or Measure, or nullptr with a TypeError set
+  // (`what` names the argument) when obj is not one or not initialised.
+  Plant * plant_from(PyObject * obj, const char * what);
+  Minimal * minimal_from(PyObject * obj, const char * what);
+  Measure * measure_from(PyObject * obj, const char * what);
+
+  // ------------------------------------------------------------------ the native closed loop (loop.cpp)
+  // Adds the type Loop to the module; false with an exception set on failure.
+  bool loop_register(PyObject * module);
+
 } // namespace fpr_native
