@@ -84,7 +84,8 @@ def extensions() -> list[Extension]:
     include = prefix / "include"
     version = sysconfig.get_config_var("py_version_nodot")
     cpp = NATIVE / "cpp"
-    sources = [str(cpp / f"{name}.cpp") for name in ("module", "bridge", "plant", "minimal", "measure", "loop")]
+    sources = [str(cpp / f"{name}.cpp") for name in ("module", "bridge", "plant", "minimal", "measure", "loop",
+                                                            "outer")]
     parts.append(Extension(
         "fpr._native._pinocchio", sources,
         depends=[str(cpp / "native.hpp"), str(NATIVE / "kernels.h")], language="c++", define_macros=PINOCCHIO_MACROS,

@@ -366,8 +366,8 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     # the plain ticks natively when they fit (fpr.sim.native_loop): the log then in its preallocated arrays
     fast = None
     if in_flight is None and not noise_q and not noise_v:
-        fast = NativeLoop.make(plant, controller, watch, ticks, motion[0], planned_rate, planned_acceleration, dt,
-                               steps_per_tick, wind)
+        fast = NativeLoop.make(plant, controller, watch, ticks, motion, planned.thrust_vector, planned_rate,
+                               planned_acceleration, dt, steps_per_tick, wind)
     start = time.perf_counter()
     next_report = 1.0
     failure = failure_time = None

@@ -52,7 +52,7 @@ class NativeLoop:
         self._spare = np.zeros(controller.robot.nq)  # the applied sum's stand-in without an observer
 
     @classmethod
-    def make(cls, plant, controller, watch, ticks, planned_chain, rate, acceleration, dt: float, steps: int,
+    def make(cls, plant, controller, watch, ticks, motion, thrust_vectors, rate, acceleration, dt: float, steps: int,
              wind) -> "NativeLoop | None":
         """The native loop of a simulation, or None when it does not fit (module docstring).
 
@@ -61,7 +61,8 @@ class NativeLoop:
             controller: the :class:`controllers.ctc.CascadedController`.
             watch: the :class:`fpr.sim.watch.Watch`.
             ticks: the inner-loop ticks' times (n_t,) [s].
-            planned_chain: the planned chain coordinates at the ticks (n_t, n_s).
+            motion: the plan's s_d and its derivatives at the ticks (>= 5, n_t, n_s).
+            thrust_vectors: the plan's thrust vectors at the ticks (n_t, n_d, 2) [N].
             rate, acceleration: the planned attitude rates and accelerations at the ticks (n_t, n_d).
             dt: the plant's step [s]; steps: plant steps per tick.
             wind: the wind on each drone (3,) [N], or None.
@@ -80,9 +81,11 @@ class NativeLoop:
         allocator = controller.allocator
         n_d, n_rolls = robot.n_drones, len(robot.layout.rolls)
         if (kernel is None or measure is None or constants[-1] is None or terms is None or inner is None
-                or not allocator.compiled or n_rolls != n_d or plant._reference is None):
+                or not allocator.compiled or n_rolls != n_d or plant._reference is None
+                or np.shape(thrust_vectors)[1:] != (n_d, 2)):
             return None
         watch._build_screen(plant)
+        outer = controller.native_outer()  # None: the outer-loop updates are the Python side's
         n_t, n, n_s = ticks.size, robot.nq, len(controller.chain)
         shapes = {"q": (n,), "v": (n,), "speed": (n_d, 4), "closure_error": (), "drone_height": (n_d,),
                   "attitude_desired": (n_d,), "speed_command": (n_d, 4), "thrust": (n_d,), "torque": (n_d, 3),
@@ -92,18 +95,24 @@ class NativeLoop:
         decay = plant._lean_constants(dt)[0].reshape(-1)
         wind_forces = None if wind is None else np.ascontiguousarray(plant._wind_forces(wind), dtype=float)
         controller._attitude_gains()  # the inner loop's constants up to date, in controller._gains
-        loop = module.Loop(kernel, measure, terms, allocator._kernel_constants, allocator._state,
-                           controller._gains[5], constants[-1], watch._screen_constants,
-                           np.ascontiguousarray(ticks, dtype=float), np.ascontiguousarray(planned_chain, dtype=float),
-                           np.ascontiguousarray(rate, dtype=float), np.ascontiguousarray(acceleration, dtype=float),
-                           controller.chain.tolist(), tuple(logs[name] for name in _LOG_FIELDS), float(dt),
-                           int(steps), float(plant._max_speed), np.ascontiguousarray(decay, dtype=float),
-                           wind_forces, controller.settings.observer_bandwidth > 0)
-        threshold = 1.0 / controller.settings.outer_rate - 1e-9  # CascadedController.update's test
+        st = controller.settings
+        loop = module.Loop(kernel, measure, terms, None if outer is None else outer[0], allocator._kernel_constants,
+                           allocator._state, controller._gains[5], constants[-1], watch._screen_constants,
+                           None if outer is None else outer[1], np.ascontiguousarray(ticks, dtype=float),
+                           np.ascontiguousarray(np.asarray(motion)[:5].transpose(1, 0, 2), dtype=float),
+                           np.ascontiguousarray(thrust_vectors, dtype=float), np.ascontiguousarray(rate, dtype=float),
+                           np.ascontiguousarray(acceleration, dtype=float), controller.chain.tolist(),
+                           tuple(logs[name] for name in _LOG_FIELDS), float(dt), int(steps), float(plant._max_speed),
+                           np.ascontiguousarray(decay, dtype=float), wind_forces, st.observer_bandwidth > 0,
+                           bool(st.force_limits))
+        threshold = 1.0 / st.outer_rate - 1e-9  # CascadedController.update's test
         return cls(loop, plant, controller, logs, threshold)
 
     def run(self, k: int, stop: int, report_at: float, tick: float) -> int:
         """The ticks k, k + 1, ... before ``stop`` natively, until one the Python side must do; its index.
+
+        The controller's state the native loop reads and writes is handed over as arrays the controller (and its
+        observer) then hold, so that the Python side reads what the native ticks left, and the other way round.
 
         Args:
             k: the first tick; stop: the tick the native loop does not reach (the last tick is the Python side's).
@@ -111,24 +120,30 @@ class NativeLoop:
                 is the Python side's.
             tick: the inner-loop period [s] (the simulation's, as it computes the reports' times).
         """
-        controller, plant = self._controller, self._plant
-        if controller._force is None or k >= stop:
+        c, plant = self._controller, self._plant
+        if c._force is None or k >= stop:
             return k
         qc, vc, w = plant.qc.copy(), plant.vc.copy(), np.array(plant._w, dtype=float)
         reference = plant._reference.copy()
-        force = np.ascontiguousarray(controller._force, dtype=float)
-        observer = controller.observer
-        estimate = None if observer is None else np.ascontiguousarray(observer.estimate, dtype=float)
+        c._integral = integral = np.array(c._integral, dtype=float)
+        c._force = force = np.array(c._force, dtype=float)
+        observed = (None,) * 6
         applied = self._spare
         if self._observer:
-            controller._applied = applied = np.array(controller._applied, dtype=float)  # its own: written in place
-        end, time, ticks, closed_form, active_set = self._loop.run(
-            k, stop, qc, vc, w, reference, force, estimate, applied, plant.time, float(controller._last_outer),
-            self._threshold, report_at, tick)
+            o = c.observer
+            if o is None or o._start is None or o._last is None:  # before its first update: the Python side's
+                return k
+            o.estimate, o._start, o._integral = (np.array(x, dtype=float) for x in (o.estimate, o._start, o._integral))
+            o._last = tuple(np.array(x, dtype=float) for x in o._last)
+            observed = (o.estimate, o._start, o._integral) + o._last
+            c._applied = applied = np.array(c._applied, dtype=float)
+        end, time, ticks, last_outer, limited, closed_form, active_set = self._loop.run(
+            k, stop, qc, vc, w, reference, integral, *observed, force, applied, int(c._ticks), plant.time,
+            float(c._last_outer), bool(c.limiter.limited), self._threshold, report_at, tick)
         if end > k:  # the native ticks' state back where the Python side reads it
             plant.qc, plant.vc, plant._w, plant._reference, plant.time = qc, vc, w, reference, time
-            controller._ticks += ticks
-            routes = controller.allocator.routes
+            c._ticks, c._last_outer, c.limiter.limited = ticks, last_outer, limited
+            routes = c.allocator.routes
             routes["closed form"] += closed_form
             routes["active set"] += active_set
         return end

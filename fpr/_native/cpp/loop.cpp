@@ -5,24 +5,30 @@
 // the rotor speeds, the observer's sum of applied forces, the log's row, and the plant's steps (plant.cpp). The
 // C kernels are the C parts' own (alloc.c, attitude.c, watch.c), called through their capsules (kernels.h).
 //
-// Loop(plant, measure, attitude, alloc_constants, alloc_state, inner_constants, attitude_constants,
-//      screen_constants, ticks, planned, rate, acceleration, chain, logs, dt, steps, w_max, decay, wind, observer)
-//   plant, measure, attitude: the native Plant, Measure and the controller model's Minimal (module.cpp);
-//   the constants vectors of the allocation, the inner loop, the attitude model and the watch's screen (as the
-//   Python side gives them to alloc.c's tick and inner, attitude.c's post, watch.c's may_be_lost); alloc_state:
-//   the allocator's int8 active bounds (updated in place); ticks (n_t), planned chain coordinates (n_t, n_s),
-//   planned attitude rates and accelerations (n_t, n_d); chain: the chain's indices in q; logs: the simulation
-//   log's preallocated arrays (q, v, speed, closure_error, drone_height, attitude_desired, speed_command, thrust,
-//   torque, saturated (bool), disturbance), row k written at tick k; dt, steps (per tick), w_max, the motor lag's
-//   decay (3), wind (3 n_d) or None; observer: whether the controller's observer sums the applied forces.
-// run(k, stop, qc, vc, w, reference, force, estimate, applied, time, last_outer, outer_threshold, report_at, tick)
-//   -> (k, time, ticks, closed_form, active_set)
+// Loop(plant, measure, attitude, point, alloc_constants, alloc_state, inner_constants, attitude_constants,
+//      screen_constants, outer_constants, ticks, motion, thrust_vectors, rate, acceleration, chain, logs, dt, steps,
+//      w_max, decay, wind, observer, force_limits)
+//   plant, measure, attitude: the native Plant, Measure and the controller model's Minimal (module.cpp); point: the
+//   Minimal of the controller's point-drone model on the chain (its T the chain map), or None; the constants vectors
+//   of the allocation, the inner loop, the attitude model and the watch's screen (as the Python side gives them to
+//   alloc.c's tick and inner, attitude.c's post, watch.c's may_be_lost) and of the outer loop (outer.cpp; None:
+//   the outer-loop updates are the Python side's); alloc_state: the allocator's int8 active bounds (updated in
+//   place); ticks (n_t), the plan's s_d and its derivatives 0..4 (n_t, 5, n_s), its thrust vectors (n_t, n_d, 2),
+//   attitude rates and accelerations (n_t, n_d); chain: the chain's indices in q; logs: the simulation log's
+//   preallocated arrays (q, v, speed, closure_error, drone_height, attitude_desired, speed_command, thrust, torque,
+//   saturated (bool), disturbance), row k written at tick k; dt, steps (per tick), w_max, the motor lag's decay
+//   (3), wind (3 n_d) or None; observer: whether the controller has its observer (bandwidth > 0); force_limits:
+//   whether a new force whose allocation has a rotor at a bound goes to the force limiter (the Python side's).
+// run(k, stop, qc, vc, w, reference, integral, estimate, start, observer_integral, last_mass, last_velocity,
+//     last_nle, force, applied, ticks, time, last_outer, limited, outer_threshold, report_at, tick)
+//   -> (k, time, ticks, last_outer, limited, closed_form, active_set)
 //   ticks k, k + 1, ... before `stop`, each done whole or not at all; it returns at the first tick it does not do
-//   (an outer-loop update due, a progress report due, the screen firing, a kernel declining, the plant's steps
-//   failing) with that tick's index: the Python side does that tick with its own code on the same state. qc, vc,
-//   w, reference (the measurement's) and applied (the observer's sum) are updated in place; force: the held
-//   outer-loop force (n_d, 2); estimate: the observer's (n) or None; ticks: the ticks done (the observer's
-//   count); closed_form, active_set: the allocation's routes taken.
+//   (a progress report due, the screen firing, a kernel declining, the plant's steps failing, an outer-loop
+//   update it cannot do or whose allocation has a rotor at a bound with force_limits) with that tick's index: the
+//   Python side does that tick with its own code on the same state. The arrays (the plant's state, the
+//   measurement's reference, the controller's integral, observer state (None without one), held force (n_d, 2) and
+//   applied forces' sum) are updated in place; the scalars come back: the plant's time, the applied forces' count,
+//   the last outer update's time, the limiter's flag, and the allocation's routes taken.
 #define PY_SSIZE_T_CLEAN
 #include "native.hpp"
 
@@ -95,8 +101,10 @@ namespace
     K_INNER,
     K_ATTITUDE,
     K_SCREEN,
+    K_OUTER,
     K_TICKS,
-    K_PLANNED,
+    K_MOTION,
+    K_THRUST,
     K_RATE,
     K_ACCELERATION,
     K_DECAY,
@@ -111,6 +119,7 @@ namespace
     Plant * plant;
     Measure * measure;
     Minimal * attitude;
+    Outer * outer;
     const FprAllocApi * alloc;
     const FprAttitudeApi * attitude_api;
     const FprWatchApi * watch;
@@ -118,12 +127,13 @@ namespace
     Py_buffer logs[LOGS];
     bool held[BUFFERS];
     bool logs_held[LOGS];
-    bool wind, observer;
+    bool wind, observer, force_limits;
     int n, nd, na, ns, nqc, nvc, nw, steps;
     long n_t;
     double dt, w_max;
     std::vector<int> * chain;
     std::vector<double> * scratch;
+    std::vector<double> * work; // the outer update's working copy of the controller's state
   };
 
   void loop_release(LoopObject * p)
@@ -138,8 +148,12 @@ namespace
     std::memset(p->logs_held, 0, sizeof(p->logs_held));
     delete p->chain;
     delete p->scratch;
+    delete p->work;
+    outer_delete(p->outer);
     p->chain = nullptr;
     p->scratch = nullptr;
+    p->work = nullptr;
+    p->outer = nullptr;
     Py_CLEAR(p->keep);
     p->plant = nullptr;
   }
@@ -154,23 +168,26 @@ namespace
   {
     auto * p = reinterpret_cast<LoopObject *>(self);
     loop_release(p);
-    static const char * names[] = {"plant",  "measure",  "attitude", "alloc_constants",  "alloc_state",
-                                   "inner_constants", "attitude_constants", "screen_constants", "ticks", "planned",
-                                   "rate", "acceleration", "chain", "logs", "dt", "steps", "w_max", "decay",
-                                   "wind", "observer", nullptr};
-    PyObject *o_plant, *o_measure, *o_attitude, *o_alloc, *o_state, *o_inner, *o_att, *o_screen, *o_ticks,
-      *o_planned, *o_rate, *o_acc, *o_chain, *o_logs, *o_decay, *o_wind;
+    static const char * names[] = {"plant", "measure", "attitude", "point", "alloc_constants", "alloc_state",
+                                   "inner_constants", "attitude_constants", "screen_constants", "outer_constants",
+                                   "ticks", "motion", "thrust_vectors", "rate", "acceleration", "chain", "logs", "dt",
+                                   "steps", "w_max", "decay", "wind", "observer", "force_limits", nullptr};
+    PyObject *o_plant, *o_measure, *o_attitude, *o_point, *o_alloc, *o_state, *o_inner, *o_att, *o_screen, *o_outer,
+      *o_ticks, *o_motion, *o_thrust, *o_rate, *o_acc, *o_chain, *o_logs, *o_decay, *o_wind;
     double dt = 0.0, w_max = 0.0;
-    int steps = 0, observer = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOOOOOOOOdidOOp", const_cast<char **>(names), &o_plant,
-                                     &o_measure, &o_attitude, &o_alloc, &o_state, &o_inner, &o_att, &o_screen,
-                                     &o_ticks, &o_planned, &o_rate, &o_acc, &o_chain, &o_logs, &dt, &steps, &w_max,
-                                     &o_decay, &o_wind, &observer))
+    int steps = 0, observer = 0, force_limits = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOOOOOOOOOOOdidOOpp", const_cast<char **>(names), &o_plant,
+                                     &o_measure, &o_attitude, &o_point, &o_alloc, &o_state, &o_inner, &o_att,
+                                     &o_screen, &o_outer, &o_ticks, &o_motion, &o_thrust, &o_rate, &o_acc, &o_chain,
+                                     &o_logs, &dt, &steps, &w_max, &o_decay, &o_wind, &observer, &force_limits))
       return -1;
     p->plant = plant_from(o_plant, "Loop: plant");
     p->measure = p->plant ? measure_from(o_measure, "Loop: measure") : nullptr;
     p->attitude = p->measure ? minimal_from(o_attitude, "Loop: attitude") : nullptr;
     if (p->attitude == nullptr)
+      return -1;
+    Minimal * point = nullptr;
+    if (o_point != Py_None && (point = minimal_from(o_point, "Loop: point")) == nullptr)
       return -1;
     p->alloc = capsule<FprAllocApi>("fpr._native._alloc._C_API");
     p->attitude_api = p->alloc ? capsule<FprAttitudeApi>("fpr._native._attitude._C_API") : nullptr;
@@ -200,6 +217,7 @@ namespace
     p->nvc = plant_nv(p->plant);
     p->chain = new std::vector<int>();
     p->scratch = new std::vector<double>();
+    p->work = new std::vector<double>();
     PyObject * chain_fast = PySequence_Fast(o_chain, "Loop: chain must be a sequence of indices");
     if (chain_fast == nullptr)
       return -1;
@@ -214,16 +232,39 @@ namespace
     if (PyErr_Occurred())
       return -1;
     p->ns = (int)p->chain->size();
-    bool fits = (int)kt[1] == p->nd && (int)kt[2] == p->na && plant_nw(p->plant) == p->nw
+    bool fits = (int)kt[1] == p->nd && (int)kt[2] == p->na && plant_nw(p->plant) == p->nw && p->nw <= 64
                 && measure_n(p->measure) == p->n && measure_nq(p->measure) == p->nqc
                 && measure_nv(p->measure) == p->nvc && minimal_n(p->attitude) == p->n
-                && minimal_frames(p->attitude) == p->nd && plant_frames(p->plant) == p->nd && p->ns > 0;
+                && minimal_frames(p->attitude) == p->nd && plant_frames(p->plant) == p->nd && p->ns > 0
+                && (long)p->buffers[K_ATTITUDE].len / 8 == 3 + p->na + 2 * p->n * p->n;
     for (int c : *p->chain)
       fits = fits && c >= 0 && c < p->n;
     if (!fits)
     {
       PyErr_SetString(PyExc_ValueError, "Loop: the plant, the measurement, the model and the constants do not fit");
       return -1;
+    }
+    if (o_outer != Py_None)
+    {
+      if (point == nullptr)
+      {
+        PyErr_SetString(PyExc_ValueError, "Loop: the outer loop's constants need the point model");
+        return -1;
+      }
+      if (!(p->held[K_OUTER] = get_buffer(o_outer, p->buffers[K_OUTER], 'd', -1, false, "outer_constants")))
+        return -1;
+      std::string error;
+      p->outer = outer_new(point, doubles(p->buffers[K_OUTER]), (long)(p->buffers[K_OUTER].len / 8), p->n, error);
+      if (p->outer == nullptr)
+      {
+        PyErr_SetString(PyExc_ValueError, ("Loop: " + error).c_str());
+        return -1;
+      }
+      if (outer_observer(p->outer) != (observer != 0))
+      {
+        PyErr_SetString(PyExc_ValueError, "Loop: the outer loop's observer and `observer` disagree");
+        return -1;
+      }
     }
     if (!(p->held[K_TICKS] = get_buffer(o_ticks, p->buffers[K_TICKS], 'd', -1, false, "ticks")))
       return -1;
@@ -235,7 +276,8 @@ namespace
       PyObject * obj;
       Py_ssize_t size;
       const char * what;
-    } wanted[] = {{K_PLANNED, o_planned, n_t * p->ns, "planned"},
+    } wanted[] = {{K_MOTION, o_motion, n_t * 5 * p->ns, "motion"},
+                  {K_THRUST, o_thrust, n_t * 2 * p->nd, "thrust_vectors"},
                   {K_RATE, o_rate, n_t * p->nd, "rate"},
                   {K_ACCELERATION, o_acc, n_t * p->nd, "acceleration"},
                   {K_DECAY, o_decay, 3, "decay"}};
@@ -256,26 +298,72 @@ namespace
     p->steps = steps;
     p->w_max = w_max;
     p->observer = observer != 0;
-    p->keep = PyTuple_Pack(3, o_plant, o_measure, o_attitude);
+    p->force_limits = force_limits != 0;
+    p->keep = PyTuple_Pack(4, o_plant, o_measure, o_attitude, o_point);
     return p->keep == nullptr ? -1 : 0;
   }
 
-  // One tick k at time t on the state (qc, vc, w, reference), done whole (true: the state, the sums and the log
-  // row updated) or not at all (false)
+  // The state one tick reads and writes: the plant's, the measurement's reference, the controller's
   struct Tick
   {
     double * qc;
     double * vc;
     double * w;
     double * reference;
-    const double * force;
-    const double * estimate;
-    double * applied;
+    OuterState controller;
     double time;
-    long ticks, routes[2];
+    long routes[2];
   };
 
-  bool one_tick(LoopObject * p, long k, Tick & s)
+  // The working copy of the controller's state in `work` (the outer update writes it; the tick commits it)
+  OuterState working_copy(LoopObject * p, const OuterState & from)
+  {
+    const int n = p->n, ns = p->ns, nd = p->nd;
+    std::vector<double> & w = *p->work;
+    w.resize(ns + 6 * n + n * n + 2 * nd);
+    OuterState to = from;
+    double * at = w.data();
+    auto take = [&](double *& field, const double * source, int size) {
+      field = at;
+      at += size;
+      if (source != nullptr)
+        std::memcpy(field, source, sizeof(double) * size);
+    };
+    take(to.integral, from.integral, ns);
+    take(to.force, from.force, 2 * nd);
+    take(to.applied, from.applied, n);
+    if (p->observer)
+    {
+      take(to.estimate, from.estimate, n);
+      take(to.start, from.start, n);
+      take(to.observer_integral, from.observer_integral, n);
+      take(to.last_mass, from.last_mass, n * n);
+      take(to.last_velocity, from.last_velocity, n);
+      take(to.last_nle, from.last_nle, n);
+    }
+    return to;
+  }
+
+  void commit(LoopObject * p, const OuterState & from, OuterState & to)
+  {
+    const int n = p->n, ns = p->ns, nd = p->nd;
+    std::memcpy(to.integral, from.integral, sizeof(double) * ns);
+    std::memcpy(to.force, from.force, sizeof(double) * 2 * nd);
+    std::memcpy(to.applied, from.applied, sizeof(double) * n);
+    if (p->observer)
+    {
+      std::memcpy(to.estimate, from.estimate, sizeof(double) * n);
+      std::memcpy(to.observer_integral, from.observer_integral, sizeof(double) * n);
+      std::memcpy(to.last_mass, from.last_mass, sizeof(double) * n * n);
+      std::memcpy(to.last_velocity, from.last_velocity, sizeof(double) * n);
+      std::memcpy(to.last_nle, from.last_nle, sizeof(double) * n);
+    }
+    to.ticks = from.ticks;
+    to.last_outer = from.last_outer;
+    to.limited = from.limited;
+  }
+
+  bool one_tick(LoopObject * p, long k, double t, bool outer_due, Tick & s)
   {
     const int n = p->n, nd = p->nd, na = p->na, ns = p->ns, nqc = p->nqc, nvc = p->nvc, nw = p->nw, nt = 3 * nd;
     std::vector<double> & b = *p->scratch;
@@ -308,24 +396,35 @@ namespace
       return false;
     if (!plant_points(p->plant, s.qc, positions, closure))
       return false;
-    const double * planned = doubles(p->buffers[K_PLANNED]) + k * ns;
-    if (p->watch->screen(s.qc, nqc, s.vc, nvc, q, v, n, positions, nd, closure, planned, ns,
+    const double * motion = doubles(p->buffers[K_MOTION]) + k * 5 * ns;
+    if (p->watch->screen(s.qc, nqc, s.vc, nvc, q, v, n, positions, nd, closure, motion, ns,
                          doubles(p->buffers[K_SCREEN]), (long)(p->buffers[K_SCREEN].len / 8))
         != 0)
       return false; // may be lost (or constants that do not fit): the Python check decides
-    double pitch = 0.0;
-    if (p->alloc->inner(q, v, n, s.force, doubles(p->buffers[K_RATE]) + k * nd,
-                        doubles(p->buffers[K_ACCELERATION]) + k * nd, doubles(p->buffers[K_INNER]),
-                        (long)(p->buffers[K_INNER].len / 8), thrust_d, u_a, roll, &pitch)
-        != 1)
-      return false;
     minimal_frame_terms(p->attitude, q, v, m, nle, jac);
     if (p->attitude_api->post(m, nle, jac, doubles(p->buffers[K_ATTITUDE]), (long)(p->buffers[K_ATTITUDE].len / 8),
                               mi, jt, jf, a_tau, own)
         != 1)
       return false;
+    OuterState next = s.controller; // the controller's state after this tick (a working copy when it updates)
+    const double * rate = doubles(p->buffers[K_RATE]) + k * nd;
+    if (outer_due)
+    {
+      next = working_copy(p, s.controller);
+      const double * t_map = doubles(p->buffers[K_ATTITUDE]) + 3 + na; // the controller model's T
+      if (!outer_update(p->outer, t, q, v, m, t_map, own, motion, doubles(p->buffers[K_THRUST]) + k * 2 * nd, rate,
+                        next))
+        return false;
+    }
+    const double * estimate = p->observer ? next.estimate : nullptr;
+    double pitch = 0.0;
+    if (p->alloc->inner(q, v, n, next.force, rate, doubles(p->buffers[K_ACCELERATION]) + k * nd,
+                        doubles(p->buffers[K_INNER]), (long)(p->buffers[K_INNER].len / 8), thrust_d, u_a, roll,
+                        &pitch)
+        != 1)
+      return false;
     for (int i = 0; i < n; ++i) // the estimated force, as a known wind (CascadedController.update)
-      c[i] = s.estimate == nullptr ? own[i] : own[i] - s.estimate[i];
+      c[i] = estimate == nullptr ? own[i] : own[i] - estimate[i];
     signed char state[64];
     std::memcpy(state, p->buffers[K_STATE].buf, nw);
     unsigned long long bits = 0;
@@ -334,6 +433,8 @@ namespace
                        (long)(p->buffers[K_ALLOC].len / 8), state, z, thrust, tau, &bits, &route, &iterations)
         != 1)
       return false;
+    if (outer_due && p->force_limits && bits != 0)
+      return false; // a new force the rotors cannot follow: the force limiter's (controllers/saturation.py)
     for (int i = 0; i < nw; ++i)
     {
       const double zi = z[i];
@@ -368,7 +469,7 @@ namespace
       saturated[i] = (bits >> i & 1ULL) != 0;
     double * disturbance = row(LOG_DISTURBANCE, ns);
     for (int i = 0; i < ns; ++i)
-      disturbance[i] = s.estimate == nullptr ? 0.0 : s.estimate[(*p->chain)[i]];
+      disturbance[i] = estimate == nullptr ? 0.0 : estimate[(*p->chain)[i]];
     if (p->observer) // the inputs' generalised force until the next tick, and the known wind's (none here)
     {
       for (int i = 0; i < n; ++i)
@@ -378,11 +479,15 @@ namespace
           from_thrust += jf[d * n + i] * thrust[d];
         for (int r = 0; r < nt; ++r)
           from_torque += jt[r * n + i] * tau[r];
-        const double known = s.estimate == nullptr ? own[i] - c[i] : own[i] - c[i] - s.estimate[i];
-        s.applied[i] += from_thrust + from_torque + known;
+        const double known = estimate == nullptr ? own[i] - c[i] : own[i] - c[i] - estimate[i];
+        next.applied[i] += from_thrust + from_torque + known;
       }
-      ++s.ticks;
+      ++next.ticks;
     }
+    if (outer_due)
+      commit(p, next, s.controller);
+    else
+      s.controller.ticks = next.ticks;
     std::memcpy(p->buffers[K_STATE].buf, state, nw);
     ++s.routes[route];
     std::memcpy(s.reference, q, sizeof(double) * n);
@@ -402,38 +507,70 @@ namespace
       PyErr_SetString(PyExc_RuntimeError, "Loop: not initialised");
       return nullptr;
     }
-    long k = 0, stop = 0;
-    PyObject *o_qc, *o_vc, *o_w, *o_ref, *o_force, *o_est, *o_applied;
+    enum
+    {
+      QC,
+      VC,
+      W,
+      REFERENCE,
+      INTEGRAL,
+      ESTIMATE,
+      START,
+      OBSERVER_INTEGRAL,
+      LAST_MASS,
+      LAST_VELOCITY,
+      LAST_NLE,
+      FORCE,
+      APPLIED,
+      ARRAYS
+    };
+    long k = 0, stop = 0, ticks_count = 0;
+    int limited = 0;
+    PyObject * objects[ARRAYS];
     double time = 0.0, last_outer = 0.0, threshold = 0.0, report_at = 0.0, tick = 0.0;
-    if (!PyArg_ParseTuple(args, "llOOOOOOOddddd", &k, &stop, &o_qc, &o_vc, &o_w, &o_ref, &o_force, &o_est,
-                          &o_applied, &time, &last_outer, &threshold, &report_at, &tick))
+    if (!PyArg_ParseTuple(args, "llOOOOOOOOOOOOOlddpddd", &k, &stop, &objects[QC], &objects[VC], &objects[W],
+                          &objects[REFERENCE], &objects[INTEGRAL], &objects[ESTIMATE], &objects[START],
+                          &objects[OBSERVER_INTEGRAL], &objects[LAST_MASS], &objects[LAST_VELOCITY],
+                          &objects[LAST_NLE], &objects[FORCE], &objects[APPLIED], &ticks_count, &time, &last_outer,
+                          &limited, &threshold, &report_at, &tick))
       return nullptr;
-    Py_buffer views[7];
-    bool held[7] = {false};
-    PyObject * const objects[7] = {o_qc, o_vc, o_w, o_ref, o_force, o_est, o_applied};
-    const Py_ssize_t sizes[7] = {p->nqc, p->nvc, p->nw, p->n, 2 * p->nd, p->n, p->n};
-    const char * what[7] = {"qc", "vc", "w", "reference", "force", "estimate", "applied"};
+    const int n = p->n;
+    const Py_ssize_t sizes[ARRAYS] = {p->nqc, p->nvc, p->nw, n, p->ns, n, n, n, n * n, n, n, 2 * p->nd, n};
+    const char * what[ARRAYS] = {"qc",        "vc",           "w",            "reference", "integral",
+                                 "estimate",  "start",        "observer_integral", "last_mass", "last_velocity",
+                                 "last_nle",  "force",        "applied"};
+    Py_buffer views[ARRAYS];
+    bool held[ARRAYS] = {false};
     PyObject * result = nullptr;
     bool ok = true;
-    for (int i = 0; i < 7 && ok; ++i)
-      if (objects[i] != Py_None || (i != 5))
-        ok = held[i] = get_buffer(objects[i], views[i], 'd', sizes[i], i != 4 && i != 5, what[i]);
+    for (int i = 0; i < ARRAYS && ok; ++i)
+    {
+      const bool observer_part = i >= ESTIMATE && i <= LAST_NLE;
+      if (observer_part && !p->observer)
+        continue; // None without an observer
+      ok = held[i] = get_buffer(objects[i], views[i], 'd', sizes[i], true, what[i]);
+    }
     if (ok)
     {
-      Tick s = {doubles(views[0]), doubles(views[1]), doubles(views[2]), doubles(views[3]), doubles(views[4]),
-                held[5] ? doubles(views[5]) : nullptr, doubles(views[6]), time, 0, {0, 0}};
+      auto at = [&](int i) { return held[i] ? doubles(views[i]) : nullptr; };
+      Tick s = {at(QC), at(VC), at(W), at(REFERENCE),
+                OuterState{at(INTEGRAL), at(ESTIMATE), at(START), at(OBSERVER_INTEGRAL), at(LAST_MASS),
+                           at(LAST_VELOCITY), at(LAST_NLE), at(FORCE), at(APPLIED), ticks_count, last_outer,
+                           limited != 0},
+                time, {0, 0}};
       const double * ticks = doubles(p->buffers[K_TICKS]);
       if (stop > p->n_t)
         stop = p->n_t;
       for (; k < stop; ++k)
       {
         const double t = ticks[k];
-        if (t - last_outer >= threshold || t + tick >= report_at)
-          break; // an outer-loop update or a progress report: the Python side's
+        const bool outer_due = t - s.controller.last_outer >= threshold;
+        if ((outer_due && p->outer == nullptr) || t + tick >= report_at)
+          break; // an outer-loop update the Python side does, or a progress report
         bool done = false;
         try
         {
-          done = one_tick(p, k, s);
+          done = one_tick(p, k, t, outer_due, s);
         }
         catch (const std::exception &)
         {
@@ -442,9 +579,10 @@ namespace
         if (!done)
           break;
       }
-      result = Py_BuildValue("ldlll", k, s.time, s.ticks, s.routes[0], s.routes[1]);
+      result = Py_BuildValue("ldldNll", k, s.time, s.controller.ticks, s.controller.last_outer,
+                             PyBool_FromLong(s.controller.limited), s.routes[0], s.routes[1]);
     }
-    for (int i = 0; i < 7; ++i)
+    for (int i = 0; i < ARRAYS; ++i)
       if (held[i])
         PyBuffer_Release(&views[i]);
     return result;
@@ -452,8 +590,9 @@ namespace
 
   PyMethodDef loop_methods[] = {
     {"run", loop_run, METH_VARARGS,
-     "run(k, stop, qc, vc, w, reference, force, estimate, applied, time, last_outer, outer_threshold, report_at, "
-     "tick) -> (k, time, ticks, closed_form, active_set): the plain ticks from k on (fpr/_native/cpp/loop.cpp)."},
+     "run(k, stop, qc, vc, w, reference, integral, estimate, start, observer_integral, last_mass, last_velocity, "
+     "last_nle, force, applied, ticks, time, last_outer, limited, outer_threshold, report_at, tick) -> (k, time, "
+     "ticks, last_outer, limited, closed_form, active_set): the ticks from k on (fpr/_native/cpp/loop.cpp)."},
     {nullptr, nullptr, 0, nullptr}};
 
   PyType_Slot loop_slots[] = {
