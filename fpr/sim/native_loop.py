@@ -63,8 +63,10 @@ class NativeLoop:
             ticks: the inner-loop ticks' times (n_t,) [s].
             motion: the plan's s_d and its derivatives at the ticks (>= 5, n_t, n_s).
             thrust_vectors: the plan's thrust vectors at the ticks (n_t, n_d, 2) [N].
-            rate, acceleration: the planned attitude rates and accelerations at the ticks (n_t, n_d).
-            dt: the plant's step [s]; steps: plant steps per tick.
+            rate: the planned attitude rates at the ticks (n_t, n_d) [rad/s].
+            acceleration: the planned attitude accelerations at the ticks (n_t, n_d) [rad/s^2].
+            dt: the plant's step [s].
+            steps: plant steps per tick.
             wind: the wind on each drone (3,) [N], or None.
         """
         if not all(native.parts()[part] for part in JOINED_PARTS):
@@ -115,7 +117,8 @@ class NativeLoop:
         observer) then hold, so that the Python side reads what the native ticks left, and the other way round.
 
         Args:
-            k: the first tick; stop: the tick the native loop does not reach (the last tick is the Python side's).
+            k: the first tick.
+            stop: the tick the native loop does not reach (the last tick is the Python side's).
             report_at: the time of the next progress report [s] (inf: none); the tick t with t + tick >= report_at
                 is the Python side's.
             tick: the inner-loop period [s] (the simulation's, as it computes the reports' times).

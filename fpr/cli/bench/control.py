@@ -26,7 +26,8 @@ call and the real-time factor (median of 3 runs, 1 with ``--quick``; the CPU tim
 shared machine), and one more run with timers around the simulator's parts (observe: measure and logged
 kinematics, outer loop, attitude model, allocation, the rest of the inner loop, plant steps, the watch; the
 remainder is the loop itself and the logging) for the per-tick breakdown, with which parts of the tick run
-natively (:mod:`fpr._native`; that run with the part ``loop`` off: the native loop has no timers inside). Then :mod:`fpr.cli.bench.native_parts`: the machine yardstick (the raw
+natively (:mod:`fpr._native`; that run with the part ``loop`` off: the native loop has no timers
+inside). Then :mod:`fpr.cli.bench.native_parts`: the machine yardstick (the raw
 ``pin.crba`` and ``pin.constraintDynamics`` of the FPR), the Pinocchio calls a tick needs, and each native part on
 and off side by side. Goals, each a row of ``targets`` with its value, goal and verdict: the allocation's whole
 call <= 20 us with and without an active bound; the square's whole-simulate RTF normalised by the yardstick (RTF

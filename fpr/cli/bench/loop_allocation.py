@@ -48,7 +48,7 @@ def record_allocations(result, settings: SimulationSettings) -> tuple[list[tuple
 
     Allocator.solve = recording
     try:
-        with native.switched(loop=False):  # every tick's call through Allocator.solve (the native loop calls its kernel)
+        with native.switched(loop=False):  # every tick's call through Allocator.solve (the native loop: its kernel)
             log = simulate(result, settings)
     finally:
         Allocator.solve = original
