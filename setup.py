@@ -84,11 +84,12 @@ def extensions() -> list[Extension]:
     include = prefix / "include"
     version = sysconfig.get_config_var("py_version_nodot")
     cpp = NATIVE / "cpp"
-    sources = [str(cpp / f"{name}.cpp") for name in ("module", "bridge", "plant", "minimal", "measure", "loop",
-                                                            "outer")]
+    sources = [str(cpp / f"{name}.cpp") for name in ("module", "bridge", "plant", "minimal", "measure",
+                                                            "measure_module", "loop", "outer")]
     parts.append(Extension(
         "fpr._native._pinocchio", sources,
-        depends=[str(cpp / "native.hpp"), str(NATIVE / "kernels.h")], language="c++", define_macros=PINOCCHIO_MACROS,
+        depends=[str(cpp / name) for name in ("native.hpp", "arrays.hpp")] + [str(NATIVE / "kernels.h")],
+        language="c++", define_macros=PINOCCHIO_MACROS,
         extra_compile_args=OPTIMISE + WARNINGS + ["-std=c++17", "-ffp-contract=off", f"-isystem{include}",
                                                   f"-isystem{include / 'eigen3'}"] + system,
         library_dirs=[str(prefix / "lib")], libraries=["pinocchio_default", f"boost_python{version}"],

@@ -181,8 +181,8 @@ namespace fpr_native
                     const double * rate, OuterState & s);
 
   // ------------------------------------------------------------------ the Python objects (module.cpp)
-  // The C++ object behind a fpr._native._pinocchio Plant, Minimal or Measure, or nullptr with a TypeError set
-  // (`what` names the argument) when obj is not one or not initialised.
+  // The C++ object behind a fpr._native._pinocchio Plant, Minimal (module.cpp) or Measure (measure_module.cpp), or
+  // nullptr with a TypeError set (`what` names the argument) when obj is not one or not initialised.
   Plant * plant_from(PyObject * obj, const char * what);
   Minimal * minimal_from(PyObject * obj, const char * what);
   Measure * measure_from(PyObject * obj, const char * what);
@@ -190,5 +190,7 @@ namespace fpr_native
   // ------------------------------------------------------------------ the native closed loop (loop.cpp)
   // Adds the type Loop to the module; false with an exception set on failure.
   bool loop_register(PyObject * module);
+  // Adds the type Measure to the module (measure_module.cpp); false with an exception set on failure.
+  bool measure_register(PyObject * module);
 
 } // namespace fpr_native
