@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import fpr
-from fpr import _native as native
 from controllers.ctc import CascadedController, Reference
+from fpr import _native as native
 from fpr.model.inverse_dynamics import inverse_dynamics
 from planners.problem.disturbance import task_jacobian
 
