@@ -6,7 +6,7 @@
   each array's size on the rest), and the Python paths' (every part off) states to 1e-9; the native loop ran
   almost every tick (the first and the last are the Python side's).
 * Variants that change what a native tick computes: no observer, no momentum feedback, a heavier model, a
-  constant wind, the take-off start, weaker rotors; a run the watch stops (the same failure at the same time); a
+  constant wind, the take-off start, weaker rotors, other loop rates, an initial error; a run the watch stops (the same failure at the same time); a
   run where the force limiter acts (its outer updates handed back to Python, the ticks after them native again);
   progress reports every simulated second (handed back, the same reports); a reloaded robot and a copied plant.
 * The switch: the loop runs only with its part and the parts it joins on; a robot kind without a compiled outer
@@ -111,6 +111,9 @@ VARIANTS = {
     "weaker rotors": SimulationSettings(hold=0.3, rotor_constant_scale=0.9),
     "all three off": SimulationSettings(hold=0.3, controller=ControllerSettings(
         observer_bandwidth=0.0, momentum_feedback=False, force_limits=False)),
+    "other rates": SimulationSettings(hold=0.3, plant_rate=2000.0, controller=ControllerSettings(
+        inner_rate=250.0, outer_rate=50.0)),
+    "initial error": SimulationSettings(hold=0.3, initial_error={"y": 0.05, "phi1": 0.1}),
 }
 
 

@@ -14,6 +14,10 @@ bounds in :class:`SimulationSettings`). When one fires the simulation stops ther
 what was simulated, its ``failure`` saying what happened and when; a state that turns non-finite
 (:class:`fpr.sim.plant.PlantDivergedError`) ends the same way.
 
+The ticks run natively when they fit (:mod:`fpr.sim.native_loop`, :mod:`fpr._native`'s part ``loop``: the same
+computation in C++, equal to round-off), the unusual ones (events, noise, a watch that fires, the force limiter,
+progress reports) handed back to the Python loop below, which is their reference.
+
 The :class:`SimulationLog` holds, at every inner-loop tick, what the thesis plots (Fig 3.19-3.32,
 3.42-3.51): the full state, the reference, the rotor speeds commanded and obtained, thrusts,
 torques, desired rolls, saturation flags and the closure error; :meth:`SimulationLog.summary`
