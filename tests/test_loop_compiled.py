@@ -8,7 +8,8 @@
 * Variants that change what a native tick computes: no observer, no momentum feedback, a heavier model, a
   constant wind, the take-off start, weaker rotors, other loop rates, an initial error; a run the watch stops
   (the same failure at the same time); a run where the force limiter acts (its outer updates handed back to
-  Python, the ticks after them native again); progress reports every simulated second (handed back, the same reports); a reloaded robot and a copied plant.
+  Python, the ticks after them native again); progress reports every simulated second (handed back, the same
+  reports); a reloaded robot and a copied plant.
 * The switch: the loop runs only with its part and the parts it joins on; a robot kind without a compiled outer
   loop (the spatial FPR) says so.
 """
