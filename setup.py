@@ -4,6 +4,8 @@
   minimal model's terms by Pinocchio's own algorithms, linked against the ``libpinocchio_default`` library of
   the ``libpinocchio`` wheel (its headers and Boost's from the same wheels, Eigen's from ``cmeel-eigen``: the
   ``[build-system] requires`` of pyproject.toml);
+  and the closed loop's plain ticks (``cpp/loop.cpp``, which calls the C parts' kernels through their capsules,
+  ``kernels.h``);
 * ``fpr._native._alloc``, ``_attitude``, ``_watch``, ``_jets`` (C): the allocation tick and the inner loop's
   float part, the attitude model's numpy part, the watch's screen, the jet products.
 
@@ -74,17 +76,20 @@ def extensions() -> list[Extension]:
         return []
     system = [f"-isystem{numpy_include()}"]  # others' headers: their warnings are not ours
     c_args = OPTIMISE + WARNINGS + ["-std=c11", "-ffp-contract=off"] + system
-    parts = [Extension(f"fpr._native._{name}", [str(NATIVE / f"{name}.c")], depends=[str(NATIVE / "dense.h")],
+    parts = [Extension(f"fpr._native._{name}", [str(NATIVE / f"{name}.c")],
+                       depends=[str(NATIVE / "dense.h"), str(NATIVE / "kernels.h")],
                        extra_compile_args=c_args, extra_link_args=SANITIZERS if SANITIZE else [])
              for name in ("alloc", "attitude", "watch", "jets")]
     prefix = cmeel_prefix()
     include = prefix / "include"
     version = sysconfig.get_config_var("py_version_nodot")
     cpp = NATIVE / "cpp"
-    sources = [str(cpp / f"{name}.cpp") for name in ("module", "bridge", "plant", "minimal", "measure")]
+    sources = [str(cpp / f"{name}.cpp") for name in ("module", "bridge", "plant", "minimal", "measure",
+                                                            "measure_module", "loop", "outer")]
     parts.append(Extension(
         "fpr._native._pinocchio", sources,
-        depends=[str(cpp / "native.hpp")], language="c++", define_macros=PINOCCHIO_MACROS,
+        depends=[str(cpp / name) for name in ("native.hpp", "arrays.hpp")] + [str(NATIVE / "kernels.h")],
+        language="c++", define_macros=PINOCCHIO_MACROS,
         extra_compile_args=OPTIMISE + WARNINGS + ["-std=c++17", "-ffp-contract=off", f"-isystem{include}",
                                                   f"-isystem{include / 'eigen3'}"] + system,
         library_dirs=[str(prefix / "lib")], libraries=["pinocchio_default", f"boost_python{version}"],

@@ -481,6 +481,31 @@ class CascadedController:
         self._attitude_gains()
         return module.inner if self._gains[5] is not None else None  # the kind's word: the compiled part fits
 
+    def native_outer(self):
+        """What the native closed loop's outer-loop updates need (``fpr/_native/cpp/outer.cpp``: :meth:`update`'s
+        outer part, the same operations in the same order): (the point-drone model's native terms, the constants
+        vector), or None when the robot kind's outer loop has no compiled form (its ``compiled_outer_constants``) or
+        the native part is not built (the updates then run in Python).
+
+        The constants: n, n_s, n_d, the kind's solve and its parameter, K_p, K_d, K_i, the integral's bound, the
+        observer's bandwidth, momentum feedback, the singular band, the number of force axes and their world rows,
+        then the chain's indices, the other coordinates', the rolls' places among those, the point model's hinge joints.
+        """
+        r, st = self.robot, self.settings
+        kind_part = r.kind.compiled_outer_constants(st)
+        module = native.module("_pinocchio")
+        point = self._point_robot
+        if kind_part is None or module is None or point.model.nq != point.model.nv:
+            return None
+        n_s = len(self.chain)
+        terms = module.Minimal(point.model, point.model.createData(), self._chain_map, [], np.zeros((0, n_s)), [], [])
+        kp, kd = st.chain_gains
+        axes = ["xyz".index(a) for a in r.kind.force_axes]
+        header = [r.nq, n_s, r.n_drones, kind_part[0], kp, kd, st.chain_integral, st.integral_limit,
+                  st.observer_bandwidth, float(st.momentum_feedback), st.singular_band, kind_part[1], len(axes), *axes]
+        indices = self.chain.tolist() + self._others.tolist() + self._other_rolls.tolist() + list(point.hinge_joint_ids)
+        return terms, np.array(header + indices, dtype=float)
+
     def _inner_tick(self, q, v, reference: Reference):
         """The inner loop's float part on the held force: (thrust, u_a, attitude targets, pitch), natively where
         it fits (:meth:`_inner_python`'s operations, in its order), else in Python.

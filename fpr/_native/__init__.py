@@ -13,7 +13,10 @@ The parts (each the same computation as its Python path, equal to round-off; ``t
   (``cpp/minimal.cpp``), the rest in C (``attitude.c``);
 * ``allocation`` and ``inner``: the allocation tick and the inner loop's float part (``alloc.c``);
 * ``watch``: the watch's screen (``watch.c``);
-* ``jets``: the planner's jet products and small batched solves (``jets.c``).
+* ``jets``: the planner's jet products and small batched solves (``jets.c``);
+* ``loop``: the closed loop's plain ticks between two outer-loop updates in one native call (``cpp/loop.cpp``,
+  :mod:`fpr.sim.native_loop`), each tick by the kernels of the parts above (it runs when they are on too); the
+  ticks it does not do (an outer-loop update, a watch that fires, events, noise...) it hands back to Python.
 
 The switch: the environment variable ``FPR_NATIVE``, read at import, or :func:`configure` (and
 :func:`switched` for a block of code):
@@ -40,7 +43,8 @@ logger = logging.getLogger(__name__)
 
 #: each part and the extension modules it calls (fpr._native.<name>)
 PARTS = {"plant": ("_pinocchio",), "measure": ("_pinocchio",), "attitude": ("_attitude", "_pinocchio"),
-         "allocation": ("_alloc",), "inner": ("_alloc",), "watch": ("_watch",), "jets": ("_jets",)}
+         "allocation": ("_alloc",), "inner": ("_alloc",), "watch": ("_watch",), "jets": ("_jets",),
+         "loop": ("_pinocchio", "_alloc", "_attitude", "_watch")}
 #: how to get the native parts, said by every error that wants one
 BUILD_HINT = "build them with `pip install -e .` (a C++ compiler is needed)"
 

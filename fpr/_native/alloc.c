@@ -34,6 +34,7 @@
 #include <string.h>
 
 #include "dense.h"  /* View, view, AT, cholesky, cholesky_solve */
+#include "kernels.h"  /* FprAllocApi: the kernels for the native loop */
 
 #define MAX_N 32    /* rotor variables (8 drones) */
 #define MAX_A 24    /* attitude rows */
@@ -115,77 +116,52 @@ static PyObject *new_array(int rows, int cols, const double *values, double fact
     return out;
 }
 
-static PyObject *tick(PyObject *self, PyObject *args)
+/* The allocation tick on plain row-major arrays (the kernel of `tick`, also the native loop's through the module's
+ * capsule, kernels.h): m (na x nv), jf (nd x nv), at (na x 3 nd), c (nv), fd (nd), u (na). Returns 1 with the
+ * results (z: w^2 (4 nd), thrust (nd), tau (3 nd), saturation bits, route, iterations; `state` updated), 0 when
+ * the Python reference must decide (`state` untouched), -1 when the constants or the sizes do not fit. */
+static int tick_kernel(const double *m, const double *jf, const double *at, const double *c, int nv,
+                       const double *fd, const double *u, const double *k, long k_len, signed char *state,
+                       double *z, double *thrust, double *tau, unsigned long long *bits_out, int *route_out,
+                       int *iterations_out)
 {
-    (void)self;
-    PyObject *o_m, *o_jf, *o_at, *o_c, *o_f, *o_u, *o_k, *o_state;
-    if (!PyArg_UnpackTuple(args, "tick", 8, 8, &o_m, &o_jf, &o_at, &o_c, &o_f, &o_u, &o_k, &o_state))
-        return NULL;
-    npy_intp k_len = 0;
-    const double *k = constants_of(o_k, &k_len);
-    if (k == NULL || !PyArray_Check(o_state) || PyArray_TYPE((PyArrayObject *)o_state) != NPY_INT8
-        || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o_state) || !PyArray_ISWRITEABLE((PyArrayObject *)o_state)) {
-        PyErr_SetString(PyExc_TypeError, "tick: constants must be contiguous float64, state writable int8");
-        return NULL;
-    }
-    if (k_len < HEADER) goto bad_constants;
+    if (k_len < HEADER) return -1;
     const int nd = (int)k[0], na = (int)k[1], n = 4 * nd, nt = 3 * nd;
     const double scale = k[2], tol = k[3], reg = k[4];
     const int unit_weight = k[5] != 0.0;
-    if (nd < 1 || n > MAX_N || na < 1 || na > MAX_A
-        || k_len != HEADER + na + n * nd + n * nt + nd * n + nt * n + n * n + n * nd
-        || PyArray_SIZE((PyArrayObject *)o_state) != n)
-        goto bad_constants;
+    if (nd < 1 || n > MAX_N || na < 1 || na > MAX_A || nv < 1 || nv > MAX_V
+        || k_len != HEADER + na + n * nd + n * nt + nd * n + nt * n + n * n + n * nd)
+        return -1;
     const double *w_a = k + HEADER, *inv_f = w_a + na, *inv_tau = inv_f + n * nd, *ssf = inv_tau + n * nt,
                  *sst = ssf + nd * n, *hconst = sst + nt * n, *thrust_g = hconst + n * n;
-    signed char *state = (signed char *)PyArray_DATA((PyArrayObject *)o_state);
-
-    View m = {0}, jf = {0}, at = {0}, c = {0}, f = {0}, u = {0};
-    PyObject *result = NULL;
-    if (!view(o_m, 2, &m) || !view(o_jf, 2, &jf) || !view(o_at, 2, &at) || !view(o_c, 1, &c)
-        || !view(o_f, 1, &f) || !view(o_u, 1, &u))
-        goto done;
-    const int nv = (int)m.cols;
-    if (m.rows != na || nv > MAX_V || jf.rows != nd || jf.cols != nv || at.rows != na || at.cols != nt
-        || c.cols != nv || f.cols != nd || u.cols != na) {
-        PyErr_SetString(PyExc_ValueError, "tick: the attitude model's or the inputs' shapes do not fit");
-        goto done;
-    }
-
-    double gram[MAX_A * MAX_A], rg[MAX_A * MAX_A], z[MAX_N], tau[MAX_N], thrust[MAX_N], zeta[MAX_N];
-    double fd[MAX_N];
-    for (int i = 0; i < nd; i++) fd[i] = AT(f, 0, i);
+    double gram[MAX_A * MAX_A], rg[MAX_A * MAX_A], zeta[MAX_N];
     for (int i = 0; i < na; i++)  /* A_tau A_tau^T: its upper triangle (the Cholesky reads it) */
         for (int j = i; j < na; j++) {
             double s = 0.0;
-            for (int p = 0; p < nt; p++) s += AT(at, i, p) * AT(at, j, p);
+            for (int p = 0; p < nt; p++) s += at[i * nt + p] * at[j * nt + p];
             gram[i * na + j] = s;
         }
-    if (!cholesky(gram, na, na, rg)) {  /* rank deficient (never on these robots): the Python path's pinv */
-        result = Py_None;
-        Py_INCREF(result);
-        goto done;
-    }
-    int bounded = 0, route, iterations = 0;
+    if (!cholesky(gram, na, na, rg)) return 0;  /* rank deficient (never on these robots): the Python path's pinv */
+    int bounded = 0, iterations = 0;
     for (int i = 0; i < n; i++) bounded |= state[i] != FREE;
     signed char guess[MAX_N];
     memcpy(guess, state, n);
     if (!bounded) {  /* route 1: the law; tau = A_tau^T (A A^T)^-1 (u_a + M_inv,a (c - J_f^T f_d)) */
         double y[MAX_V], x[MAX_A];
         for (int p = 0; p < nv; p++) {
-            double s = AT(c, 0, p);
-            for (int i = 0; i < nd; i++) s -= AT(jf, i, p) * fd[i];
+            double s = c[p];
+            for (int i = 0; i < nd; i++) s -= jf[i * nv + p] * fd[i];
             y[p] = s;
         }
         for (int i = 0; i < na; i++) {
             double s = 0.0;
-            for (int p = 0; p < nv; p++) s += AT(m, i, p) * y[p];
-            x[i] = AT(u, 0, i) + s;
+            for (int p = 0; p < nv; p++) s += m[i * nv + p] * y[p];
+            x[i] = u[i] + s;
         }
         cholesky_solve(rg, na, x);
         for (int p = 0; p < nt; p++) {
             double s = 0.0;
-            for (int i = 0; i < na; i++) s += AT(at, i, p) * x[i];
+            for (int i = 0; i < na; i++) s += at[i * nt + p] * x[i];
             tau[p] = s;
         }
         double lowest = INFINITY, highest = -INFINITY;
@@ -199,21 +175,17 @@ static PyObject *tick(PyObject *self, PyObject *args)
             if (s < lowest) lowest = s;
             if (s > highest) highest = s;
         }
-        if (!finite) {  /* a non-finite input: the Python path decides (the reference's behaviour) */
-            result = Py_None;
-            Py_INCREF(result);
-            goto done;
-        }
+        if (!finite) return 0;  /* a non-finite input: the Python path decides (the reference's behaviour) */
         if (lowest >= 0.0 && highest <= scale) {
             unsigned long long bits = 0;
             if (!(lowest > tol && highest < scale - tol))
                 for (int i = 0; i < n; i++)
                     if (z[i] <= tol || z[i] >= scale - tol) bits |= 1ULL << i;
             memcpy(thrust, fd, sizeof(double) * nd);
-            route = 0;
-            result = Py_BuildValue("iiNNNK", route, 0, new_array(nd, 4, z, 1.0), new_array(nd, 0, thrust, 1.0),
-                                   new_array(nd, 3, tau, 1.0), bits);
-            goto done;
+            *bits_out = bits;
+            *route_out = 0;
+            *iterations_out = 0;
+            return 1;
         }
         for (int i = 0; i < n; i++) guess[i] = z[i] < 0.0 ? AT_LOWER : z[i] > scale ? AT_UPPER : FREE;
     }
@@ -223,19 +195,19 @@ static PyObject *tick(PyObject *self, PyObject *args)
     for (int i = 0; i < na; i++) {
         for (int j = 0; j < nd; j++) {  /* M_inv,a J_f^T */
             double s = 0.0;
-            for (int p = 0; p < nv; p++) s += AT(m, i, p) * AT(jf, j, p);
+            for (int p = 0; p < nv; p++) s += m[i * nv + p] * jf[j * nv + p];
             mj[i * nd + j] = s;
         }
         for (int j = 0; j < n; j++) {  /* B = A_tau S_tau, A = B + M_inv,a J_f^T S_f (scaled) */
             double s = 0.0, t = 0.0;
-            for (int p = 0; p < nt; p++) s += AT(at, i, p) * sst[p * n + j];
+            for (int p = 0; p < nt; p++) s += at[i * nt + p] * sst[p * n + j];
             for (int p = 0; p < nd; p++) t += mj[i * nd + p] * ssf[p * n + j];
             b[i * n + j] = s;
             a[i * n + j] = s + t;
         }
         double s = 0.0;
-        for (int p = 0; p < nv; p++) s += AT(m, i, p) * AT(c, 0, p);
-        r[i] = AT(u, 0, i) + s;
+        for (int p = 0; p < nv; p++) s += m[i * nv + p] * c[p];
+        r[i] = u[i] + s;
         if (!unit_weight) {
             for (int j = 0; j < n; j++) a[i * n + j] *= w_a[i];
             r[i] *= w_a[i];
@@ -264,11 +236,7 @@ static PyObject *tick(PyObject *self, PyObject *args)
     for (int i = 0; i < n * n; i++) finite &= isfinite(h[i]) != 0;
     for (int i = 0; i < n; i++) finite &= isfinite(g[i]) != 0;
     iterations = finite ? active_set(h, g, n, guess, 12, 1e-12, zeta) : 0;
-    if (iterations == 0) {  /* cycled, singular or not finite: the Python path (its ProxQP fallback) decides */
-        result = Py_None;
-        Py_INCREF(result);
-        goto done;
-    }
+    if (iterations == 0) return 0;  /* cycled, singular or not finite: the Python path (its ProxQP) decides */
     int any = 0;
     for (int i = 0; i < n; i++) any |= guess[i] != FREE;
     if (any) memcpy(state, guess, n);
@@ -287,9 +255,73 @@ static PyObject *tick(PyObject *self, PyObject *args)
         for (int j = 0; j < n; j++) s += sst[i * n + j] * zeta[j];
         tau[i] = s;
     }
-    route = 1;
-    result = Py_BuildValue("iiNNNK", route, iterations, new_array(nd, 4, zeta, scale),
-                           new_array(nd, 0, thrust, 1.0), new_array(nd, 3, tau, 1.0), bits);
+    for (int i = 0; i < n; i++) z[i] = zeta[i] * scale;
+    *bits_out = bits;
+    *route_out = 1;
+    *iterations_out = iterations;
+    return 1;
+}
+
+/* A row-major copy of a view (rows x cols) into out */
+static void copy_view(const View *v, double *out)
+{
+    for (npy_intp i = 0; i < v->rows; i++)
+        for (npy_intp j = 0; j < v->cols; j++) out[i * v->cols + j] = AT(*v, i, j);
+}
+
+static PyObject *tick(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *o_m, *o_jf, *o_at, *o_c, *o_f, *o_u, *o_k, *o_state;
+    if (!PyArg_UnpackTuple(args, "tick", 8, 8, &o_m, &o_jf, &o_at, &o_c, &o_f, &o_u, &o_k, &o_state))
+        return NULL;
+    npy_intp k_len = 0;
+    const double *k = constants_of(o_k, &k_len);
+    if (k == NULL || !PyArray_Check(o_state) || PyArray_TYPE((PyArrayObject *)o_state) != NPY_INT8
+        || !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)o_state) || !PyArray_ISWRITEABLE((PyArrayObject *)o_state)) {
+        PyErr_SetString(PyExc_TypeError, "tick: constants must be contiguous float64, state writable int8");
+        return NULL;
+    }
+    if (k_len < HEADER) goto bad_constants;
+    const int nd = (int)k[0], na = (int)k[1], n = 4 * nd, nt = 3 * nd;
+    if (nd < 1 || n > MAX_N || na < 1 || na > MAX_A || PyArray_SIZE((PyArrayObject *)o_state) != n)
+        goto bad_constants;
+    signed char *state = (signed char *)PyArray_DATA((PyArrayObject *)o_state);
+
+    View m = {0}, jf = {0}, at = {0}, c = {0}, f = {0}, u = {0};
+    PyObject *result = NULL;
+    if (!view(o_m, 2, &m) || !view(o_jf, 2, &jf) || !view(o_at, 2, &at) || !view(o_c, 1, &c)
+        || !view(o_f, 1, &f) || !view(o_u, 1, &u))
+        goto done;
+    const int nv = (int)m.cols;
+    if (m.rows != na || nv > MAX_V || jf.rows != nd || jf.cols != nv || at.rows != na || at.cols != nt
+        || c.cols != nv || f.cols != nd || u.cols != na) {
+        PyErr_SetString(PyExc_ValueError, "tick: the attitude model's or the inputs' shapes do not fit");
+        goto done;
+    }
+    double mc[MAX_A * MAX_V], jfc[MAX_N * MAX_V], atc[MAX_A * MAX_N], cc[MAX_V], fd[MAX_N], uc[MAX_A];
+    double z[MAX_N], thrust[MAX_N], tau[MAX_N];
+    copy_view(&m, mc);
+    copy_view(&jf, jfc);
+    copy_view(&at, atc);
+    copy_view(&c, cc);
+    copy_view(&f, fd);
+    copy_view(&u, uc);
+    unsigned long long bits = 0;
+    int route = 0, iterations = 0;
+    const int found = tick_kernel(mc, jfc, atc, cc, nv, fd, uc, k, (long)k_len, state, z, thrust, tau, &bits,
+                                  &route, &iterations);
+    if (found < 0) {
+        PyErr_SetString(PyExc_ValueError, "tick: the constants vector does not fit its header");
+        goto done;
+    }
+    if (found == 0) {
+        result = Py_None;
+        Py_INCREF(result);
+        goto done;
+    }
+    result = Py_BuildValue("iiNNNK", route, iterations, new_array(nd, 4, z, 1.0), new_array(nd, 0, thrust, 1.0),
+                           new_array(nd, 3, tau, 1.0), bits);
 done:
     Py_XDECREF(m.array);
     Py_XDECREF(jf.array);
@@ -366,6 +398,53 @@ static double (*volatile libm_sin)(double) = sin;
 static double (*volatile libm_cos)(double) = cos;
 static double (*volatile libm_pow)(double, double) = pow;
 
+/* The inner loop's float part on plain arrays (the kernel of `inner`, also the native loop's through the module's
+ * capsule, kernels.h): q, v (n), force (nd x 2, row-major), rate, acc (nd). Returns 1 with thrust (nd), u_a
+ * (nd + 2), target (nd: the drones' desired rolls) and pitch; 0 when a result is not finite (the Python reference
+ * then decides); -1 when the constants do not fit q (their indices out of range) or their header. */
+static int inner_kernel(const double *q, const double *v, int n, const double *force, const double *rv,
+                        const double *av, const double *k, long k_len, double *thrust, double *u_a, double *roll,
+                        double *pitch_out)
+{
+    if (k_len < INNER_HEADER) return -1;
+    const int nd = (int)k[0], na = nd + 2, lateral = k[1] != 0.0, ix = (int)k[2];
+    const double kp_lat = k[3], kd_lat = k[4], pitch_gain = k[5], max_pitch = k[6];
+    if (nd < 1 || nd > MAX_A - 2 || k_len != INNER_HEADER + nd + na + nd + 2 * na) return -1;
+    const double *rolls = k + INNER_HEADER, *att = rolls + nd, *md = att + na, *kp = md + nd, *kd = kp + na;
+    int ok = !lateral || (ix >= 0 && ix < n);
+    for (int i = 0; i < nd; i++) ok = ok && rolls[i] >= 0 && rolls[i] < n;
+    for (int i = 0; i < na; i++) ok = ok && att[i] >= 0 && att[i] < n;
+    if (!ok) return -1;
+    double target[MAX_A], rate[MAX_A], acc[MAX_A];
+    for (int i = 0; i < nd; i++) {
+        const double fy = force[2 * i], fz = force[2 * i + 1], phi = q[(int)rolls[i]], dphi = v[(int)rolls[i]];
+        target[2 + i] = atan2(-fy, fz);  /* (2.20) */
+        thrust[i] = -libm_sin(phi) * fy + libm_cos(phi) * fz - md[i] * libm_pow(dphi, 2.0);
+        rate[2 + i] = rv[i];
+        acc[2 + i] = av[i];
+    }
+    double pitch = 0.0;
+    if (lateral) {
+        pitch = (-kp_lat * q[ix] - kd_lat * v[ix]) / pitch_gain;
+        if (-max_pitch > pitch) pitch = -max_pitch;  /* min(max(pitch, -max_pitch), max_pitch), as Python's */
+        if (max_pitch < pitch) pitch = max_pitch;
+    }
+    target[0] = 0.0, target[1] = pitch, rate[0] = rate[1] = acc[0] = acc[1] = 0.0;
+    for (int a = 0; a < na; a++) {
+        const int i = (int)att[a];
+        double error = q[i] - target[a];
+        if (a >= 2) error = remainder(error, 2 * Py_MATH_PI);  /* rolls: the shortest angle */
+        u_a[a] = acc[a] - kp[a] * error - kd[a] * (v[i] - rate[a]);
+    }
+    int finite = isfinite(pitch);
+    for (int i = 0; i < nd; i++) finite = finite && isfinite(thrust[i]) && isfinite(target[2 + i]);
+    for (int a = 0; a < na; a++) finite = finite && isfinite(u_a[a]);
+    if (!finite) return 0;  /* overflow or a non-finite state: the Python reference decides (it may raise) */
+    for (int i = 0; i < nd; i++) roll[i] = target[2 + i];
+    *pitch_out = pitch;
+    return 1;
+}
+
 static PyObject *inner(PyObject *self, PyObject *args)
 {
     (void)self;
@@ -377,59 +456,40 @@ static PyObject *inner(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_TypeError, "inner: constants must be a contiguous float64 vector");
         return NULL;
     }
-    const int nd = (int)k[0], na = nd + 2, lateral = k[1] != 0.0, ix = (int)k[2];
-    const double kp_lat = k[3], kd_lat = k[4], pitch_gain = k[5], max_pitch = k[6];
+    const int nd = (int)k[0], na = nd + 2;
     View qv = {0}, vv = {0}, fv = {0}, rv = {0}, av = {0};
     PyObject *result = NULL;
     if (nd < 1 || nd > MAX_A - 2 || k_len != INNER_HEADER + nd + na + nd + 2 * na) {
         PyErr_SetString(PyExc_ValueError, "inner: the constants vector does not fit its header");
         return NULL;
     }
-    const double *rolls = k + INNER_HEADER, *att = rolls + nd, *md = att + na, *kp = md + nd, *kd = kp + na;
     if (!view(o[0], 1, &qv) || !view(o[1], 1, &vv) || !view(o[2], 2, &fv) || !view(o[3], 1, &rv)
         || !view(o[4], 1, &av))
         goto done;
     const npy_intp n = qv.cols;
-    int ok = vv.cols == n && fv.rows == nd && fv.cols == 2 && rv.cols == nd && av.cols == nd
-             && (!lateral || (ix >= 0 && ix < n));
-    for (int i = 0; i < nd; i++) ok = ok && rolls[i] >= 0 && rolls[i] < n;
-    for (int i = 0; i < na; i++) ok = ok && att[i] >= 0 && att[i] < n;
-    if (!ok) {
+    if (!(vv.cols == n && n <= MAX_V && fv.rows == nd && fv.cols == 2 && rv.cols == nd && av.cols == nd)) {
         PyErr_SetString(PyExc_ValueError, "inner: q, v, force, roll_rate or roll_acceleration do not fit");
         goto done;
     }
-    double thrust[MAX_A], u_a[MAX_A], target[MAX_A], rate[MAX_A], acc[MAX_A];
-    for (int i = 0; i < nd; i++) {
-        const double fy = AT(fv, i, 0), fz = AT(fv, i, 1), phi = AT(qv, 0, (npy_intp)rolls[i]),
-                     dphi = AT(vv, 0, (npy_intp)rolls[i]);
-        target[2 + i] = atan2(-fy, fz);  /* (2.20) */
-        thrust[i] = -libm_sin(phi) * fy + libm_cos(phi) * fz - md[i] * libm_pow(dphi, 2.0);
-        rate[2 + i] = AT(rv, 0, i);
-        acc[2 + i] = AT(av, 0, i);
+    double qc[MAX_V], vc[MAX_V], fc[2 * MAX_A], rc[MAX_A], ac[MAX_A];
+    copy_view(&qv, qc);
+    copy_view(&vv, vc);
+    copy_view(&fv, fc);
+    copy_view(&rv, rc);
+    copy_view(&av, ac);
+    double thrust[MAX_A], u_a[MAX_A], roll[MAX_A], pitch = 0.0;
+    const int found = inner_kernel(qc, vc, (int)n, fc, rc, ac, k, (long)k_len, thrust, u_a, roll, &pitch);
+    if (found < 0) {
+        PyErr_SetString(PyExc_ValueError, "inner: q, v, force, roll_rate or roll_acceleration do not fit");
+        goto done;
     }
-    double pitch = 0.0;
-    if (lateral) {
-        pitch = (-kp_lat * AT(qv, 0, ix) - kd_lat * AT(vv, 0, ix)) / pitch_gain;
-        if (-max_pitch > pitch) pitch = -max_pitch;  /* min(max(pitch, -max_pitch), max_pitch), as Python's */
-        if (max_pitch < pitch) pitch = max_pitch;
-    }
-    target[0] = 0.0, target[1] = pitch, rate[0] = rate[1] = acc[0] = acc[1] = 0.0;
-    for (int a = 0; a < na; a++) {
-        const npy_intp i = (npy_intp)att[a];
-        double error = AT(qv, 0, i) - target[a];
-        if (a >= 2) error = remainder(error, 2 * Py_MATH_PI);  /* rolls: the shortest angle */
-        u_a[a] = acc[a] - kp[a] * error - kd[a] * (AT(vv, 0, i) - rate[a]);
-    }
-    int finite = isfinite(pitch);
-    for (int i = 0; i < nd; i++) finite = finite && isfinite(thrust[i]) && isfinite(target[2 + i]);
-    for (int a = 0; a < na; a++) finite = finite && isfinite(u_a[a]);
-    if (!finite) {  /* overflow or a non-finite state: the Python reference decides (it may raise) */
+    if (found == 0) {
         Py_INCREF(Py_None);
         result = Py_None;
         goto done;
     }
     PyObject *o_t = new_array(nd, 0, thrust, 1.0), *o_u = new_array(na, 0, u_a, 1.0),
-             *o_r = new_array(nd, 0, target + 2, 1.0);
+             *o_r = new_array(nd, 0, roll, 1.0);
     if (o_t != NULL && o_u != NULL && o_r != NULL) result = Py_BuildValue("NNNd", o_t, o_u, o_r, pitch);
     else {
         Py_XDECREF(o_t);
@@ -444,6 +504,8 @@ done:
     Py_XDECREF(av.array);
     return result;
 }
+
+static const FprAllocApi alloc_api = {FPR_KERNELS_VERSION, tick_kernel, inner_kernel};
 
 static PyMethodDef methods[] = {
     {"tick", tick, METH_VARARGS, "One allocation tick (see the module's C source): a tuple or None."},
@@ -465,5 +527,11 @@ PyMODINIT_FUNC PyInit__alloc(void)
     PyModule_AddIntConstant(mod, "MAX_ROTORS", MAX_N);
     PyModule_AddIntConstant(mod, "MAX_ATTITUDE", MAX_A);
     PyModule_AddIntConstant(mod, "MAX_COORDINATES", MAX_V);
+    PyObject *capsule = PyCapsule_New((void *)&alloc_api, "fpr._native._alloc._C_API", NULL);
+    if (capsule == NULL || PyModule_AddObject(mod, "_C_API", capsule) < 0) {
+        Py_XDECREF(capsule);
+        Py_DECREF(mod);
+        return NULL;
+    }
     return mod;
 }

@@ -21,6 +21,7 @@
 #include <math.h>
 
 #include "dense.h"  /* View, view, AT, cholesky, cholesky_solve */
+#include "kernels.h"  /* FprAttitudeApi: the kernel for the native loop */
 
 #define MAX_V 64     /* coordinates */
 #define MAX_D 16     /* drones */
@@ -49,59 +50,37 @@ static PyObject *new_array(int rows, int cols, double **data)
     return out;
 }
 
-static PyObject *post(PyObject *self, PyObject *args)
+/* The attitude model on plain row-major arrays (the kernel of `post`, also the native loop's through the module's
+ * capsule, kernels.h): m_p (n x n, upper triangle read), nle_p (n), jacobians (n_d x 6 x n). Returns 1 with
+ * m_inv_a (n_a x n), j_tau (3 n_d x n), j_f (n_d x n), a_tau (n_a x 3 n_d), c (n); 0 when M_p is not positive
+ * definite (or not finite); -1 when the constants do not fit their header. */
+static int post_kernel(const double *m_p, const double *nle, const double *jac, const double *k, long k_len,
+                       double *mi, double *jt, double *jf, double *at, double *cc)
 {
-    (void)self;
-    PyObject *o_m, *o_c, *o_j, *o_k;
-    if (!PyArg_UnpackTuple(args, "post", 4, 4, &o_m, &o_c, &o_j, &o_k)) return NULL;
-    npy_intp k_len = 0;
-    const double *k = constants_of(o_k, &k_len);
-    if (k == NULL || !PyTuple_Check(o_j)) {
-        PyErr_SetString(PyExc_TypeError, "post: constants must be contiguous float64, jacobians a tuple");
-        return NULL;
-    }
-    if (k_len < HEADER) goto bad_constants;
+    if (k_len < HEADER) return -1;
     const int n = (int)k[0], nd = (int)k[1], na = (int)k[2], nt = 3 * nd;
-    if (n < 1 || n > MAX_V || nd < 1 || nd > MAX_D || na < 1 || na > n || k_len != HEADER + na + 2 * n * n
-        || PyTuple_GET_SIZE(o_j) != nd)
-        goto bad_constants;
+    if (n < 1 || n > MAX_V || nd < 1 || nd > MAX_D || na < 1 || na > n || k_len != HEADER + na + 2 * n * n)
+        return -1;
     const double *idx = k + HEADER, *t = idx + na, *t_inv = t + n * n;
     for (int a = 0; a < na; a++)
-        if (!(idx[a] >= 0 && idx[a] < n)) goto bad_constants;
-
-    View mv = {0}, cv = {0}, jv[MAX_D] = {{0}};
-    PyObject *result = NULL, *o_mi = NULL, *o_jt = NULL, *o_jf = NULL, *o_at = NULL, *o_cc = NULL;
-    if (!shaped_view(o_m, n, n, &mv) || !shaped_view(o_c, n, 0, &cv)) goto done;
-    for (int d = 0; d < nd; d++)
-        if (!shaped_view(PyTuple_GET_ITEM(o_j, d), 6, n, &jv[d])) goto done;
-
-    /* Cholesky M_p = R^T R (R upper, row-major), M_p's upper triangle read (copied contiguous) */
-    double mp[MAX_V * MAX_V], r[MAX_V * MAX_V];
-    for (int i = 0; i < n; i++)
-        for (int j = i; j < n; j++) mp[i * n + j] = AT(mv, i, j);
-    if (!cholesky(mp, n, n, r)) {  /* not positive definite, or not finite: the Python path decides */
-        result = Py_None;
-        Py_INCREF(result);
-        goto done;
-    }
-    double *mi, *jt, *jf, *at, *cc;
-    if ((o_mi = new_array(na, n, &mi)) == NULL || (o_jt = new_array(nt, n, &jt)) == NULL
-        || (o_jf = new_array(nd, n, &jf)) == NULL || (o_at = new_array(na, nt, &at)) == NULL
-        || (o_cc = new_array(n, 0, &cc)) == NULL)
-        goto done;
+        if (!(idx[a] >= 0 && idx[a] < n)) return -1;
+    /* Cholesky M_p = R^T R (R upper, row-major), M_p's upper triangle read */
+    double r[MAX_V * MAX_V];
+    if (!cholesky(m_p, n, n, r)) return 0;  /* not positive definite, or not finite: the Python path decides */
     /* c = T^T nle_p */
     for (int i = 0; i < n; i++) {
         double s = 0.0;
-        for (int j = 0; j < n; j++) s += t[j * n + i] * AT(cv, 0, j);
+        for (int j = 0; j < n; j++) s += t[j * n + i] * nle[j];
         cc[i] = s;
     }
     /* each drone's rows of J T: thrust (row 2), torques (rows 3-5) */
     for (int d = 0; d < nd; d++)
         for (int row = 2; row < 6; row++) {
             double *out = row == 2 ? jf + d * n : jt + (3 * d + row - 3) * n;
+            const double *jrow = jac + (d * 6 + row) * n;
             for (int i = 0; i < n; i++) {
                 double s = 0.0;
-                for (int j = 0; j < n; j++) s += AT(jv[d], row, j) * t[j * n + i];
+                for (int j = 0; j < n; j++) s += jrow[j] * t[j * n + i];
                 out[i] = s;
             }
         }
@@ -123,6 +102,54 @@ static PyObject *post(PyObject *self, PyObject *args)
             at[a * nt + b] = s;
         }
     }
+    return 1;
+}
+
+static PyObject *post(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *o_m, *o_c, *o_j, *o_k;
+    if (!PyArg_UnpackTuple(args, "post", 4, 4, &o_m, &o_c, &o_j, &o_k)) return NULL;
+    npy_intp k_len = 0;
+    const double *k = constants_of(o_k, &k_len);
+    if (k == NULL || !PyTuple_Check(o_j)) {
+        PyErr_SetString(PyExc_TypeError, "post: constants must be contiguous float64, jacobians a tuple");
+        return NULL;
+    }
+    if (k_len < HEADER) goto bad_constants;
+    const int n = (int)k[0], nd = (int)k[1], na = (int)k[2], nt = 3 * nd;
+    if (n < 1 || n > MAX_V || nd < 1 || nd > MAX_D || na < 1 || na > n || k_len != HEADER + na + 2 * n * n
+        || PyTuple_GET_SIZE(o_j) != nd)
+        goto bad_constants;
+
+    View mv = {0}, cv = {0}, jv[MAX_D] = {{0}};
+    PyObject *result = NULL, *o_mi = NULL, *o_jt = NULL, *o_jf = NULL, *o_at = NULL, *o_cc = NULL;
+    if (!shaped_view(o_m, n, n, &mv) || !shaped_view(o_c, n, 0, &cv)) goto done;
+    for (int d = 0; d < nd; d++)
+        if (!shaped_view(PyTuple_GET_ITEM(o_j, d), 6, n, &jv[d])) goto done;
+    double mp[MAX_V * MAX_V], nle[MAX_V], jac[MAX_D * 6 * MAX_V];
+    for (int i = 0; i < n; i++) {
+        nle[i] = AT(cv, 0, i);
+        for (int j = 0; j < n; j++) mp[i * n + j] = j >= i ? AT(mv, i, j) : 0.0;
+    }
+    for (int d = 0; d < nd; d++)
+        for (int row = 0; row < 6; row++)
+            for (int j = 0; j < n; j++) jac[(d * 6 + row) * n + j] = AT(jv[d], row, j);
+    double *mi, *jt, *jf, *at, *cc;
+    if ((o_mi = new_array(na, n, &mi)) == NULL || (o_jt = new_array(nt, n, &jt)) == NULL
+        || (o_jf = new_array(nd, n, &jf)) == NULL || (o_at = new_array(na, nt, &at)) == NULL
+        || (o_cc = new_array(n, 0, &cc)) == NULL)
+        goto done;
+    const int found = post_kernel(mp, nle, jac, k, (long)k_len, mi, jt, jf, at, cc);
+    if (found < 0) {
+        PyErr_SetString(PyExc_ValueError, "post: the constants vector does not fit its header or the jacobians");
+        goto done;
+    }
+    if (found == 0) {
+        result = Py_None;
+        Py_INCREF(result);
+        goto done;
+    }
     result = PyTuple_Pack(5, o_mi, o_jt, o_jf, o_at, o_cc);
 done:
     Py_XDECREF(o_mi);
@@ -140,6 +167,8 @@ bad_constants:
     return NULL;
 }
 
+static const FprAttitudeApi attitude_api = {FPR_KERNELS_VERSION, post_kernel};
+
 static PyMethodDef methods[] = {
     {"post", post, METH_VARARGS, "The attitude model from Pinocchio's outputs (see the module's C source)."},
     {NULL, NULL, 0, NULL}};
@@ -155,5 +184,11 @@ PyMODINIT_FUNC PyInit__attitude(void)
     if (mod == NULL) return NULL;
     PyModule_AddIntConstant(mod, "MAX_COORDINATES", MAX_V);
     PyModule_AddIntConstant(mod, "MAX_DRONES", MAX_D);
+    PyObject *capsule = PyCapsule_New((void *)&attitude_api, "fpr._native._attitude._C_API", NULL);
+    if (capsule == NULL || PyModule_AddObject(mod, "_C_API", capsule) < 0) {
+        Py_XDECREF(capsule);
+        Py_DECREF(mod);
+        return NULL;
+    }
     return mod;
 }

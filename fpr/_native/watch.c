@@ -17,6 +17,7 @@
 #include <math.h>
 
 #include "dense.h"  /* constants_of */
+#include "kernels.h"  /* FprWatchApi: the kernel for the native loop */
 
 #define HEADER 8
 
@@ -26,57 +27,44 @@ static PyArrayObject *vector(PyObject *obj)
     return (PyArrayObject *)PyArray_FROM_OTF(obj, NPY_DOUBLE, NPY_ARRAY_IN_ARRAY);
 }
 
-static int all_finite(PyArrayObject *a)
+static int all_finite(const double *d, long n)
 {
-    const double *d = (const double *)PyArray_DATA(a);
-    const npy_intp n = PyArray_SIZE(a);
-    for (npy_intp i = 0; i < n; i++)
+    for (long i = 0; i < n; i++)
         if (!isfinite(d[i])) return 0;
     return 1;
 }
 
-static int screen(PyArrayObject *qa, PyArrayObject *va, PyArrayObject *qm, PyArrayObject *vm, PyArrayObject *pa,
-                  double closure_error, PyArrayObject *sa, const double *k, npy_intp k_len)
+/* The screen on plain arrays (the kernel of `may_be_lost`, also the native loop's through the module's capsule,
+ * kernels.h): 1 when the robot may be lost, 0 when not, -1 when the constants do not fit the state. */
+static int screen_kernel(const double *qc, long nqc, const double *vc, long nvc, const double *q, const double *v,
+                         long nq, const double *pos, long nd, double closure_error, const double *planned, long ns_in,
+                         const double *k, long k_len)
 {
-    if (!all_finite(qa) || !all_finite(va) || !all_finite(qm) || !all_finite(vm)) return 1;
-    const double *qc = (const double *)PyArray_DATA(qa), *vc = (const double *)PyArray_DATA(va),
-                 *q = (const double *)PyArray_DATA(qm), *pos = (const double *)PyArray_DATA(pa),
-                 *planned = (const double *)PyArray_DATA(sa);
-    const npy_intp nqc = PyArray_SIZE(qa), nvc = PyArray_SIZE(va), nq = PyArray_SIZE(qm);
+    if (k_len < HEADER) return -1;
     const double floor = k[0], closure = k[1], speed = k[2], rate = k[3], lowest = k[4], bound = k[5];
     const int nf = (int)k[6], ns = (int)k[7];
-    if (k_len != HEADER + 5 * nf + ns || PyArray_SIZE(sa) != ns || PyArray_NDIM(pa) != 2
-        || PyArray_DIM(pa, 1) != 3) {
-        PyErr_SetString(PyExc_ValueError, "may_be_lost: the constants do not fit the state");
-        return -1;
-    }
+    if (k_len != HEADER + 5 * nf + ns || ns_in != ns) return -1;
     const double *flyers = k + HEADER, *chain = flyers + 5 * nf;
     for (int f = 0; f < nf; f++) {
-        const npy_intp iq = (npy_intp)flyers[5 * f], iv = (npy_intp)flyers[5 * f + 1];
-        if (iq < 0 || iq + 7 > nqc || iv < 0 || iv + 6 > nvc) {
-            PyErr_SetString(PyExc_ValueError, "may_be_lost: a free flyer outside the state");
-            return -1;
-        }
+        const long iq = (long)flyers[5 * f], iv = (long)flyers[5 * f + 1];
+        if (iq < 0 || iq + 7 > nqc || iv < 0 || iv + 6 > nvc) return -1;
     }
     for (int i = 0; i < ns; i++)
-        if (!(chain[i] >= 0 && chain[i] < nq)) {
-            PyErr_SetString(PyExc_ValueError, "may_be_lost: a chain index outside q");
-            return -1;
-        }
+        if (!(chain[i] >= 0 && chain[i] < nq)) return -1;
+    if (!all_finite(qc, nqc) || !all_finite(vc, nvc) || !all_finite(q, nq) || !all_finite(v, nq)) return 1;
     for (int f = 0; f < nf; f++)
-        if (qc[(npy_intp)flyers[5 * f] + 2] < floor) return 1;  /* hinge heights */
-    const npy_intp nd = PyArray_DIM(pa, 0);
-    for (npy_intp d = 0; d < nd; d++)
+        if (qc[(long)flyers[5 * f] + 2] < floor) return 1;  /* hinge heights */
+    for (long d = 0; d < nd; d++)
         if (pos[3 * d + 2] < floor) return 1;  /* centres of mass */
     if (!(closure_error <= closure)) return 1;
     for (int f = 0; f < nf; f++) {
-        const double *w = vc + (npy_intp)flyers[5 * f + 1];
+        const double *w = vc + (long)flyers[5 * f + 1];
         if (w[0] * w[0] + w[1] * w[1] + w[2] * w[2] > speed || w[3] * w[3] + w[4] * w[4] + w[5] * w[5] > rate)
             return 1;
     }
     if (!isnan(lowest))
         for (int f = 0; f < nf; f++) {
-            const double *o = qc + (npy_intp)flyers[5 * f] + 3, ax = flyers[5 * f + 2], ay = flyers[5 * f + 3],
+            const double *o = qc + (long)flyers[5 * f] + 3, ax = flyers[5 * f + 2], ay = flyers[5 * f + 3],
                          az = flyers[5 * f + 4];
             const double x = o[0], y = o[1], z = o[2], w = o[3];
             const double norm2 = x * x + y * y + z * z + w * w;
@@ -85,7 +73,7 @@ static int screen(PyArrayObject *qa, PyArrayObject *va, PyArrayObject *qm, PyArr
             if (!(cosine >= lowest)) return 1;  /* NaN (a zero quaternion) too: the full check decides */
         }
     for (int i = 0; i < ns; i++)
-        if (fabs(q[(npy_intp)chain[i]] - planned[i]) > bound) return 1;
+        if (fabs(q[(long)chain[i]] - planned[i]) > bound) return 1;
     return 0;
 }
 
@@ -106,12 +94,23 @@ static PyObject *may_be_lost(PyObject *self, PyObject *args)
     int answer = -1;
     for (int i = 0; i < 6; i++)
         if ((a[i] = vector(o[i])) == NULL) goto done;
-    answer = screen(a[0], a[1], a[2], a[3], a[4], closure_error, a[5], k, k_len);
+    if (PyArray_NDIM(a[4]) != 2 || PyArray_DIM(a[4], 1) != 3 || PyArray_SIZE(a[3]) != PyArray_SIZE(a[2])) {
+        PyErr_SetString(PyExc_ValueError, "may_be_lost: the constants do not fit the state");
+        goto done;
+    }
+#define D(i) ((const double *)PyArray_DATA(a[i]))
+    answer = screen_kernel(D(0), (long)PyArray_SIZE(a[0]), D(1), (long)PyArray_SIZE(a[1]), D(2), D(3),
+                           (long)PyArray_SIZE(a[2]), D(4), (long)PyArray_DIM(a[4], 0), closure_error, D(5),
+                           (long)PyArray_SIZE(a[5]), k, (long)k_len);
+#undef D
+    if (answer < 0) PyErr_SetString(PyExc_ValueError, "may_be_lost: the constants do not fit the state");
 done:
     for (int i = 0; i < 6; i++) Py_XDECREF(a[i]);
     if (answer < 0) return NULL;
     return PyBool_FromLong(answer);
 }
+
+static const FprWatchApi watch_api = {FPR_KERNELS_VERSION, screen_kernel};
 
 static PyMethodDef methods[] = {
     {"may_be_lost", may_be_lost, METH_VARARGS, "The watch's screen (see the module's C source): a bool."},
@@ -124,5 +123,13 @@ static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "fpr._native._watch",
 PyMODINIT_FUNC PyInit__watch(void)
 {
     import_array();
-    return PyModule_Create(&module);
+    PyObject *mod = PyModule_Create(&module);
+    if (mod == NULL) return NULL;
+    PyObject *capsule = PyCapsule_New((void *)&watch_api, "fpr._native._watch._C_API", NULL);
+    if (capsule == NULL || PyModule_AddObject(mod, "_C_API", capsule) < 0) {
+        Py_XDECREF(capsule);
+        Py_DECREF(mod);
+        return NULL;
+    }
+    return mod;
 }

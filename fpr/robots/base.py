@@ -442,6 +442,19 @@ class RobotKind:
         """
         return np.linalg.solve(jacobian.T, b).reshape(-1, len(self.force_axes))
 
+    def compiled_outer_constants(self, settings) -> list[float] | None:
+        """How the native closed loop (``fpr/_native/cpp/outer.cpp``) performs this kind's :meth:`outer_loop_forces`
+        and :meth:`force_attitude`: [solve, parameter], or None when it cannot (then the controller's outer-loop
+        updates run in Python).
+
+        Default: [0, 0] (the plain solve J_h^T F = b, the planar roll atan2(-F_y, F_z)) for a kind that keeps both
+        defaults with two force axes, None otherwise.
+        """
+        if (type(self).outer_loop_forces is not RobotKind.outer_loop_forces
+                or type(self).force_attitude is not RobotKind.force_attitude or len(self.force_axes) != 2):
+            return None
+        return [0.0, 0.0]
+
     def force_attitude(self, force, q=None) -> np.ndarray:
         """The drones' attitude coordinates (``layout.drone_attitude`` flattened) whose thrust axes lie along the
         thrust vectors ``force`` (n_d, len(force_axes)) [N]: the references of the controller's momentum feedback.

@@ -365,6 +365,12 @@ class Prototype(RobotKind):
             return super().outer_loop_forces(s, b, jacobian, planned_force, singular_band)
         return prototype_thrust.regularised_force(s, b, planned_force[0], self._length, singular_band)[None, :]
 
+    def compiled_outer_constants(self, settings) -> list[float] | None:
+        """The native closed loop's solve 1 (``fpr/_native/cpp/outer.cpp``): the two-link chain's tension regularised
+        towards the planned one (:meth:`outer_loop_forces` with a planned force), with the link length.
+        """
+        return [1.0, float(self._length)]
+
     # ------------------------------------------------------------------ closure
     def closed_chain(self, model, axis_offset: float) -> ClosureTree:
         """The drone a free flyer; the chain hangs from it (hinge reversed, link 2 with the end-effector,

@@ -14,6 +14,10 @@ bounds in :class:`SimulationSettings`). When one fires the simulation stops ther
 what was simulated, its ``failure`` saying what happened and when; a state that turns non-finite
 (:class:`fpr.sim.plant.PlantDivergedError`) ends the same way.
 
+The ticks run natively when they fit (:mod:`fpr.sim.native_loop`, :mod:`fpr._native`'s part ``loop``: the same
+computation in C++, equal to round-off), the unusual ones (events, noise, a watch that fires, the force limiter,
+progress reports) handed back to the Python loop below, which is their reference.
+
 The :class:`SimulationLog` holds, at every inner-loop tick, what the thesis plots (Fig 3.19-3.32,
 3.42-3.51): the full state, the reference, the rotor speeds commanded and obtained, thrusts,
 torques, desired rolls, saturation flags and the closure error; :meth:`SimulationLog.summary`
@@ -32,6 +36,7 @@ from controllers.ctc import CascadedController, ControllerSettings, Reference
 from fpr.model.errors import ModelArgumentError
 from fpr.model.inverse_dynamics import MOTION_ORDER, inverse_dynamics
 from fpr.robots import get, load
+from fpr.sim.native_loop import NativeLoop
 from fpr.sim.plant import Plant, PlantDivergedError
 from fpr.sim.watch import Watch
 
@@ -362,6 +367,11 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     # the log: each tick's arrays kept as they are (fresh arrays, or read-only ones), stacked after the loop (one
     # list append per group instead of a numpy row write per array)
     measured, commanded = [], []  # (q, v, rotor speeds, closure error, centres); (rolls, command, f, tau, saturated)
+    # the plain ticks natively when they fit (fpr.sim.native_loop): the log then in its preallocated arrays
+    fast = None
+    if in_flight is None and not noise_q and not noise_v:
+        fast = NativeLoop.make(plant, controller, watch, ticks, motion, planned.thrust_vector, planned_rate,
+                               planned_acceleration, dt, steps_per_tick, wind)
     start = time.perf_counter()
     next_report = 1.0
     failure = failure_time = None
@@ -370,13 +380,21 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
     # (the same values; float arithmetic is cheaper than numpy scalars')
     log_measured, log_commanded = measured.append, commanded.append
     observe, check, update, advance = plant.observe, watch.check, controller.update, plant.advance
-    for k, t in enumerate(ticks.tolist()):
+    times = ticks.tolist()
+    k = 0
+    while k < n_t:
+        if fast is not None:  # the native loop's ticks, up to one the Python side must do
+            k = fast.run(k, n_t - 1, next_report if progress is not None else math.inf, tick)
+        t = times[k]
         q, v, positions, closure_error = observe()  # one kinematics pass
         failure = check(t, plant, q, v, positions, closure_error, motion[0, k])
         if failure is not None and not (np.isfinite(q).all() and np.isfinite(v).all()):
             last, failure_time = k - 1, float(t)  # nothing finite to log at this tick
             break
-        log_measured((q, v, plant.rotor_speeds, closure_error, positions))
+        if fast is None:
+            log_measured((q, v, plant.rotor_speeds, closure_error, positions))
+        else:
+            fast.log_measured(k, q, v, plant.rotor_speeds, closure_error, positions)
         q_meas = q + noise_q * rng.normal(size=n) if noise_q else q
         v_meas = v + noise_v * rng.normal(size=n) if noise_v else v
         reference = Reference(motion[:5, k], planned_rate[k], planned_acceleration[k], planned.thrust_vector[k])
@@ -384,8 +402,12 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
             reference.task_force, reference.drone_forces = in_flight.known_force(float(t))
         out = update(t, q_meas, v_meas, reference)
         allocation = out.allocation
-        log_commanded((out.attitude_target, out.speeds, allocation.thrust, allocation.torque, allocation.saturated,
-                       controller.disturbance))
+        row = (out.attitude_target, out.speeds, allocation.thrust, allocation.torque, allocation.saturated,
+               controller.disturbance)
+        if fast is None:
+            log_commanded(row)
+        else:
+            fast.log_commanded(k, *row)
         if failure is not None:
             last, failure_time = k, float(t)
             break
@@ -408,6 +430,7 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
         if progress is not None and t + tick >= next_report:
             progress(t + tick, ticks[-1])
             next_report += 1.0
+        k += 1
     keep = slice(0, last + 1)
     log = {}  # the groups stacked: both hold last + 1 ticks
     for rows, fields in ((measured, {"q": (n,), "v": (n,), "speed": (n_d, 4), "closure_error": (),
@@ -419,7 +442,10 @@ def simulate(result, settings: SimulationSettings | None = None, progress=None,
         for (name, shape), column in zip(fields.items(), columns, strict=True):
             dtype = bool if name == "saturated" else float
             log[name] = np.array(column, dtype=dtype).reshape((len(rows),) + shape)
-    log["drone_height"] = log.pop("positions")[:, :, 2].copy()
+    if fast is None:
+        log["drone_height"] = log.pop("positions")[:, :, 2].copy()
+    else:  # the native loop's arrays: as many rows as the lists would hold
+        log = fast.stacked(last + 1)
     speed_limit = robot.rotor_constants.max_speed - robot.margins.rotor_speed
     return SimulationLog(robot.name, tuple(robot.layout.coordinates), tuple(robot.layout.chain), ticks[keep],
                          log["q"], log["v"], motion[:3, keep], _drone_attitudes(planned)[keep], log["attitude_desired"],

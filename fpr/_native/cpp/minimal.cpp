@@ -119,6 +119,35 @@ namespace fpr_native
     }
   }
 
+  void minimal_joint_terms(Minimal * p, const double * q, const double * v, double * m, double * nle,
+                           const std::vector<int> & joints, double * jacobians)
+  {
+    const int n = (int)p->T.cols(), nv = p->model.nv;
+    const Eigen::VectorXd qp = p->T * Eigen::Map<const Eigen::VectorXd>(q, n),
+                          vp = p->T * Eigen::Map<const Eigen::VectorXd>(v, n);
+    pin::crba(p->model, p->data, Eigen::Ref<const Eigen::VectorXd>(qp), pin::Convention::LOCAL);
+    p->data.M.triangularView<Eigen::StrictlyLower>() = p->data.M.transpose().triangularView<Eigen::StrictlyLower>();
+    Eigen::Map<RowMatrix>(m, nv, nv) = p->data.M;
+    Eigen::Map<Eigen::VectorXd>(nle, nv) = pin::nonLinearEffects(p->model, p->data, qp, vp);
+    pin::computeJointJacobians(p->model, p->data, qp);
+    for (std::size_t k = 0; k < joints.size(); ++k)
+    {
+      p->jacobian.setZero();
+      pin::getJointJacobian(p->model, p->data, (pin::JointIndex)joints[k], pin::LOCAL_WORLD_ALIGNED, p->jacobian);
+      Eigen::Map<RowMatrix>(jacobians + 6 * nv * k, 6, nv) = p->jacobian;
+    }
+  }
+
+  const double * minimal_map(const Minimal * p)
+  {
+    return p->T.data();
+  }
+
+  int minimal_joints(const Minimal * p)
+  {
+    return (int)p->model.njoints;
+  }
+
   bool minimal_velocity(Minimal * p, const double * q, const double * vc, double * v)
   {
     const int n = (int)p->T.cols(), rows = (int)p->K.rows();

@@ -1,4 +1,4 @@
-// fpr._native._pinocchio: the closed loop's calls of Pinocchio's C++ library, as two Python types.
+// fpr._native._pinocchio: the closed loop's calls of Pinocchio's C++ library, as Python types.
 //
 // Plant(model, data, constraints, constraint_datas, settings, force_map_t, frames): the plant on a closed-chain
 //   model (plant.cpp), `data` and `constraint_datas` its own (initialised by pin.initConstraintDynamics)
@@ -9,18 +9,19 @@
 //   (minimal.cpp), `data` its own
 //   frame_terms(q, v) -> (M, nle, (J per frame))
 //   velocity(q, vc) -> v, or None when K^T K is not positive definite
-// Measure(model, data, minimal, nqp, closed_q, source, sign, eulers, angles, T_inv, angular): the measurement
-//   (measure.cpp) on the closed chain's model and data; eulers: (joint, A 4x4, B 4x4, (x, y, z qp indices or
-//   -1), (psi, theta, phi qp indices), (their thesis indices)) tuples; angles: (joint, P 4x4, other, qp index)
-//   measure(qc, vc, reference) -> (q, v), or None when the velocity's normal equations are not positive definite
+// Measure(...): the measurement (measure_module.cpp, which says its arguments)
+// Loop(...): the closed loop's ticks natively (loop.cpp, which says its arguments)
 //
 // The CPython API with METH_FASTCALL: the tick calls these a few times per inner-loop tick, where every
 // microsecond of call overhead counts; pinocchio's objects are found once, at construction (bridge.cpp).
 #define PY_SSIZE_T_CLEAN
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#define PY_ARRAY_UNIQUE_SYMBOL fpr_native_ARRAY_API
 #include "native.hpp"
 
 #include <numpy/arrayobject.h>
+
+#include "arrays.hpp"
 
 #include <algorithm>
 #include <exception>
@@ -30,66 +31,7 @@
 namespace
 {
   using namespace fpr_native;
-
-  // A float64 C-contiguous array of obj with `size` entries (a new reference: obj itself when it is one), or
-  // nullptr with a ValueError naming `what`.
-  PyArrayObject * input(PyObject * obj, npy_intp size, const char * what)
-  {
-    PyArrayObject * a = reinterpret_cast<PyArrayObject *>(
-      PyArray_FROMANY(obj, NPY_DOUBLE, 0, 0, NPY_ARRAY_IN_ARRAY));
-    if (a != nullptr && size >= 0 && PyArray_SIZE(a) != size)
-    {
-      PyErr_Format(PyExc_ValueError, "%s: expected %zd values, got %zd", what, (Py_ssize_t)size,
-                   (Py_ssize_t)PyArray_SIZE(a));
-      Py_CLEAR(a);
-    }
-    return a;
-  }
-
-  // A new float64 array of the given shape (a copy of `from` when given), or nullptr.
-  PyArrayObject * output(int ndim, const npy_intp * dims, const double * from = nullptr)
-  {
-    PyArrayObject * a = reinterpret_cast<PyArrayObject *>(PyArray_SimpleNew(ndim, dims, NPY_DOUBLE));
-    if (a != nullptr && from != nullptr)
-      std::copy(from, from + PyArray_SIZE(a), static_cast<double *>(PyArray_DATA(a)));
-    return a;
-  }
-
-  double * data(PyArrayObject * a)
-  {
-    return static_cast<double *>(PyArray_DATA(a));
-  }
-
-  // A list of ints from a sequence, or false with an exception set.
-  bool int_list(PyObject * sequence, std::vector<int> & out, const char * what)
-  {
-    PyObject * fast = PySequence_Fast(sequence, what);
-    if (fast == nullptr)
-      return false;
-    const Py_ssize_t n = PySequence_Fast_GET_SIZE(fast);
-    for (Py_ssize_t k = 0; k < n; ++k)
-    {
-      const long value = PyLong_AsLong(PySequence_Fast_GET_ITEM(fast, k));
-      if (value == -1 && PyErr_Occurred())
-      {
-        Py_DECREF(fast);
-        return false;
-      }
-      out.push_back((int)value);
-    }
-    Py_DECREF(fast);
-    return true;
-  }
-
-  bool check_arguments(const char * name, Py_ssize_t nargs, Py_ssize_t least, Py_ssize_t most)
-  {
-    if (nargs < least || nargs > most)
-    {
-      PyErr_Format(PyExc_TypeError, "%s takes %zd to %zd arguments (%zd given)", name, least, most, nargs);
-      return false;
-    }
-    return true;
-  }
+  using namespace fpr_native::arrays;
 
   // ------------------------------------------------------------------ Plant
   struct PlantObject
@@ -496,220 +438,35 @@ namespace
   PyType_Spec minimal_spec = {"fpr._native._pinocchio.Minimal", sizeof(MinimalObject), 0, Py_TPFLAGS_DEFAULT,
                               minimal_slots};
 
-  // ------------------------------------------------------------------ Measure
-  struct MeasureObject
-  {
-    PyObject_HEAD Measure * measure;
-    PyObject * keep;
-  };
+  PyObject * plant_type = nullptr;   // the module's types (borrowed: the module holds them)
+  PyObject * minimal_type = nullptr;
 
-  void measure_dealloc(PyObject * self)
+  bool is_instance(PyObject * obj, PyObject * type, const char * what, const char * kind)
   {
-    auto * p = reinterpret_cast<MeasureObject *>(self);
-    measure_delete(p->measure);
-    Py_XDECREF(p->keep);
-    Py_TYPE(self)->tp_free(self);
+    if (type != nullptr && PyObject_TypeCheck(obj, reinterpret_cast<PyTypeObject *>(type)))
+      return true;
+    PyErr_Format(PyExc_TypeError, "%s: expected a fpr._native._pinocchio.%s", what, kind);
+    return false;
   }
-
-  bool homogeneous(PyObject * obj, double * out, const char * what)
-  {
-    PyArrayObject * a = input(obj, 16, what);
-    if (a == nullptr)
-      return false;
-    std::copy(data(a), data(a) + 16, out);
-    Py_DECREF(a);
-    return true;
-  }
-
-  bool euler_reads(PyObject * sequence, std::vector<EulerRead> & out)
-  {
-    PyObject * fast = PySequence_Fast(sequence, "eulers: expected a sequence of tuples");
-    if (fast == nullptr)
-      return false;
-    bool ok = true;
-    for (Py_ssize_t k = 0; ok && k < PySequence_Fast_GET_SIZE(fast); ++k)
-    {
-      EulerRead e;
-      PyObject *a, *b;
-      ok = PyArg_ParseTuple(PySequence_Fast_GET_ITEM(fast, k), "iOO(iii)(iii)(iii)", &e.joint, &a, &b,
-                            &e.translation[0], &e.translation[1], &e.translation[2], &e.euler[0], &e.euler[1],
-                            &e.euler[2], &e.reference[0], &e.reference[1], &e.reference[2])
-           && homogeneous(a, e.A, "eulers: A") && homogeneous(b, e.B, "eulers: B");
-      if (ok)
-        out.push_back(e);
-    }
-    Py_DECREF(fast);
-    return ok;
-  }
-
-  bool angle_reads(PyObject * sequence, std::vector<AngleRead> & out)
-  {
-    PyObject * fast = PySequence_Fast(sequence, "angles: expected a sequence of tuples");
-    if (fast == nullptr)
-      return false;
-    bool ok = true;
-    for (Py_ssize_t k = 0; ok && k < PySequence_Fast_GET_SIZE(fast); ++k)
-    {
-      AngleRead a;
-      PyObject * p;
-      ok = PyArg_ParseTuple(PySequence_Fast_GET_ITEM(fast, k), "iOii", &a.joint, &p, &a.other, &a.index)
-           && homogeneous(p, a.P, "angles: P");
-      if (ok)
-        out.push_back(a);
-    }
-    Py_DECREF(fast);
-    return ok;
-  }
-
-  bool double_list(PyObject * sequence, std::vector<double> & out, const char * what)
-  {
-    PyArrayObject * a = input(sequence, -1, what);
-    if (a == nullptr)
-      return false;
-    out.assign(data(a), data(a) + PyArray_SIZE(a));
-    Py_DECREF(a);
-    return true;
-  }
-
-  int measure_init(PyObject * self, PyObject * args, PyObject * kwargs)
-  {
-    auto * p = reinterpret_cast<MeasureObject *>(self);
-    static const char * names[] = {"model",  "data",   "minimal", "nqp",   "closed_q", "source", "sign",
-                                   "eulers", "angles", "T_inv",   "angular", nullptr};
-    PyObject *model, *data_obj, *minimal_obj, *closed_obj, *source_obj, *sign_obj, *eulers_obj, *angles_obj,
-      *t_obj, *angular_obj;
-    int nqp = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOiOOOOOOO", const_cast<char **>(names), &model, &data_obj,
-                                     &minimal_obj, &nqp, &closed_obj, &source_obj, &sign_obj, &eulers_obj,
-                                     &angles_obj, &t_obj, &angular_obj))
-      return -1;
-    PyObject * module = PyImport_ImportModule("fpr._native._pinocchio");
-    if (module == nullptr)
-      return -1;
-    PyObject * minimal_type = PyObject_GetAttrString(module, "Minimal");
-    Py_DECREF(module);
-    if (minimal_type == nullptr)
-      return -1;
-    const int is_minimal = PyObject_IsInstance(minimal_obj, minimal_type);
-    Py_DECREF(minimal_type);
-    if (is_minimal != 1)
-    {
-      if (is_minimal == 0)
-        PyErr_SetString(PyExc_TypeError, "minimal: expected a fpr._native._pinocchio.Minimal");
-      return -1;
-    }
-    Minimal * minimal = reinterpret_cast<MinimalObject *>(minimal_obj)->minimal;
-    if (minimal == nullptr)
-    {
-      PyErr_SetString(PyExc_RuntimeError, "minimal: not initialised");
-      return -1;
-    }
-    try
-    {
-      Objects objects;
-      std::string error;
-      if (!extract(model, data_obj, Py_None, Py_None, Py_None, objects, error))
-      {
-        PyErr_SetString(PyExc_TypeError, error.c_str());
-        return -1;
-      }
-      std::vector<int> closed_q, source, angular;
-      std::vector<double> sign;
-      std::vector<EulerRead> eulers;
-      std::vector<AngleRead> angles;
-      if (!int_list(closed_obj, closed_q, "closed_q: expected a sequence of indices")
-          || !int_list(source_obj, source, "source: expected a sequence of indices")
-          || !double_list(sign_obj, sign, "sign") || !euler_reads(eulers_obj, eulers)
-          || !angle_reads(angles_obj, angles) || !int_list(angular_obj, angular, "angular: expected indices"))
-        return -1;
-      PyArrayObject * T = input(t_obj, -1, "T_inv");
-      if (T == nullptr)
-        return -1;
-      Measure * measure = nullptr;
-      if (PyArray_NDIM(T) != 2 || PyArray_DIM(T, 1) != nqp)
-        error = "T_inv must be (n, nqp)";
-      else
-        measure = measure_new(objects, minimal, nqp, closed_q, source, sign, eulers, angles, data(T),
-                              (int)PyArray_DIM(T, 0), angular, error);
-      Py_DECREF(T);
-      if (measure == nullptr)
-      {
-        PyErr_SetString(PyExc_ValueError, error.c_str());
-        return -1;
-      }
-      measure_delete(p->measure);
-      p->measure = measure;
-      Py_XDECREF(p->keep);
-      p->keep = PyTuple_Pack(3, model, data_obj, minimal_obj);
-      return p->keep == nullptr ? -1 : 0;
-    }
-    catch (const std::exception & e)
-    {
-      PyErr_SetString(PyExc_RuntimeError, e.what());
-      return -1;
-    }
-  }
-
-  PyObject * measure_py(PyObject * self, PyObject * const * args, Py_ssize_t nargs)
-  {
-    Measure * m = reinterpret_cast<MeasureObject *>(self)->measure;
-    if (m == nullptr)
-    {
-      PyErr_SetString(PyExc_RuntimeError, "Measure: not initialised");
-      return nullptr;
-    }
-    if (!check_arguments("measure", nargs, 3, 3))
-      return nullptr;
-    const int n = measure_n(m);
-    PyArrayObject *qc = input(args[0], measure_nq(m), "qc"), *vc = qc ? input(args[1], measure_nv(m), "vc") : nullptr,
-                  *ref = vc ? input(args[2], n, "reference") : nullptr;
-    PyObject * result = nullptr;
-    if (ref != nullptr)
-    {
-      npy_intp dims[1] = {n};
-      PyArrayObject *q = output(1, dims), *v = output(1, dims);
-      if (q != nullptr && v != nullptr)
-      {
-        try
-        {
-          result = measure(m, data(qc), data(vc), data(ref), data(q), data(v)) ? Py_BuildValue("OO", q, v)
-                                                                                : Py_NewRef(Py_None);
-        }
-        catch (const std::exception & e)
-        {
-          PyErr_SetString(PyExc_RuntimeError, e.what());
-        }
-      }
-      Py_XDECREF(q);
-      Py_XDECREF(v);
-    }
-    Py_XDECREF(qc);
-    Py_XDECREF(vc);
-    Py_XDECREF(ref);
-    return result;
-  }
-
-  PyMethodDef measure_methods[] = {
-    {"measure", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)()>(measure_py)), METH_FASTCALL,
-     "(q, v) in thesis coordinates at (qc, vc), angles within pi of the reference; None: the Python path decides."},
-    {nullptr, nullptr, 0, nullptr}};
-
-  PyType_Slot measure_slots[] = {
-    {Py_tp_doc, const_cast<char *>("The closed loop's measurement (fpr/_native/cpp/module.cpp).")},
-    {Py_tp_new, reinterpret_cast<void *>(PyType_GenericNew)},
-    {Py_tp_init, reinterpret_cast<void *>(measure_init)},
-    {Py_tp_dealloc, reinterpret_cast<void *>(measure_dealloc)},
-    {Py_tp_methods, measure_methods},
-    {0, nullptr}};
-
-  PyType_Spec measure_spec = {"fpr._native._pinocchio.Measure", sizeof(MeasureObject), 0, Py_TPFLAGS_DEFAULT,
-                              measure_slots};
 
   PyModuleDef module_def = {PyModuleDef_HEAD_INIT, "fpr._native._pinocchio",
                             "The closed loop's calls of Pinocchio's C++ library (fpr/_native/cpp).", -1, nullptr,
                             nullptr, nullptr, nullptr, nullptr};
 
 } // namespace
+
+namespace fpr_native
+{
+  Plant * plant_from(PyObject * obj, const char * what)
+  {
+    return is_instance(obj, plant_type, what, "Plant") ? plant_of(obj) : nullptr;
+  }
+
+  Minimal * minimal_from(PyObject * obj, const char * what)
+  {
+    return is_instance(obj, minimal_type, what, "Minimal") ? minimal_of(obj) : nullptr;
+  }
+} // namespace fpr_native
 
 PyMODINIT_FUNC PyInit__pinocchio(void)
 {
@@ -719,6 +476,8 @@ PyMODINIT_FUNC PyInit__pinocchio(void)
     return nullptr;
   PyObject * plant = PyType_FromSpec(&plant_spec);
   PyObject * minimal = plant ? PyType_FromSpec(&minimal_spec) : nullptr;
+  plant_type = plant;
+  minimal_type = minimal;
   if (minimal == nullptr || PyModule_AddObject(module, "Plant", plant) < 0)
   {
     Py_XDECREF(plant);
@@ -732,10 +491,8 @@ PyMODINIT_FUNC PyInit__pinocchio(void)
     Py_DECREF(module);
     return nullptr;
   }
-  PyObject * measure = PyType_FromSpec(&measure_spec);
-  if (measure == nullptr || PyModule_AddObject(module, "Measure", measure) < 0)
+  if (!fpr_native::measure_register(module) || !fpr_native::loop_register(module))
   {
-    Py_XDECREF(measure);
     Py_DECREF(module);
     return nullptr;
   }

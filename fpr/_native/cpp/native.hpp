@@ -95,6 +95,14 @@ namespace fpr_native
   void minimal_frame_terms(Minimal * minimal, const double * q, const double * v, double * m, double * nle,
                            double * jacobians);
 
+  // M_p (nv x nv, symmetric), the nonlinear effects (nv) and the LOCAL_WORLD_ALIGNED Jacobians of `joints` (6 x nv
+  // each, row-major) at (T q, T v): the controller's point-drone model (controllers/ctc.py, _point_dynamics).
+  void minimal_joint_terms(Minimal * minimal, const double * q, const double * v, double * m, double * nle,
+                           const std::vector<int> & joints, double * jacobians);
+  // T (nq_model x n, row-major) and the model's number of joints.
+  const double * minimal_map(const Minimal * minimal);
+  int minimal_joints(const Minimal * minimal);
+
   // The least-squares v of K(q) v = vc (K: the constant rows and the hinges' LOCAL Jacobians times T) by the
   // normal equations and a Cholesky factorisation; false when K^T K is not positive definite.
   bool minimal_velocity(Minimal * minimal, const double * q, const double * vc, double * v);
@@ -135,5 +143,54 @@ namespace fpr_native
   // when the velocity's normal equations are not positive definite (q is then set, v not).
   bool measure(Measure * measure, const double * qc, const double * vc, const double * reference, double * q,
                double * v);
+
+  // ------------------------------------------------------------------ the outer loop (outer.cpp)
+  struct Outer;
+
+  // The controller's state the outer-loop update reads and writes (CascadedController's: the integral (n_s), the
+  // observer's estimate, p(0), integral and last (M, q', nle) (n, n, n, n x n, n, n; unused without an observer),
+  // the held force (n_d x 2), the applied forces' sum (n) and count, the last update's time, the limiter's flag).
+  struct OuterState
+  {
+    double * integral;
+    double * estimate;
+    double * start;
+    double * observer_integral;
+    double * last_mass;
+    double * last_velocity;
+    double * last_nle;
+    double * force;
+    double * applied;
+    long ticks;
+    double last_outer;
+    bool limited;
+  };
+
+  // The outer update's constants (outer.cpp says them) on the point-drone model `point` (its T: the chain map);
+  // nullptr with `error` set when they do not fit.
+  Outer * outer_new(Minimal * point, const double * constants, long length, int n, std::string & error);
+  void outer_delete(Outer * outer);
+  bool outer_observer(const Outer * outer);
+
+  // One outer-loop update at time t with the measured (q, v) (n), the controller model's M_p (n x n, symmetric)
+  // and its T (n x n), its nonlinear effects T^T nle (n), the plan's s_d and its two derivatives (3 x n_s), its
+  // thrust vectors (n_d x 2) and attitude rates (n_d): the state `s` updated (its force the new F); false (s then
+  // partly written) when a solve is singular or F is not finite.
+  bool outer_update(Outer * outer, double t, const double * q, const double * v, const double * m_p,
+                    const double * t_map, const double * own, const double * motion, const double * planned_force,
+                    const double * rate, OuterState & s);
+
+  // ------------------------------------------------------------------ the Python objects (module.cpp)
+  // The C++ object behind a fpr._native._pinocchio Plant, Minimal (module.cpp) or Measure (measure_module.cpp), or
+  // nullptr with a TypeError set (`what` names the argument) when obj is not one or not initialised.
+  Plant * plant_from(PyObject * obj, const char * what);
+  Minimal * minimal_from(PyObject * obj, const char * what);
+  Measure * measure_from(PyObject * obj, const char * what);
+
+  // ------------------------------------------------------------------ the native closed loop (loop.cpp)
+  // Adds the type Loop to the module; false with an exception set on failure.
+  bool loop_register(PyObject * module);
+  // Adds the type Measure to the module (measure_module.cpp); false with an exception set on failure.
+  bool measure_register(PyObject * module);
 
 } // namespace fpr_native

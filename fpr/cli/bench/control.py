@@ -26,7 +26,8 @@ call and the real-time factor (median of 3 runs, 1 with ``--quick``; the CPU tim
 shared machine), and one more run with timers around the simulator's parts (observe: measure and logged
 kinematics, outer loop, attitude model, allocation, the rest of the inner loop, plant steps, the watch; the
 remainder is the loop itself and the logging) for the per-tick breakdown, with which parts of the tick run
-natively (:mod:`fpr._native`). Then :mod:`fpr.cli.bench.native_parts`: the machine yardstick (the raw
+natively (:mod:`fpr._native`; that run with the part ``loop`` off: the native loop has no timers
+inside). Then :mod:`fpr.cli.bench.native_parts`: the machine yardstick (the raw
 ``pin.crba`` and ``pin.constraintDynamics`` of the FPR), the Pinocchio calls a tick needs, and each native part on
 and off side by side. Goals, each a row of ``targets`` with its value, goal and verdict: the allocation's whole
 call <= 20 us with and without an active bound; the square's whole-simulate RTF normalised by the yardstick (RTF
@@ -215,7 +216,7 @@ def _simulation(result, runs: int, say) -> dict:
         say(f"bench control: simulation {k + 1}/{runs}: {walls[-1]:.2f} s wall (whole call), "
             f"RTF {(logs[-1].t[-1] - logs[-1].t[0]) / walls[-1]:.2f}")
     acc = {}
-    with _tick_timers(acc):
+    with _tick_timers(acc), native.switched(loop=False):  # the tick part by part (the native loop has no timers)
         timed = simulate(result, settings)
     ticks = timed.t.size
     steps = ticks - 1
@@ -236,6 +237,7 @@ def _simulation(result, runs: int, say) -> dict:
     simulated = float(logs[0].t[-1] - logs[0].t[0])
     st = settings.controller
     running = native.parts()
+    running["loop"] = False  # the breakdown's run
     return dict(mission=CONTROL_MISSION, method="two-step", plant_rate_hz=settings.plant_rate,
                 inner_rate_hz=st.inner_rate, outer_rate_hz=st.outer_rate, runs=runs, simulated_s=simulated,
                 wall_s=float(np.median(walls)), wall_min_s=float(min(walls)), wall_runs_s=walls,

@@ -48,7 +48,8 @@ def record_allocations(result, settings: SimulationSettings) -> tuple[list[tuple
 
     Allocator.solve = recording
     try:
-        log = simulate(result, settings)
+        with native.switched(loop=False):  # every tick's call through Allocator.solve (the native loop: its kernel)
+            log = simulate(result, settings)
     finally:
         Allocator.solve = original
     return calls, log

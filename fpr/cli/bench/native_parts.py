@@ -37,7 +37,7 @@ COUNTED = ("constraintDynamics", "integrate", "dIntegrate", "forwardKinematics",
            "computeJointJacobians", "updateFramePlacements", "crba", "nonLinearEffects", "rnea",
            "getFrameJacobian", "getJointJacobian")
 #: the parts of the closed loop (the jets are the planner's)
-LOOP_PARTS = ("plant", "measure", "attitude", "allocation", "inner", "watch")
+LOOP_PARTS = ("loop", "plant", "measure", "attitude", "allocation", "inner", "watch")
 
 
 def yardstick(bench, robot) -> dict:
