@@ -510,6 +510,8 @@ class CascadedController:
             if st.observer_bandwidth > 0:
                 self._observe(t - self._last_outer if np.isfinite(self._last_outer) else 0.0, q, v, mass)
             self._force = self.outer(q, v, reference, mass)
+            if st.force_limits:  # every drone's F with the authority to turn (controllers/authority.py)
+                self._force = self.limiter.hold(q, v, self._force)
             self._last_outer = t
         thrust, u_a, attitude_target, pitch = self._inner_tick(q, v, reference)
         attitude = self.robot.attitude_model(q, v)
