@@ -40,6 +40,7 @@ wanted.
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 from scipy.optimize import minimize
@@ -71,14 +72,15 @@ class AuthoritySet:
         parameters = r.parameters
         self.gravity = float(parameters.get("gravity", 9.81))
         self.inertia = np.full(n_d, float(parameters["drone_ixx"]))  # roll about the body x axis
-        upper = float(allocator.scale)  # w_max^2
+        w_max = math.sqrt(float(allocator.scale))
+        margin = float(r.margins.rotor_speed)  # m_gr: the room the plan keeps for the closed loop
+        self._lower, self._upper = margin**2, (w_max - margin)**2
         inv_f = np.asarray(allocator._inv_f, dtype=float).reshape(n_d, 4, -1)
         inv_tau = np.asarray(allocator._inv_tau, dtype=float).reshape(n_d, 4, -1)
         k_tau = inv_tau.shape[2] // n_d
         # w^2 of drone i's rotors = a_i T + b_i tau (its roll torque tau, its other torques 0)
         self._a = np.array([inv_f[i, :, i] for i in range(n_d)])
         self._b = np.array([inv_tau[i, :, k_tau * i] for i in range(n_d)])
-        self._upper = upper
 
     def torque_limit(self, thrust) -> np.ndarray:
         """tau_max (n_d,) [N m]: the largest roll torque of either sign each drone's rotors give at ``thrust``
@@ -87,9 +89,9 @@ class AuthoritySet:
         a, b = self._a, self._b
         z = a * np.asarray(thrust, dtype=float)[:, None]  # w^2 at tau = 0
         with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(b != 0.0, np.minimum(z, self._upper - z) / np.abs(b), np.inf)
+            room = np.where(b != 0.0, np.minimum(z - self._lower, self._upper - z) / np.abs(b), np.inf)
         out = room.min(axis=1)
-        inside = np.all((z >= 0.0) & (z <= self._upper), axis=1)
+        inside = np.all((z >= self._lower) & (z <= self._upper), axis=1)
         return np.where(inside, out, -np.abs(out))
 
     def torque_needed(self, force) -> np.ndarray:
