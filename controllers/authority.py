@@ -17,6 +17,10 @@ not assumed). F_i is kept where
 the torque that holds the tilt at rest, plus the torque that turns the drone (roll inertia I_i) back towards
 upright at the chain loop's own rate (the acceleration K_pp |phi_i| of a roll error phi_i under the chain
 loop's proportional gain K_pp = w_c^2): the margin to turn is the chain loop's demand, not a tuned constant.
+tau_max takes the rotor speeds within [m_gr, w_max - m_gr], the room the plan keeps for the closed loop (at the
+physical bounds themselves a force on the set's edge would leave a rotor exactly at 0). And |phi_i| <= pi/2 -
+m_ga, the plan's roll bound: near upside down the holding torque is small again, but such a drone carries
+nothing.
 
 **The force held.** When every drone's wanted F_i lies in its set, F is the chain loop's, the same object (to
 the bit: a flight in which no drone leaves its set is the controller's without this module). Otherwise the
@@ -67,6 +71,7 @@ class AuthoritySet:
         n_d = r.n_drones
         self.limited = False
         self.active = len(r.kind.force_axes) == 2
+        self.max_tilt = 0.5 * math.pi - float(r.margins.angle)  # the plan's roll bound (3.33, 3.45)
         self.mass = np.asarray(r.drone_masses, dtype=float)
         self.offset = np.asarray(r.hinge_offsets, dtype=float)
         parameters = r.parameters
@@ -108,12 +113,23 @@ class AuthoritySet:
         force = np.asarray(force, dtype=float)
         return self.torque_limit(np.linalg.norm(force, axis=1)) - self.torque_needed(force)
 
+    def tilt_room(self, force) -> np.ndarray:
+        """pi/2 - m_ga - |phi_i| (n_d,) [rad]: >= 0 where the tilt of each drone's ``force`` (n_d, 2) [N] is within
+        the plan's roll bound (a drone turned upside down needs little torque to hold, but cannot carry the chain).
+        """
+        force = np.asarray(force, dtype=float)
+        return self.max_tilt - np.abs(np.arctan2(-force[:, 0], force[:, 1]))
+
+    def inside(self, force, tolerance: float = 0.0) -> np.ndarray:
+        """Per drone: its ``force`` (n_d, 2) [N] in its set (within ``tolerance`` [N m, rad] of its bounds)."""
+        return (self.slack(force) >= -tolerance) & (self.tilt_room(force) >= -tolerance)
+
     def hold(self, q, v, wanted):
         """The force to hold: ``wanted`` itself (the same object) when every drone's force is in its set, else
         the forces of all drones chosen together (module docstring). ``wanted``: (n_d, 2) [N].
         """
         self.limited = False
-        if not self.active or np.all(self.slack(wanted) >= 0.0):
+        if not self.active or np.all(self.inside(wanted)):
             return wanted
         c = self.controller
         chain = c.chain
@@ -135,10 +151,11 @@ class AuthoritySet:
 
         n_d = len(start)
         result = minimize(cost, x0, jac=gradient, method="SLSQP",
-                          constraints=[{"type": "ineq", "fun": lambda x: self.slack(x.reshape(n_d, 2))}],
+                          constraints=[{"type": "ineq", "fun": lambda x: self.slack(x.reshape(n_d, 2))},
+                                       {"type": "ineq", "fun": lambda x: self.tilt_room(x.reshape(n_d, 2))}],
                           options={"maxiter": 100, "ftol": 1e-12})
         held = result.x.reshape(n_d, 2)
-        if not np.all(np.isfinite(held)) or np.any(self.slack(held) < -1e-6):
+        if not np.all(np.isfinite(held)) or not np.all(self.inside(held, 1e-6)):
             logger.debug("no force within every drone's set (%s): F held as wanted", result.message)
             return wanted
         self.limited = True
