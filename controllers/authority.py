@@ -7,18 +7,18 @@ torque m_i g d_i |sin phi_i| (the torque the hold check of :mod:`fpr.robustness.
 whose thrust |F_i| is small (a push from below takes weight off it) can give little roll torque. The rotors
 then sit at a bound, the drone does not turn back when the chain loop asks it to, and the chain is lost.
 
-**The set each drone's force is kept in.** Drone i's roll torque within its rotor bounds at thrust T is the
-allocation's unconstrained law (2.24) on [T, tau, 0, 0] with every w^2 in [0, w_max^2]: |tau| <= tau_max(T)
-(``(l / 2) min(T, 4 f_max - T)`` for the X-free "+" layout of the drones here, read from the allocator's law,
-not assumed). F_i is kept where
+**The set each drone's force is kept in.** Drone i's roll torque at thrust T is bounded by the allocation's
+unconstrained law (2.24) on [T, tau, 0, 0] with every rotor speed within [m_gr, w_max - m_gr]: |tau| <=
+tau_max(T) (about (l / 2) (T - 4 c_T m_gr^2) at low thrust for the "+" layout of the drones here, l their arm;
+read from the allocator's law, not assumed). F_i is kept where
 
 .. math:: m_i g d_i |\sin\phi_i| + I_i K_{pp} |\phi_i| \le \tau_{max}(|F_i|),
 
 the torque that holds the tilt at rest, plus the torque that turns the drone (roll inertia I_i) back towards
 upright at the chain loop's own rate (the acceleration K_pp |phi_i| of a roll error phi_i under the chain
 loop's proportional gain K_pp = w_c^2): the margin to turn is the chain loop's demand, not a tuned constant.
-tau_max takes the rotor speeds within [m_gr, w_max - m_gr], the room the plan keeps for the closed loop (at the
-physical bounds themselves a force on the set's edge would leave a rotor exactly at 0). And |phi_i| <= pi/2 -
+The rotor margin m_gr is the room the plan keeps for the closed loop (at the physical bounds themselves a force
+on the set's edge would leave a rotor exactly at 0, saturated). And |phi_i| <= pi/2 -
 m_ga, the plan's roll bound: near upside down the holding torque is small again, but such a drone carries
 nothing.
 
@@ -71,6 +71,8 @@ class AuthoritySet:
         n_d = r.n_drones
         self.limited = False
         self.active = len(r.kind.force_axes) == 2
+        if not self.active:
+            return
         self.max_tilt = 0.5 * math.pi - float(r.margins.angle)  # the plan's roll bound (3.33, 3.45)
         self.mass = np.asarray(r.drone_masses, dtype=float)
         self.offset = np.asarray(r.hinge_offsets, dtype=float)
