@@ -8,17 +8,19 @@ whose thrust |F_i| is small (a push from below takes weight off it) can give lit
 then sit at a bound, the drone does not turn back when the chain loop asks it to, and the chain is lost.
 
 **The set each drone's force is kept in.** Drone i's roll torque at thrust T is bounded by the allocation's
-unconstrained law (2.24) on [T, tau, 0, 0] with every rotor speed within [m_gr, w_max - m_gr]: |tau| <=
-tau_max(T) (about (l / 2) (T - 4 c_T m_gr^2) at low thrust for the "+" layout of the drones here, l their arm;
-read from the allocator's law, not assumed). F_i is kept where
+unconstrained law (2.24) on [T, tau, 0, 0] with every rotor speed within [m_gr, w_max]: |tau| <= tau_max(T)
+((l / 2) (T - 4 c_T m_gr^2) at low thrust for the "+" layout of the drones here, l their arm; read from the
+allocator's law, not assumed). F_i is kept where
 
 .. math:: m_i g d_i |\sin\phi_i| + I_i K_{pp} |\phi_i| \le \tau_{max}(|F_i|),
 
 the torque that holds the tilt at rest, plus the torque that turns the drone (roll inertia I_i) back towards
 upright at the chain loop's own rate (the acceleration K_pp |phi_i| of a roll error phi_i under the chain
 loop's proportional gain K_pp = w_c^2): the margin to turn is the chain loop's demand, not a tuned constant.
-The rotor margin m_gr is the room the plan keeps for the closed loop (at the physical bounds themselves a force
-on the set's edge would leave a rotor exactly at 0, saturated). And |phi_i| <= pi/2 -
+The rotor margin m_gr is the toolkit's (seed 3.48): the plan keeps it below w_max as the closed loop's room, the set
+keeps it above 0, where a drone that runs out of authority sits (on the set's edge at 0 itself a rotor would sit
+exactly at its bound, saturated); up to w_max the closed loop may use that room (a set bounded at w_max - m_gr
+held back pushes of 7-8 N on a drone that the controller flies without a rotor at a bound). And |phi_i| <= pi/2 -
 m_ga, the plan's roll bound: near upside down the holding torque is small again, but such a drone carries
 nothing.
 
@@ -79,9 +81,8 @@ class AuthoritySet:
         parameters = r.parameters
         self.gravity = float(parameters.get("gravity", 9.81))
         self.inertia = np.full(n_d, float(parameters["drone_ixx"]))  # roll about the body x axis
-        w_max = math.sqrt(float(allocator.scale))
-        margin = float(r.margins.rotor_speed)  # m_gr: the room the plan keeps for the closed loop
-        self._lower, self._upper = margin**2, (w_max - margin)**2
+        margin = float(r.margins.rotor_speed)  # m_gr (module docstring)
+        self._lower, self._upper = margin**2, float(allocator.scale)  # w^2 within [m_gr^2, w_max^2]
         inv_f = np.asarray(allocator._inv_f, dtype=float).reshape(n_d, 4, -1)
         inv_tau = np.asarray(allocator._inv_tau, dtype=float).reshape(n_d, 4, -1)
         k_tau = inv_tau.shape[2] // n_d
