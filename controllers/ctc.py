@@ -123,7 +123,9 @@ class ControllerSettings:
             (module docstring), free of the drones' roll torques; False: the measured s and s' (the thesis).
         force_limits: a new F whose first attitude tick the rotors cannot give (the allocation's law beyond a rotor
             bound) is turned so that the attitude loop asks what a slower loop would, within the bounds, the chain
-            integral held meanwhile (:mod:`controllers.saturation`); False: F as the chain loop computes it.
+            integral held meanwhile (:mod:`controllers.saturation`); before that, the drones' forces are kept where
+            each drone's rotors can hold its tilt and turn it back (:mod:`controllers.authority`); False: F as the
+            chain loop computes it.
     """
 
     outer_rate: float = 100.0
