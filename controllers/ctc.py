@@ -123,7 +123,9 @@ class ControllerSettings:
             (module docstring), free of the drones' roll torques; False: the measured s and s' (the thesis).
         force_limits: a new F whose first attitude tick the rotors cannot give (the allocation's law beyond a rotor
             bound) is turned so that the attitude loop asks what a slower loop would, within the bounds, the chain
-            integral held meanwhile (:mod:`controllers.saturation`); False: F as the chain loop computes it.
+            integral held meanwhile (:mod:`controllers.saturation`); before that, the drones' forces are kept where
+            each drone's rotors can hold its tilt and turn it back (:mod:`controllers.authority`); False: F as the
+            chain loop computes it.
     """
 
     outer_rate: float = 100.0
@@ -535,6 +537,8 @@ class CascadedController:
             if st.observer_bandwidth > 0:
                 self._observe(t - self._last_outer if np.isfinite(self._last_outer) else 0.0, q, v, mass)
             self._force = self.outer(q, v, reference, mass)
+            if st.force_limits:  # every drone's F with the authority to turn (controllers/authority.py)
+                self._force = self.limiter.hold(q, v, self._force)
             self._last_outer = t
         thrust, u_a, attitude_target, pitch = self._inner_tick(q, v, reference)
         attitude = self.robot.attitude_model(q, v)

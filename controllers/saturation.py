@@ -43,6 +43,8 @@ import math
 
 import numpy as np
 
+from controllers.authority import AuthoritySet
+
 _TWO_PI = 2 * math.pi
 
 
@@ -65,6 +67,16 @@ class ForceLimiter:
         self.scale = np.ones(controller.robot.n_drones)
         allocator = controller.allocator
         self._upper = float(allocator.scale)  # w_max^2: the law's z is in (rad/s)^2
+        self.authority = AuthoritySet(controller)  # every drone's F with the authority to turn
+
+    def hold(self, q, v, wanted):
+        """The chain loop's new force ``wanted`` (n_d, len(force_axes)) [N] kept where every drone has the authority
+        to turn (:class:`controllers.authority.AuthoritySet`): ``wanted`` itself when it is, else the forces chosen
+        together; sets :attr:`limited` when it changed them.
+        """
+        held = self.authority.hold(q, v, wanted)
+        self.limited = self.authority.limited
+        return held
 
     def _command(self, q, v, reference, force):
         """The inner loop's first tick on ``force`` at (q, v): (f_d (n_d,), u_a (n_a,), its targets)."""
@@ -116,7 +128,7 @@ class ForceLimiter:
         loop (module docstring). ``wanted``: the new force (n_d, len(force_axes)) [N]; ``attitude``: the attitude
         model at (q, v) with the winds the controller uses, or None (:meth:`attitude_at`).
         """
-        self.limited = False
+        # self.limited is left as hold() set it at this update (the controller clears it before the outer loop)
         self.scale = np.ones(len(wanted))
         if np.shape(wanted)[1] != 2:
             return wanted
