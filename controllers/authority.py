@@ -127,6 +127,20 @@ class AuthoritySet:
         """Per drone: its ``force`` (n_d, 2) [N] in its set (within ``tolerance`` [N m, rad] of its bounds)."""
         return (self.slack(force) >= -tolerance) & (self.tilt_room(force) >= -tolerance)
 
+    def compiled_constants(self) -> np.ndarray | None:
+        """The set's numbers for the native closed loop's test of :meth:`inside` (``fpr/_native/cpp/outer.cpp``'s
+        ``authority_inside``, the same operations in the same order), which hands an outer-loop update whose force
+        leaves a set back to :meth:`hold`: n_d, the bounds of w^2, g, the chain loop's K_p, the tilt bound, then per
+        drone its mass, offset, roll inertia and the four rotors' a_i and b_i; None when the set does not act
+        (a robot kind whose thrust vectors are not planar).
+        """
+        if not self.active:
+            return None
+        kp, _ = self.controller.settings.chain_gains
+        head = [len(self.mass), self._lower, self._upper, self.gravity, kp, self.max_tilt]
+        drones = np.column_stack([self.mass, self.offset, self.inertia, self._a, self._b])
+        return np.ascontiguousarray(np.concatenate([head, drones.reshape(-1)]), dtype=float)
+
     def hold(self, q, v, wanted):
         """The force to hold: ``wanted`` itself (the same object) when every drone's force is in its set, else
         the forces of all drones chosen together (module docstring). ``wanted``: (n_d, 2) [N].

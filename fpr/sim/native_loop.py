@@ -106,7 +106,8 @@ class NativeLoop:
                            np.ascontiguousarray(acceleration, dtype=float), controller.chain.tolist(),
                            tuple(logs[name] for name in _LOG_FIELDS), float(dt), int(steps), float(plant._max_speed),
                            np.ascontiguousarray(decay, dtype=float), wind_forces, st.observer_bandwidth > 0,
-                           bool(st.force_limits))
+                           bool(st.force_limits),
+                           controller.limiter.authority.compiled_constants() if st.force_limits else None)
         threshold = 1.0 / st.outer_rate - 1e-9  # CascadedController.update's test
         return cls(loop, plant, controller, logs, threshold)
 

@@ -7,7 +7,7 @@
 //
 // Loop(plant, measure, attitude, point, alloc_constants, alloc_state, inner_constants, attitude_constants,
 //      screen_constants, outer_constants, ticks, motion, thrust_vectors, rate, acceleration, chain, logs, dt, steps,
-//      w_max, decay, wind, observer, force_limits)
+//      w_max, decay, wind, observer, force_limits, authority=None)
 //   plant, measure, attitude: the native Plant, Measure and the controller model's Minimal (module.cpp); point: the
 //   Minimal of the controller's point-drone model on the chain (its T the chain map), or None; the constants vectors
 //   of the allocation, the inner loop, the attitude model and the watch's screen (as the Python side gives them to
@@ -18,13 +18,16 @@
 //   preallocated arrays (q, v, speed, closure_error, drone_height, attitude_desired, speed_command, thrust, torque,
 //   saturated (bool), disturbance), row k written at tick k; dt, steps (per tick), w_max, the motor lag's decay
 //   (3), wind (3 n_d) or None; observer: whether the controller has its observer (bandwidth > 0); force_limits:
-//   whether a new force whose allocation has a rotor at a bound goes to the force limiter (the Python side's).
+//   whether a new force whose allocation has a rotor at a bound goes to the force limiter (the Python side's);
+//   authority: the drones' authority sets' constants (controllers/authority.py), or None: a new force that leaves
+//   one goes to the Python side's AuthoritySet.hold.
 // run(k, stop, qc, vc, w, reference, integral, estimate, start, observer_integral, last_mass, last_velocity,
 //     last_nle, force, applied, ticks, time, last_outer, limited, outer_threshold, report_at, tick)
 //   -> (k, time, ticks, last_outer, limited, closed_form, active_set)
 //   ticks k, k + 1, ... before `stop`, each done whole or not at all; it returns at the first tick it does not do
 //   (a progress report due, the screen firing, a kernel declining, the plant's steps failing, an outer-loop
-//   update it cannot do or whose allocation has a rotor at a bound with force_limits) with that tick's index: the
+//   update it cannot do, whose allocation has a rotor at a bound with force_limits or whose force leaves an
+//   authority set) with that tick's index: the
 //   Python side does that tick with its own code on the same state. The arrays (the plant's state, the
 //   measurement's reference, the controller's integral, observer state (None without one), held force (n_d, 2) and
 //   applied forces' sum) are updated in place; the scalars come back: the plant's time, the applied forces' count,
@@ -110,6 +113,7 @@ namespace
     K_DECAY,
     K_WIND,
     K_STATE,
+    K_AUTHORITY,
     BUFFERS
   };
 
@@ -127,7 +131,7 @@ namespace
     Py_buffer logs[LOGS];
     bool held[BUFFERS];
     bool logs_held[LOGS];
-    bool wind, observer, force_limits;
+    bool wind, observer, force_limits, authority;
     int n, nd, na, ns, nqc, nvc, nw, steps;
     long n_t;
     double dt, w_max;
@@ -171,15 +175,17 @@ namespace
     static const char * names[] = {"plant", "measure", "attitude", "point", "alloc_constants", "alloc_state",
                                    "inner_constants", "attitude_constants", "screen_constants", "outer_constants",
                                    "ticks", "motion", "thrust_vectors", "rate", "acceleration", "chain", "logs", "dt",
-                                   "steps", "w_max", "decay", "wind", "observer", "force_limits", nullptr};
+                                   "steps", "w_max", "decay", "wind", "observer", "force_limits", "authority",
+                                   nullptr};
     PyObject *o_plant, *o_measure, *o_attitude, *o_point, *o_alloc, *o_state, *o_inner, *o_att, *o_screen, *o_outer,
-      *o_ticks, *o_motion, *o_thrust, *o_rate, *o_acc, *o_chain, *o_logs, *o_decay, *o_wind;
+      *o_ticks, *o_motion, *o_thrust, *o_rate, *o_acc, *o_chain, *o_logs, *o_decay, *o_wind, *o_authority = Py_None;
     double dt = 0.0, w_max = 0.0;
     int steps = 0, observer = 0, force_limits = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOOOOOOOOOOOdidOOpp", const_cast<char **>(names), &o_plant,
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOOOOOOOOOOOdidOOpp|O", const_cast<char **>(names), &o_plant,
                                      &o_measure, &o_attitude, &o_point, &o_alloc, &o_state, &o_inner, &o_att,
                                      &o_screen, &o_outer, &o_ticks, &o_motion, &o_thrust, &o_rate, &o_acc, &o_chain,
-                                     &o_logs, &dt, &steps, &w_max, &o_decay, &o_wind, &observer, &force_limits))
+                                     &o_logs, &dt, &steps, &w_max, &o_decay, &o_wind, &observer, &force_limits,
+                                     &o_authority))
       return -1;
     p->plant = plant_from(o_plant, "Loop: plant");
     p->measure = p->plant ? measure_from(o_measure, "Loop: measure") : nullptr;
@@ -299,6 +305,17 @@ namespace
     p->w_max = w_max;
     p->observer = observer != 0;
     p->force_limits = force_limits != 0;
+    p->authority = o_authority != Py_None;
+    if (p->authority)
+    {
+      if (!(p->held[K_AUTHORITY] = get_buffer(o_authority, p->buffers[K_AUTHORITY], 'd', -1, false, "authority")))
+        return -1;
+      if (!authority_fits(doubles(p->buffers[K_AUTHORITY]), (long)(p->buffers[K_AUTHORITY].len / 8), p->nd))
+      {
+        PyErr_SetString(PyExc_ValueError, "Loop: the authority set's constants do not fit the drones");
+        return -1;
+      }
+    }
     p->keep = PyTuple_Pack(4, o_plant, o_measure, o_attitude, o_point);
     return p->keep == nullptr ? -1 : 0;
   }
@@ -415,6 +432,8 @@ namespace
       if (!outer_update(p->outer, t, q, v, m, t_map, own, motion, doubles(p->buffers[K_THRUST]) + k * 2 * nd, rate,
                         next))
         return false;
+      if (p->authority && !authority_inside(doubles(p->buffers[K_AUTHORITY]), next.force))
+        return false; // a drone without the authority to turn: the forces chosen together (controllers/authority.py)
     }
     const double * estimate = p->observer ? next.estimate : nullptr;
     double pitch = 0.0;

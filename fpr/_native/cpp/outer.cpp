@@ -97,6 +97,46 @@ namespace fpr_native
     std::vector<double> mass, point_mass, point_nle, jacobians, ms, cs, jh, gain, scratch;
   };
 
+  // The authority set's constants (AuthoritySet.compiled_constants): a header of AUTHORITY_HEAD numbers, then
+  // AUTHORITY_DRONE per drone.
+  const int AUTHORITY_HEAD = 6, AUTHORITY_DRONE = 11;
+
+  bool authority_fits(const double * constants, long length, int n_d)
+  {
+    return length >= AUTHORITY_HEAD && constants[0] == n_d && length == AUTHORITY_HEAD + AUTHORITY_DRONE * n_d;
+  }
+
+  bool authority_inside(const double * k, const double * force)
+  {
+    const int n_d = (int)k[0];
+    const double lower = k[1], upper = k[2], gravity = k[3], kp = k[4], max_tilt = k[5];
+    for (int i = 0; i < n_d; ++i)
+    {
+      const double *drone = k + AUTHORITY_HEAD + AUTHORITY_DRONE * i, *a = drone + 3, *b = drone + 7;
+      const double fy = force[2 * i], fz = force[2 * i + 1];
+      if (!std::isfinite(fy) || !std::isfinite(fz))
+        return false;
+      // torque_limit(|F_i|): the least room over the rotors, negative when tau = 0 does not fit
+      const double thrust = std::sqrt(fy * fy + fz * fz);
+      double out = INFINITY;
+      bool within = true;
+      for (int j = 0; j < 4; ++j)
+      {
+        const double z = a[j] * thrust;
+        within = within && z >= lower && z <= upper;
+        if (b[j] != 0.0)
+          out = std::min(out, std::min(z - lower, upper - z) / std::fabs(b[j]));
+      }
+      const double limit = within ? out : -std::fabs(out);
+      // torque_needed: holding the tilt at rest, and turning back at the chain loop's rate
+      const double tilt = std::atan2(-fy, fz);
+      const double needed = drone[0] * gravity * drone[1] * std::fabs(std::sin(tilt)) + drone[2] * kp * std::fabs(tilt);
+      if (!(limit - needed >= 0.0) || !(max_tilt - std::fabs(tilt) >= 0.0))
+        return false;
+    }
+    return true;
+  }
+
   Outer * outer_new(Minimal * point, const double * constants, long length, int n, std::string & error)
   {
     if (length < HEADER || (int)constants[0] != n)
