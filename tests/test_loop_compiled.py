@@ -250,7 +250,8 @@ def test_a_kind_without_a_compiled_outer_loop_says_so():
 def test_an_update_whose_force_leaves_an_authority_set_is_handed_back(square, monkeypatch, counted):
     """An upward wind on the drones takes weight off them: the chain loop's forces leave the drones' authority sets at
     many outer-loop updates whose allocation has no rotor at a bound. The native loop hands each such update back to
-    the Python side's AuthoritySet.hold (the same number of held forces as the Python loop) and does the others."""
+    the Python side's AuthoritySet.hold (the same number of held forces as the Python loop) and does the others.
+    """
     settings = SimulationSettings(wind=(0.0, 0.0, 6.0), hold=0.2)
     counts = []
     hold = AuthoritySet.hold
