@@ -199,9 +199,42 @@ def children() -> list[int]:
 def end_children() -> None:
     """Kill (SIGKILL) every descendant of this process (the worker processes): the campaign is ending after
     Ctrl-C or SIGTERM.
+
+    Each is stopped (SIGSTOP) first, and the descendants listed again until no new one appears, then all are killed:
+    a worker process whose parent (a nanny) were killed first would be left half-started, reading its start-up data
+    from a closed pipe, and would print Python's traceback of that over the campaign's one line.
     """
-    for pid in children():
+    stopped: list[int] = []
+    for _ in range(100):  # a process can start another only while it runs: this ends once all are stopped
+        found = [pid for pid in children() if pid not in stopped]
+        if not found:
+            break
+        for pid in found:
+            try:
+                os.kill(pid, signal.SIGSTOP)
+            except OSError:
+                pass
+            stopped.append(pid)
+    for pid in stopped:
         try:
             os.kill(pid, signal.SIGKILL)
         except OSError:
             pass
+
+
+def quiet_stderr():
+    """Point this process's standard error (file descriptor 2), which every process it starts from now on inherits,
+    at the null device, and return a text stream on the former one: a campaign ending after Ctrl-C or SIGTERM says
+    its one line there, and a worker process its cluster was still starting cannot print over it.
+    """
+    try:
+        sys.stderr.flush()
+    except (OSError, ValueError, AttributeError):
+        pass
+    try:
+        saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    except OSError:
+        return sys.stderr
+    os.dup2(null, 2)
+    os.close(null)
+    return os.fdopen(saved, "w", encoding=getattr(sys.stderr, "encoding", None) or "utf-8", errors="replace")
