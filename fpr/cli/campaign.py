@@ -230,11 +230,11 @@ def work(args, argv) -> int:
     except KeyboardInterrupt:
         interrupts.ending()  # a second Ctrl-C ends the process at once
         logging.disable(logging.CRITICAL)  # the cluster's complaints about its killed workers are not news
-        stream = workers.quiet_stderr()  # the processes the cluster still starts cannot print over the line
-        workers.end_children()  # the worker processes end now, not after a graceful close
+        with workers.quiet_stderr():  # the processes the cluster still starts cannot print over the line
+            workers.end_children()  # the worker processes end now, not after a graceful close
         stored = len(store.load(campaign.runs))
         print(f"interrupted: {stored} of {campaign.runs} runs stored in {out}; the same command resumes",
-              file=stream, flush=True)
+              file=sys.stderr, flush=True)
         return contract.INTERRUPTED
     if client is not None:
         _close(client)

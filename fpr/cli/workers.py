@@ -19,6 +19,7 @@ watch follows the process, on every system.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import signal
@@ -222,10 +223,11 @@ def end_children() -> None:
             pass
 
 
+@contextlib.contextmanager
 def quiet_stderr():
-    """Point this process's standard error (file descriptor 2), which every process it starts from now on inherits,
-    at the null device, and return a text stream on the former one: a campaign ending after Ctrl-C or SIGTERM says
-    its one line there, and a worker process its cluster was still starting cannot print over it.
+    """Within the block, this process's standard error (file descriptor 2), which every process it starts inherits,
+    is the null device: a worker process the cluster was still starting while the campaign ends cannot print over
+    the campaign's one line. The descriptor is restored after the block (``sys.stderr`` itself is left alone).
     """
     try:
         sys.stderr.flush()
@@ -234,7 +236,12 @@ def quiet_stderr():
     try:
         saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
     except OSError:
-        return sys.stderr
-    os.dup2(null, 2)
-    os.close(null)
-    return os.fdopen(saved, "w", encoding=getattr(sys.stderr, "encoding", None) or "utf-8", errors="replace")
+        yield
+        return
+    try:
+        os.dup2(null, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)

@@ -72,9 +72,6 @@ CONTROL_TARGETS = {"normalised_real_time_factor": 20.0, "overhead_ratio": 2.0}
 SATURATING_THRUST = 3.0
 
 
-proxsuite = proxsuite_module()  # the build the planner and the allocator use (fpr.model.qp)
-
-
 def _allocation_states(robot, rng, count: int):
     """Attitude models near hover (q, v perturbed by 0.01), the hover thrusts, small u_a (0.1 rad/s^2)."""
     chain = robot.kind.reference_chain
@@ -129,6 +126,8 @@ def _allocation_rows(bench: Bench, robot, case: str, states, thrust, quadprog) -
     rows.append(time_part(bench, f"{label}:     ProxQP warm, qp.update(H, g) alone", lambda: None, update))
     rows.append(bench.time(f"{label}:     building H, g (Allocator.build)",
                            cycling(allocator.build, [(a, thrust, u) for a, u in states])))
+
+    proxsuite = proxsuite_module()  # the build the planner and the allocator use (fpr.model.qp), at its first use
 
     def cold(h, g):
         return proxsuite.proxqp.dense.solve(h, g, l_box=lower, u_box=upper, eps_abs=1e-9, eps_rel=0.0,
