@@ -6,6 +6,7 @@ whole session (FPR_CALIBRATION).
 import json
 
 import pytest
+from helpers import planned_hover
 
 import fpr
 
@@ -28,3 +29,11 @@ def _pinned_replanning_latency(tmp_path_factory):
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("FPR_CALIBRATION", str(path))
         yield path
+
+
+@pytest.fixture(scope="module", params=["fpr", "prototype"])
+def hover(request):
+    """The planar robots at rest at a hover pose (:func:`helpers.planned_hover`): robot, configuration (rolls from the
+    plan), the plan's inputs and the controller's reference.
+    """
+    return planned_hover(request.param)

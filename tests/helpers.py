@@ -80,3 +80,11 @@ def planned_hover(name):
     q = inputs.full_state(robot)[0][0]
     reference = Reference(motion[:, 0], inputs.roll_rate[0], inputs.roll_acceleration[0])
     return robot, q, inputs, reference
+
+
+def turned(vector, angle):
+    """The planar ``vector`` (y, z) turned by ``angle`` [rad]."""
+    import numpy as np
+
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([c * vector[0] - s * vector[1], s * vector[0] + c * vector[1]])

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from helpers import planned_hover
+from helpers import turned
 
 from controllers import authority
 from controllers.ctc import CascadedController, ControllerSettings
@@ -16,17 +14,6 @@ from fpr.sim.closed_loop import SimulationSettings
 from planners.missions.events import GustEvent
 from planners.missions.mission import load_mission
 from planners.optimize import plan
-
-
-@pytest.fixture(scope="module", params=["fpr", "prototype"])
-def hover(request):
-    """Robot, hover state (rolls from the plan), the plan's inputs and the reference."""
-    return planned_hover(request.param)
-
-
-def _turned(vector, angle):
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([c * vector[0] - s * vector[1], s * vector[0] + c * vector[1]])
 
 
 def test_the_torque_limit_is_the_rotors_by_hand(hover):
@@ -68,7 +55,7 @@ def test_a_tilt_the_rotors_cannot_hold_is_traded_for_the_least_chain_acceleratio
     v = np.zeros(robot.nq)
     planned = inputs.thrust_vector[0]
     wanted = planned.copy()
-    wanted[0] = 0.5 * _turned(planned[0], 0.9)
+    wanted[0] = 0.5 * turned(planned[0], 0.9)
     assert limits.slack(wanted)[0] < 0
     held = controller.limiter.hold(q, v, wanted)
     assert controller.limiter.limited and held is not wanted

@@ -3,18 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
-from helpers import HOVER_POSES, planned_hover
+from helpers import HOVER_POSES
 
 from controllers.allocation import Allocator, allocation_qp, pseudo_inverse_law, selectors
 from controllers.ctc import CascadedController, ControllerSettings, Reference
 from fpr.model.inverse_dynamics import inverse_dynamics
-
-
-@pytest.fixture(scope="module", params=["fpr", "prototype"])
-def hover(request):
-    """Robot, hover configuration (rolls from the plan), the plan's inputs and the reference."""
-    return planned_hover(request.param)
 
 
 def _random_state(robot, q0, rng, spread=0.05):

@@ -4,11 +4,9 @@ check along a plan as flown (fpr/robustness/holding.py).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from helpers import planned_hover
+from helpers import turned
 
 from controllers.ctc import CascadedController, ControllerSettings
 from fpr.robustness.events import GustFamily
@@ -18,17 +16,6 @@ from fpr.sim.closed_loop import SimulationSettings
 from planners.missions.events import GustEvent
 from planners.missions.mission import load_mission
 from planners.optimize import plan
-
-
-@pytest.fixture(scope="module", params=["fpr", "prototype"])
-def hover(request):
-    """Robot, hover state (rolls from the plan), the plan's inputs and the reference."""
-    return planned_hover(request.param)
-
-
-def _turned(vector, angle):
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([c * vector[0] - s * vector[1], s * vector[0] + c * vector[1]])
 
 
 def _law_within(limiter, q, v, reference, force):
@@ -61,7 +48,7 @@ def test_a_force_the_rotors_cannot_follow_is_turned_until_they_can(hover):
     v = np.zeros(robot.nq)
     planned = inputs.thrust_vector[0]
     wanted = planned.copy()
-    wanted[0] = 0.5 * _turned(planned[0], 0.9)
+    wanted[0] = 0.5 * turned(planned[0], 0.9)
     assert not _law_within(limiter, q, v, reference, wanted)[0]
     held = limiter.limit(q, v, reference, wanted)
     assert limiter.limited and 0.0 < limiter.scale[0] < 1.0

@@ -99,8 +99,9 @@ namespace fpr_native
     return (int)minimal->frames.size();
   }
 
-  void minimal_frame_terms(Minimal * p, const double * q, const double * v, double * m, double * nle,
-                           double * jacobians)
+  // M(q_model) (both triangles, row-major into m) and the nonlinear effects at q_model = T q, v_model = T v, then the
+  // joints' Jacobians at q_model (computeJointJacobians), for the callers to read; returns nv.
+  static int mass_bias_jacobians(Minimal * p, const double * q, const double * v, double * m, double * nle)
   {
     const int n = (int)p->T.cols(), nv = p->model.nv;
     const Eigen::VectorXd qp = p->T * Eigen::Map<const Eigen::VectorXd>(q, n),
@@ -110,6 +111,13 @@ namespace fpr_native
     Eigen::Map<RowMatrix>(m, nv, nv) = p->data.M;
     Eigen::Map<Eigen::VectorXd>(nle, nv) = pin::nonLinearEffects(p->model, p->data, qp, vp);
     pin::computeJointJacobians(p->model, p->data, qp);
+    return nv;
+  }
+
+  void minimal_frame_terms(Minimal * p, const double * q, const double * v, double * m, double * nle,
+                           double * jacobians)
+  {
+    const int nv = mass_bias_jacobians(p, q, v, m, nle);
     pin::updateFramePlacements(p->model, p->data);
     for (std::size_t f = 0; f < p->frames.size(); ++f)
     {
@@ -122,14 +130,7 @@ namespace fpr_native
   void minimal_joint_terms(Minimal * p, const double * q, const double * v, double * m, double * nle,
                            const std::vector<int> & joints, double * jacobians)
   {
-    const int n = (int)p->T.cols(), nv = p->model.nv;
-    const Eigen::VectorXd qp = p->T * Eigen::Map<const Eigen::VectorXd>(q, n),
-                          vp = p->T * Eigen::Map<const Eigen::VectorXd>(v, n);
-    pin::crba(p->model, p->data, Eigen::Ref<const Eigen::VectorXd>(qp), pin::Convention::LOCAL);
-    p->data.M.triangularView<Eigen::StrictlyLower>() = p->data.M.transpose().triangularView<Eigen::StrictlyLower>();
-    Eigen::Map<RowMatrix>(m, nv, nv) = p->data.M;
-    Eigen::Map<Eigen::VectorXd>(nle, nv) = pin::nonLinearEffects(p->model, p->data, qp, vp);
-    pin::computeJointJacobians(p->model, p->data, qp);
+    const int nv = mass_bias_jacobians(p, q, v, m, nle);
     for (std::size_t k = 0; k < joints.size(); ++k)
     {
       p->jacobian.setZero();
