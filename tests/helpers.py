@@ -88,3 +88,20 @@ def turned(vector, angle):
 
     c, s = np.cos(angle), np.sin(angle)
     return np.array([c * vector[0] - s * vector[1], s * vector[0] + c * vector[1]])
+
+
+def gust_flight(name):
+    """The built-in mission ``name`` planned by the two-step method, and a flight of it that a campaign's gust events
+    run on (1 s held after the plan): (mission, robot, :class:`fpr.robustness.outcomes.Flight`).
+    """
+    from fpr.robustness.events import GustFamily
+    from fpr.robustness.outcomes import EventSetup, Flight
+    from planners.missions.mission import load_mission
+    from planners.optimize import plan
+
+    mission = load_mission(name)
+    result = plan(mission, "two-step")
+    robot = result.robot
+    flight = Flight(robot.name, (), tuple(robot.layout.chain), result.trajectory, 1.0, None, mission,
+                    result.report.constraints, EventSetup("gust", GustFamily(), 0))
+    return mission, robot, flight

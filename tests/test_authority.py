@@ -4,16 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import turned
+from helpers import gust_flight, turned
 
 from controllers import authority
 from controllers.ctc import CascadedController, ControllerSettings
-from fpr.robustness.events import GustFamily
-from fpr.robustness.outcomes import EventSetup, Flight, fly_event
+from fpr.robustness.outcomes import fly_event
 from fpr.sim.closed_loop import SimulationSettings
 from planners.missions.events import GustEvent
-from planners.missions.mission import load_mission
-from planners.optimize import plan
 
 
 def test_the_torque_limit_is_the_rotors_by_hand(hover):
@@ -76,13 +73,7 @@ def test_a_tilt_the_rotors_cannot_hold_is_traded_for_the_least_chain_acceleratio
 
 @pytest.fixture(scope="module")
 def square():
-    mission = load_mission("square")
-    result = plan(mission, "two-step")
-    robot = result.robot
-    setup = EventSetup("gust", GustFamily(), 0)
-    flight = Flight(robot.name, (), tuple(robot.layout.chain), result.trajectory, 1.0, None, mission,
-                    result.report.constraints, setup)
-    return mission, robot, flight
+    return gust_flight("square")
 
 
 @pytest.mark.parametrize("gust", [

@@ -6,16 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import turned
+from helpers import gust_flight, turned
 
 from controllers.ctc import CascadedController, ControllerSettings
-from fpr.robustness.events import GustFamily
 from fpr.robustness.holding import hold_check
-from fpr.robustness.outcomes import EventSetup, Flight, fly_event
+from fpr.robustness.outcomes import fly_event
 from fpr.sim.closed_loop import SimulationSettings
 from planners.missions.events import GustEvent
-from planners.missions.mission import load_mission
-from planners.optimize import plan
 
 
 def _law_within(limiter, q, v, reference, force):
@@ -65,13 +62,7 @@ def test_a_force_the_rotors_cannot_follow_is_turned_until_they_can(hover):
 
 @pytest.fixture(scope="module")
 def square():
-    mission = load_mission("square")
-    result = plan(mission, "two-step")
-    robot = result.robot
-    setup = EventSetup("gust", GustFamily(), 0)
-    flight = Flight(robot.name, (), tuple(robot.layout.chain), result.trajectory, 1.0, None, mission,
-                    result.report.constraints, setup)
-    return mission, robot, flight
+    return gust_flight("square")
 
 
 def test_an_upward_push_on_a_drone_no_longer_saturates_the_rotors(square):
