@@ -243,3 +243,27 @@ sys.exit(contract.run(work))
     from fpr.cli.interrupts import INTERRUPTED_LINE
 
     assert (result.returncode, result.stderr) == (130, INTERRUPTED_LINE + "\n")
+
+
+def test_an_interruption_while_the_options_are_parsed_says_its_line_once():
+    """A signal that lands while a command's parser runs: the command says the line and the launcher does not say it
+    again (the interruption counts as handled).
+    """
+    code = (
+        "import argparse, sys, types\n"
+        "from fpr.cli import interrupts, launch\n"
+        "class Parser(argparse.ArgumentParser):\n"
+        "    def parse_args(self, args=None, namespace=None):\n"
+        "        interrupts.on_signal(2, None)\n"
+        "def parser():\n"
+        "    p = Parser()\n"
+        "    p.add_argument('--debug', action='store_true')\n"
+        "    return p\n"
+        "fake = types.ModuleType('fake')\n"
+        "fake.parser, fake.work = parser, lambda args, argv: 0\n"
+        "sys.modules['fake'] = fake\n"
+        "interrupts.handle_signals()\n"
+        "sys.exit(launch.launch('fake:parser', 'fake:work', []))\n")
+    run = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 130
+    assert run.stderr.splitlines() == [run.stderr.splitlines()[0]] and run.stderr.startswith("interrupted"), run.stderr

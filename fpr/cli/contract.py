@@ -153,10 +153,21 @@ def command(parser: argparse.ArgumentParser, argv, work) -> int:
     except SystemExit as stop:  # --help (0), or an option argparse refuses (2, one line printed)
         return stop.code if isinstance(stop.code, int) else BAD_INPUT
     except (KeyboardInterrupt, Exception) as error:  # noqa: BLE001 - e.g. a registry that fails to import
-        code, line = ending_of(error)
+        code, line = _ended(error)
         print(line, file=sys.stderr)
         return code
     return run(lambda: work(args, argv), debug=args.debug)
+
+
+def _ended(error: BaseException) -> tuple[int, str]:
+    """:func:`ending_of` for a command that now ends: after an interruption, a second Ctrl-C ends the process at
+    once and the interruption counts as handled (the caller prints its line, and the launcher does not print it
+    again).
+    """
+    code, line = ending_of(error)
+    if code == INTERRUPTED:
+        interrupts.ending()
+    return code, line
 
 
 class _LineFormatter(logging.Formatter):
@@ -195,9 +206,7 @@ def run(work, debug: bool = False) -> int:
                     print(warnings.formatwarning(warning.message, warning.category, warning.filename,
                                                  warning.lineno, warning.line).rstrip(), file=sys.stderr)
     except (KeyboardInterrupt, Exception) as error:  # noqa: BLE001 - the contract: an exit code and one line
-        code, line = ending_of(error)
-        if code == INTERRUPTED:
-            interrupts.ending()  # a second Ctrl-C now ends the process at once
+        code, line = _ended(error)
         if debug:
             traceback.print_exc()
         print(line, file=sys.stderr)
