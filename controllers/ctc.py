@@ -34,7 +34,7 @@ the thesis' errors; the integral keeps integrating s - s_d, so a roll held off i
 leaves no steady error in s.
 
 **An unknown external force** is estimated by a generalized-momentum observer (:mod:`controllers.observer`,
-bandwidth ``observer_bandwidth``, K_O = 10 rad/s by default) on the robot's full model in the thesis'
+bandwidth ``observer_bandwidth``, K_O = 20 rad/s by default) on the robot's full model in the thesis'
 coordinates q (seed 2.11: rigid drones on their offset joints, the model of the inner loop's attitude
 dynamics 2.12), from the measured (q, q') and the thrusts and torques the allocation commands. Its estimate
 r (n,) is fed forward in both loops: its chain rows in the outer loop, J_h^T F = M_s u_p + c_s - Q_known -
@@ -118,7 +118,8 @@ class ControllerSettings:
             the planned force; ``robot.kind.outer_loop_forces``).
         observer_bandwidth: K_O [rad/s] of the external-force observer (:mod:`controllers.observer`), whose
             estimate is fed forward in both loops; 0: no observer (the thesis' law with the integral term).
-            Above the chain loop's frequency, below the attitude loop's, and a tenth of the outer rate.
+            Above the chain loop's and the attitude loop's frequencies, below the motor lag's 1 / T_m, a fifth of
+            the outer rate (:mod:`controllers.observer` says why).
         momentum_feedback: the outer loop feeds back the chain state that the full model's momentum stands for
             (module docstring), free of the drones' roll torques; False: the measured s and s' (the thesis).
         force_limits: a new F whose first attitude tick the rotors cannot give (the allocation's law beyond a rotor
@@ -144,7 +145,7 @@ class ControllerSettings:
     attitude_weight: float = 1.0
     thrust_weight: float = 1.0
     singular_band: float = 0.03
-    observer_bandwidth: float = 10.0
+    observer_bandwidth: float = 20.0
     momentum_feedback: bool = True
     force_limits: bool = True
 

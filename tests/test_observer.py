@@ -129,14 +129,15 @@ def test_the_observer_holds_winds_the_controller_without_it_does_not(hover):
     drone, and the square flown in 1.5 N along -y: the observer's worst tracking error is a fraction of it.
     """
     square = plan(load_mission("square"), "two-step")
+    default = ControllerSettings().observer_bandwidth
     for flown, wind in ((hover, (0.0, 3.0, 0.0)), (square, (0.0, -1.5, 0.0))):
         worst = {}
-        for k in (0.0, 10.0):
+        for k in (0.0, default):
             settings = SimulationSettings(wind=wind, controller=ControllerSettings(observer_bandwidth=k))
             log = simulate(flown, settings)
             assert log.failure is None
             worst[k] = np.abs(log.tracking_error).max()
-        assert worst[10.0] < 0.5 * worst[0.0], worst
+        assert worst[default] < 0.5 * worst[0.0], worst
 
 
 def test_without_the_observer_the_controller_estimates_nothing(hover):
