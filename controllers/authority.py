@@ -12,15 +12,20 @@ unconstrained law (2.24) on [T, tau, 0, 0] with every rotor speed within [m_gr, 
 ((l / 2) (T - 4 c_T m_gr^2) at low thrust for the "+" layout of the drones here, l their arm; read from the
 allocator's law, not assumed). F_i is kept where
 
-.. math:: m_i g d_i |\sin\phi_i| + I_i K_{pp} |\phi_i| \le \tau_{max}(|F_i|),
+.. math:: m_i g d_i |\sin\phi(F_i)| + I_i K_{pp} |\phi(F_i) - \phi_i| \le \tau_{max}(|F_i|),
 
-the torque that holds the tilt at rest, plus the torque that turns the drone (roll inertia I_i) back towards
-upright at the chain loop's own rate (the acceleration K_pp |phi_i| of a roll error phi_i under the chain
-loop's proportional gain K_pp = w_c^2): the margin to turn is the chain loop's demand, not a tuned constant.
+phi(F_i) the tilt of F_i (2.20), phi_i the drone's measured roll: the torque that holds the new tilt at rest,
+plus the torque that turns the drone (roll inertia I_i) from where it is to that tilt at the chain loop's own rate
+(the acceleration K_pp |phi(F_i) - phi_i| of a roll error under the chain loop's proportional gain K_pp = w_c^2):
+the margin to turn is the chain loop's demand, not a tuned constant. The turn is counted from the drone's roll,
+not from upright: a set that counted it from upright had no room left at a tilt the drone already held (the chain
+was starved of the force it needed and lost, on a push on the prototype's drone), and its corner at low thrust and
+no tilt drew a force wanted beyond the set to a drone at 0.66 rad sent upright on 1 N, a turn that thrust cannot
+make (on a push on the square's drone); counted from the roll, that corner costs the turn's torque.
 The rotor margin m_gr is the toolkit's (seed 3.48): the plan keeps it below w_max as the closed loop's room, the set
 keeps it above 0, where a drone that runs out of authority sits (on the set's edge at 0 itself a rotor would sit
 exactly at its bound, saturated); up to w_max the closed loop may use that room (a set bounded at w_max - m_gr
-held back pushes of 7-8 N on a drone that the controller flies without a rotor at a bound). And |phi_i| <= pi/2 -
+held back pushes of 7-8 N on a drone that the controller flies without a rotor at a bound). And |phi(F_i)| <= pi/2 -
 m_ga, the plan's roll bound: near upside down the holding torque is small again, but such a drone carries
 nothing.
 
@@ -53,6 +58,7 @@ from scipy.optimize import minimize
 
 logger = logging.getLogger(__name__)
 
+_TWO_PI = 2 * math.pi
 _TIE = 1e-9  # relative weight of the directions J_h^T does not see (a tie-breaker, module docstring)
 
 
@@ -64,6 +70,9 @@ class AuthoritySet:
 
     Attributes:
         limited: whether the last :meth:`hold` changed the force.
+        from_roll: :meth:`hold` counts each drone's turn from its measured roll (True, the default) or from upright
+            (False: the set as it was first made, for comparison; the native loop tests the set of the roll, so
+            run such a flight with ``fpr._native.switched(loop=False)``).
     """
 
     def __init__(self, controller):
@@ -72,6 +81,7 @@ class AuthoritySet:
         allocator = controller.allocator
         n_d = r.n_drones
         self.limited = False
+        self.from_roll = True
         self.active = len(r.kind.force_axes) == 2
         if not self.active:
             return
@@ -102,19 +112,23 @@ class AuthoritySet:
         inside = np.all((z >= self._lower) & (z <= self._upper), axis=1)
         return np.where(inside, out, -np.abs(out))
 
-    def torque_needed(self, force) -> np.ndarray:
+    def torque_needed(self, force, roll=None) -> np.ndarray:
         """The roll torque (n_d,) [N m] that holds each drone at the tilt of its ``force`` (n_d, 2) [N] at rest
-        and turns it back towards upright at the chain loop's rate (module docstring).
+        and turns it there from its roll ``roll`` (n_d,) [rad] at the chain loop's rate (module docstring);
+        ``roll`` None: from upright.
         """
         force = np.asarray(force, dtype=float)
         tilt = np.arctan2(-force[:, 0], force[:, 1])  # (2.20)
+        turn = tilt if roll is None else np.remainder(tilt - np.asarray(roll, dtype=float) + np.pi, _TWO_PI) - np.pi
         kp, _ = self.controller.settings.chain_gains
-        return self.mass * self.gravity * self.offset * np.abs(np.sin(tilt)) + self.inertia * kp * np.abs(tilt)
+        return self.mass * self.gravity * self.offset * np.abs(np.sin(tilt)) + self.inertia * kp * np.abs(turn)
 
-    def slack(self, force) -> np.ndarray:
-        """tau_max(|F_i|) - the torque needed (n_d,) [N m]: >= 0 where the drone's force is in its set."""
+    def slack(self, force, roll=None) -> np.ndarray:
+        """tau_max(|F_i|) - the torque needed (n_d,) [N m] (:meth:`torque_needed`, the drones at ``roll``): >= 0
+        where the drone's force is in its set.
+        """
         force = np.asarray(force, dtype=float)
-        return self.torque_limit(np.linalg.norm(force, axis=1)) - self.torque_needed(force)
+        return self.torque_limit(np.linalg.norm(force, axis=1)) - self.torque_needed(force, roll)
 
     def tilt_room(self, force) -> np.ndarray:
         """pi/2 - m_ga - |phi_i| (n_d,) [rad]: >= 0 where the tilt of each drone's ``force`` (n_d, 2) [N] is within
@@ -123,32 +137,58 @@ class AuthoritySet:
         force = np.asarray(force, dtype=float)
         return self.max_tilt - np.abs(np.arctan2(-force[:, 0], force[:, 1]))
 
-    def inside(self, force, tolerance: float = 0.0) -> np.ndarray:
-        """Per drone: its ``force`` (n_d, 2) [N] in its set (within ``tolerance`` [N m, rad] of its bounds)."""
-        return (self.slack(force) >= -tolerance) & (self.tilt_room(force) >= -tolerance)
+    def inside(self, force, tolerance: float = 0.0, roll=None) -> np.ndarray:
+        """Per drone: its ``force`` (n_d, 2) [N] in its set, the drones at ``roll`` (n_d,) [rad] (None: upright),
+        within ``tolerance`` [N m, rad] of its bounds.
+        """
+        return (self.slack(force, roll) >= -tolerance) & (self.tilt_room(force) >= -tolerance)
 
     def compiled_constants(self) -> np.ndarray | None:
         """The set's numbers for the native closed loop's test of :meth:`inside` (``fpr/_native/cpp/outer.cpp``'s
         ``authority_inside``, the same operations in the same order), which hands an outer-loop update whose force
         leaves a set back to :meth:`hold`: n_d, the bounds of w^2, g, the chain loop's K_p, the tilt bound, then per
-        drone its mass, offset, roll inertia and the four rotors' a_i and b_i; None when the set does not act
+        drone its mass, offset, roll inertia, the four rotors' a_i and b_i and the index of its roll in q; None when
+        the set does not act
         (a robot kind whose thrust vectors are not planar).
         """
         if not self.active:
             return None
         kp, _ = self.controller.settings.chain_gains
         head = [len(self.mass), self._lower, self._upper, self.gravity, kp, self.max_tilt]
-        drones = np.column_stack([self.mass, self.offset, self.inertia, self._a, self._b])
+        rolls = np.asarray(self.controller.rolls, dtype=float)
+        drones = np.column_stack([self.mass, self.offset, self.inertia, self._a, self._b, rolls])
         return np.ascontiguousarray(np.concatenate([head, drones.reshape(-1)]), dtype=float)
+
+    def _smooth_slack(self, force, roll) -> np.ndarray:
+        """:meth:`slack` >= 0 as smooth constraints, all >= 0 exactly where it is (for SLSQP, whose steps stall on
+        the kinks of its minimum and absolute values): every rotor's room on either side, less either sign of the
+        holding and the turning torque; and every rotor's w^2 within its bounds (the rotors the roll torque does
+        not move), in the same units.
+        """
+        force = np.asarray(force, dtype=float)
+        tilt = np.arctan2(-force[:, 0], force[:, 1])  # (2.20)
+        turn = tilt if roll is None else np.remainder(tilt - roll + np.pi, _TWO_PI) - np.pi
+        kp, _ = self.controller.settings.chain_gains
+        hold = (self.mass * self.gravity * self.offset * np.sin(tilt))[:, None] * np.array([1.0, 1.0, -1.0, -1.0])
+        hold += (self.inertia * kp * turn)[:, None] * np.array([1.0, -1.0, 1.0, -1.0])  # (n_d, 4): the signs
+        z = self._a * np.linalg.norm(force, axis=1)[:, None]  # w^2 at tau = 0, (n_d, 4)
+        unit = np.where(self._b != 0.0, np.abs(self._b), np.max(np.abs(self._b)))  # [(rad/s)^2 / (N m)]
+        room = np.concatenate([(z - self._lower) / unit, (self._upper - z) / unit], axis=1)  # (n_d, 8)
+        turning = np.concatenate([self._b != 0.0] * 2, axis=1)
+        out = [room[~turning]] + [(room[i, turning[i]][:, None] - hold[i][None, :]).reshape(-1) for i in range(len(z))]
+        return np.concatenate(out)
 
     def hold(self, q, v, wanted):
         """The force to hold: ``wanted`` itself (the same object) when every drone's force is in its set, else
         the forces of all drones chosen together (module docstring). ``wanted``: (n_d, 2) [N].
         """
         self.limited = False
-        if not self.active or np.all(self.inside(wanted)):
+        if not self.active:
             return wanted
         c = self.controller
+        roll = np.asarray(q, dtype=float)[c.rolls] if self.from_roll else None
+        if np.all(self.inside(wanted, roll=roll)):
+            return wanted
         chain = c.chain
         m, _, jac = c._point_dynamics(q[chain], v[chain])
         weight = jac.dot(np.linalg.solve(m, jac.T))  # J_h M_s^-1 J_h^T
@@ -168,11 +208,11 @@ class AuthoritySet:
 
         n_d = len(start)
         result = minimize(cost, x0, jac=gradient, method="SLSQP",
-                          constraints=[{"type": "ineq", "fun": lambda x: self.slack(x.reshape(n_d, 2))},
+                          constraints=[{"type": "ineq", "fun": lambda x: self._smooth_slack(x.reshape(n_d, 2), roll)},
                                        {"type": "ineq", "fun": lambda x: self.tilt_room(x.reshape(n_d, 2))}],
                           options={"maxiter": 100, "ftol": 1e-12})
         held = result.x.reshape(n_d, 2)
-        if not np.all(np.isfinite(held)) or not np.all(self.inside(held, 1e-6)):
+        if not np.all(np.isfinite(held)) or not np.all(self.inside(held, 1e-6, roll)):
             logger.debug("no force within every drone's set (%s): F held as wanted", result.message)
             return wanted
         self.limited = True

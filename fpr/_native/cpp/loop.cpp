@@ -310,7 +310,7 @@ namespace
     {
       if (!(p->held[K_AUTHORITY] = get_buffer(o_authority, p->buffers[K_AUTHORITY], 'd', -1, false, "authority")))
         return -1;
-      if (!authority_fits(doubles(p->buffers[K_AUTHORITY]), (long)(p->buffers[K_AUTHORITY].len / 8), p->nd))
+      if (!authority_fits(doubles(p->buffers[K_AUTHORITY]), (long)(p->buffers[K_AUTHORITY].len / 8), p->nd, p->n))
       {
         PyErr_SetString(PyExc_ValueError, "Loop: the authority set's constants do not fit the drones");
         return -1;
@@ -432,7 +432,7 @@ namespace
       if (!outer_update(p->outer, t, q, v, m, t_map, own, motion, doubles(p->buffers[K_THRUST]) + k * 2 * nd, rate,
                         next))
         return false;
-      if (p->authority && !authority_inside(doubles(p->buffers[K_AUTHORITY]), next.force))
+      if (p->authority && !authority_inside(doubles(p->buffers[K_AUTHORITY]), next.force, q))
         return false; // a drone without the authority to turn: the forces chosen together (controllers/authority.py)
     }
     const double * estimate = p->observer ? next.estimate : nullptr;

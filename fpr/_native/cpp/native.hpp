@@ -168,12 +168,13 @@ namespace fpr_native
 
   // The outer update's constants (outer.cpp says them) on the point-drone model `point` (its T: the chain map);
   // nullptr with `error` set when they do not fit.
-  // Whether every drone's force (force: n_d x 2, the held force's layout) lies in its authority set
-  // (controllers/authority.py, AuthoritySet.inside with no tolerance, the same operations in the same order), from
-  // the set's constants (AuthoritySet.compiled_constants, `length` numbers). False for a force that is not finite.
-  bool authority_inside(const double * constants, const double * force);
-  // Whether `length` numbers are an authority set's constants for n_d drones.
-  bool authority_fits(const double * constants, long length, int n_d);
+  // Whether every drone's force (force: n_d x 2, the held force's layout) lies in its authority set, the drones at
+  // their rolls in q (thesis coordinates) (controllers/authority.py, AuthoritySet.inside with no tolerance, the same
+  // operations in the same order), from the set's constants (AuthoritySet.compiled_constants, `length` numbers).
+  // False for a force that is not finite.
+  bool authority_inside(const double * constants, const double * force, const double * q);
+  // Whether `length` numbers are an authority set's constants for n_d drones whose rolls are among n coordinates.
+  bool authority_fits(const double * constants, long length, int n_d, int n);
 
   Outer * outer_new(Minimal * point, const double * constants, long length, int n, std::string & error);
   void outer_delete(Outer * outer);

@@ -98,15 +98,23 @@ namespace fpr_native
   };
 
   // The authority set's constants (AuthoritySet.compiled_constants): a header of AUTHORITY_HEAD numbers, then
-  // AUTHORITY_DRONE per drone.
-  const int AUTHORITY_HEAD = 6, AUTHORITY_DRONE = 11;
+  // AUTHORITY_DRONE per drone (its mass, offset, roll inertia, the rotors' a and b, the index of its roll in q).
+  const int AUTHORITY_HEAD = 6, AUTHORITY_DRONE = 12;
 
-  bool authority_fits(const double * constants, long length, int n_d)
+  bool authority_fits(const double * constants, long length, int n_d, int n)
   {
-    return length >= AUTHORITY_HEAD && constants[0] == n_d && length == AUTHORITY_HEAD + AUTHORITY_DRONE * n_d;
+    if (length < AUTHORITY_HEAD || constants[0] != n_d || length != AUTHORITY_HEAD + AUTHORITY_DRONE * n_d)
+      return false;
+    for (int i = 0; i < n_d; ++i)
+    {
+      const double roll = constants[AUTHORITY_HEAD + AUTHORITY_DRONE * i + 11];
+      if (!(roll >= 0.0 && roll < n && roll == std::floor(roll)))
+        return false;
+    }
+    return true;
   }
 
-  bool authority_inside(const double * k, const double * force)
+  bool authority_inside(const double * k, const double * force, const double * q)
   {
     const int n_d = (int)k[0];
     const double lower = k[1], upper = k[2], gravity = k[3], kp = k[4], max_tilt = k[5];
@@ -128,9 +136,10 @@ namespace fpr_native
           out = std::min(out, std::min(z - lower, upper - z) / std::fabs(b[j]));
       }
       const double limit = within ? out : -std::fabs(out);
-      // torque_needed: holding the tilt at rest, and turning back at the chain loop's rate
+      // torque_needed: holding the tilt at rest, and turning there from the drone's roll at the chain loop's rate
       const double tilt = std::atan2(-fy, fz);
-      const double needed = drone[0] * gravity * drone[1] * std::fabs(std::sin(tilt)) + drone[2] * kp * std::fabs(tilt);
+      const double turn = remainder_floored(tilt - q[(int)drone[11]] + M_PI, 2 * M_PI) - M_PI;
+      const double needed = drone[0] * gravity * drone[1] * std::fabs(std::sin(tilt)) + drone[2] * kp * std::fabs(turn);
       if (!(limit - needed >= 0.0) || !(max_tilt - std::fabs(tilt) >= 0.0))
         return false;
     }
