@@ -71,8 +71,7 @@ class AuthoritySet:
     Attributes:
         limited: whether the last :meth:`hold` changed the force.
         from_roll: :meth:`hold` counts each drone's turn from its measured roll (True, the default) or from upright
-            (False: the set as it was first made, for comparison; the native loop tests the set of the roll, so
-            run such a flight with ``fpr._native.switched(loop=False)``).
+            (False: the set as it was first made, for comparison; the native loop's test follows it).
     """
 
     def __init__(self, controller):
@@ -117,11 +116,10 @@ class AuthoritySet:
         and turns it there from its roll ``roll`` (n_d,) [rad] at the chain loop's rate (module docstring);
         ``roll`` None: from upright.
         """
-        force = np.asarray(force, dtype=float)
-        tilt = np.arctan2(-force[:, 0], force[:, 1])  # (2.20)
-        turn = tilt if roll is None else np.remainder(tilt - np.asarray(roll, dtype=float) + np.pi, _TWO_PI) - np.pi
+        tilt = _tilt(force)
         kp, _ = self.controller.settings.chain_gains
-        return self.mass * self.gravity * self.offset * np.abs(np.sin(tilt)) + self.inertia * kp * np.abs(turn)
+        hold = self.mass * self.gravity * self.offset * np.abs(np.sin(tilt))
+        return hold + self.inertia * kp * np.abs(_turn(tilt, roll))
 
     def slack(self, force, roll=None) -> np.ndarray:
         """tau_max(|F_i|) - the torque needed (n_d,) [N m] (:meth:`torque_needed`, the drones at ``roll``): >= 0
@@ -134,8 +132,7 @@ class AuthoritySet:
         """pi/2 - m_ga - |phi_i| (n_d,) [rad]: >= 0 where the tilt of each drone's ``force`` (n_d, 2) [N] is within
         the plan's roll bound (a drone turned upside down needs little torque to hold, but cannot carry the chain).
         """
-        force = np.asarray(force, dtype=float)
-        return self.max_tilt - np.abs(np.arctan2(-force[:, 0], force[:, 1]))
+        return self.max_tilt - np.abs(_tilt(force))
 
     def inside(self, force, tolerance: float = 0.0, roll=None) -> np.ndarray:
         """Per drone: its ``force`` (n_d, 2) [N] in its set, the drones at ``roll`` (n_d,) [rad] (None: upright),
@@ -147,15 +144,15 @@ class AuthoritySet:
         """The set's numbers for the native closed loop's test of :meth:`inside` (``fpr/_native/cpp/outer.cpp``'s
         ``authority_inside``, the same operations in the same order), which hands an outer-loop update whose force
         leaves a set back to :meth:`hold`: n_d, the bounds of w^2, g, the chain loop's K_p, the tilt bound, then per
-        drone its mass, offset, roll inertia, the four rotors' a_i and b_i and the index of its roll in q; None when
-        the set does not act
-        (a robot kind whose thrust vectors are not planar).
+        drone its mass, offset, roll inertia, the four rotors' a_i and b_i and the index of its roll in q (-1: the
+        turn counted from upright, :attr:`from_roll` False); None when the set does not act (a robot kind whose
+        thrust vectors are not planar).
         """
         if not self.active:
             return None
         kp, _ = self.controller.settings.chain_gains
         head = [len(self.mass), self._lower, self._upper, self.gravity, kp, self.max_tilt]
-        rolls = np.asarray(self.controller.rolls, dtype=float)
+        rolls = np.asarray(self.controller.rolls if self.from_roll else np.full(len(self.mass), -1), dtype=float)
         drones = np.column_stack([self.mass, self.offset, self.inertia, self._a, self._b, rolls])
         return np.ascontiguousarray(np.concatenate([head, drones.reshape(-1)]), dtype=float)
 
@@ -166,8 +163,8 @@ class AuthoritySet:
         not move), in the same units.
         """
         force = np.asarray(force, dtype=float)
-        tilt = np.arctan2(-force[:, 0], force[:, 1])  # (2.20)
-        turn = tilt if roll is None else np.remainder(tilt - roll + np.pi, _TWO_PI) - np.pi
+        tilt = _tilt(force)
+        turn = _turn(tilt, roll)
         kp, _ = self.controller.settings.chain_gains
         hold = (self.mass * self.gravity * self.offset * np.sin(tilt))[:, None] * np.array([1.0, 1.0, -1.0, -1.0])
         hold += (self.inertia * kp * turn)[:, None] * np.array([1.0, -1.0, 1.0, -1.0])  # (n_d, 4): the signs
@@ -217,6 +214,19 @@ class AuthoritySet:
             return wanted
         self.limited = True
         return held
+
+
+def _tilt(force) -> np.ndarray:
+    """The tilt phi(F_i) (n_d,) [rad] of each drone's ``force`` (n_d, 2) [N] (2.20)."""
+    force = np.asarray(force, dtype=float)
+    return np.arctan2(-force[:, 0], force[:, 1])
+
+
+def _turn(tilt, roll) -> np.ndarray:
+    """The turn (n_d,) [rad] from each drone's ``roll`` (n_d,) to ``tilt``, the shortest angle; ``roll`` None: from
+    upright (the tilt itself).
+    """
+    return tilt if roll is None else np.remainder(tilt - np.asarray(roll, dtype=float) + np.pi, _TWO_PI) - np.pi
 
 
 __all__ = ["AuthoritySet"]

@@ -8,7 +8,6 @@ from helpers import gust_flight, turned
 
 from controllers import authority
 from controllers.ctc import CascadedController, ControllerSettings
-from fpr import _native as native
 from fpr.robustness.outcomes import fly_event
 from fpr.sim.closed_loop import SimulationSettings
 from planners.missions.events import GustEvent
@@ -163,7 +162,7 @@ def test_pushes_on_a_drone_held_with_the_turn_from_its_roll(name, gust, monkeypa
         init(self, controller)
         self.from_roll = False
 
-    with monkeypatch.context() as patch, native.switched(loop=False):  # the native loop tests the set of the roll
+    with monkeypatch.context() as patch:
         patch.setattr(authority.AuthoritySet, "__init__", upright)
         before = fly_event(flight, robot, settings, gust)
     assert before["lost"] and not before["success"]

@@ -173,7 +173,8 @@ namespace fpr_native
   // operations in the same order), from the set's constants (AuthoritySet.compiled_constants, `length` numbers).
   // False for a force that is not finite.
   bool authority_inside(const double * constants, const double * force, const double * q);
-  // Whether `length` numbers are an authority set's constants for n_d drones whose rolls are among n coordinates.
+  // Whether `length` numbers are an authority set's constants for n_d drones whose rolls are among n coordinates
+  // (or -1: the turn counted from upright).
   bool authority_fits(const double * constants, long length, int n_d, int n);
 
   Outer * outer_new(Minimal * point, const double * constants, long length, int n, std::string & error);

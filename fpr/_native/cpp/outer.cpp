@@ -98,7 +98,8 @@ namespace fpr_native
   };
 
   // The authority set's constants (AuthoritySet.compiled_constants): a header of AUTHORITY_HEAD numbers, then
-  // AUTHORITY_DRONE per drone (its mass, offset, roll inertia, the rotors' a and b, the index of its roll in q).
+  // AUTHORITY_DRONE per drone (its mass, offset, roll inertia, the rotors' a and b, the index of its roll in q, or
+  // -1: the turn counted from upright).
   const int AUTHORITY_HEAD = 6, AUTHORITY_DRONE = 12;
 
   bool authority_fits(const double * constants, long length, int n_d, int n)
@@ -108,7 +109,7 @@ namespace fpr_native
     for (int i = 0; i < n_d; ++i)
     {
       const double roll = constants[AUTHORITY_HEAD + AUTHORITY_DRONE * i + 11];
-      if (!(roll >= 0.0 && roll < n && roll == std::floor(roll)))
+      if (!(roll >= -1.0 && roll < n && roll == std::floor(roll)))
         return false;
     }
     return true;
@@ -138,7 +139,8 @@ namespace fpr_native
       const double limit = within ? out : -std::fabs(out);
       // torque_needed: holding the tilt at rest, and turning there from the drone's roll at the chain loop's rate
       const double tilt = std::atan2(-fy, fz);
-      const double turn = remainder_floored(tilt - q[(int)drone[11]] + M_PI, 2 * M_PI) - M_PI;
+      const int roll = (int)drone[11];
+      const double turn = roll < 0 ? tilt : remainder_floored(tilt - q[roll] + M_PI, 2 * M_PI) - M_PI;
       const double needed = drone[0] * gravity * drone[1] * std::fabs(std::sin(tilt)) + drone[2] * kp * std::fabs(turn);
       if (!(limit - needed >= 0.0) || !(max_tilt - std::fabs(tilt) >= 0.0))
         return false;
